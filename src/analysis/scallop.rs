@@ -1,0 +1,308 @@
+//! Scallops: the cusps left between neighbouring tool passes and their height above
+//! the local cut bottoms.
+//!
+//! Along each azimuth row the field records which pass left every sample, so the
+//! row splits into segments cut by one pass each. A cusp is where two neighbouring
+//! segments meet; it is a kink that sampling alone would clip (by up to slope × pitch),
+//! so its position and height come from intersecting quadratics fitted to the last
+//! samples on either side (each side is a smooth arc). A segment's bottom is its lowest
+//! sample refined by a parabola through its neighbours. The scallop height of a cusp is
+//! its height above the straight line joining the two neighbouring bottoms, so a form
+//! tilt (e.g. from a decentre) does not count as scallop.
+
+use crate::field::{DexelField, NO_PASS, PolarGrid};
+
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Cusp {
+    pub azimuth: u32,
+    /// Position along the meridian (mm).
+    pub arc_length_mm: f64,
+    /// Deviation at the cusp (mm, + = above nominal).
+    pub depth_mm: f64,
+    /// Height above the line joining the neighbouring bottoms (mm).
+    pub scallop_mm: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ScallopStats {
+    pub max_nm: f64,
+    pub mean_nm: f64,
+    pub min_nm: f64,
+    /// Interior cusps measured (cusps next to the row ends or uncut samples are left out).
+    pub count: usize,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScallopAnalysis {
+    pub cusps: Vec<Cusp>,
+    /// Per sample: the scallop height interpolated between the row's cusps (mm).
+    pub map_mm: Vec<f64>,
+    /// `None` when the grid does not resolve the scallops (see `resolution_note`).
+    pub stats: Option<ScallopStats>,
+    /// Why the statistics are missing, if they are.
+    pub resolution_note: Option<String>,
+}
+
+/// Fewest samples a pass's segment needs, on median, for cusp fits to be trusted.
+const MIN_SAMPLES_PER_SEGMENT: f64 = 3.0;
+
+pub fn analyse_scallops(grid: &PolarGrid, field: &DexelField) -> ScallopAnalysis {
+    let mut cusps = Vec::new();
+    let mut map_mm = vec![0.0; grid.sample_count()];
+    let mut segment_lengths = Vec::new();
+    for azimuth in 0..grid.azimuths {
+        let (depths, passes) = field.row(grid, azimuth);
+        let segments = segments(passes);
+        segment_lengths.extend(segments.iter().map(|s| s.end - s.start));
+        let row_cusps = row_cusps(grid, azimuth, depths, passes, &segments);
+        let start = grid.sample_index(0, azimuth);
+        fill_row_map(
+            grid,
+            &row_cusps,
+            &mut map_mm[start..start + grid.ring_count()],
+        );
+        cusps.extend(row_cusps);
+    }
+
+    segment_lengths.sort_unstable();
+    let median = segment_lengths
+        .get(segment_lengths.len() / 2)
+        .copied()
+        .unwrap_or(0) as f64;
+    let resolution_note = if cusps.is_empty() {
+        Some("no interior cusps: the cut has fewer than three passes across any row".to_string())
+    } else if median < MIN_SAMPLES_PER_SEGMENT {
+        Some(format!(
+            "the grid does not resolve the scallops: a pass spans {median} samples (median), at least {MIN_SAMPLES_PER_SEGMENT} are needed; reduce grid.pitch_um"
+        ))
+    } else {
+        None
+    };
+    let stats = resolution_note.is_none().then(|| {
+        let heights = cusps.iter().map(|c| c.scallop_mm * 1e6);
+        ScallopStats {
+            max_nm: heights.clone().fold(f64::NEG_INFINITY, f64::max),
+            min_nm: heights.clone().fold(f64::INFINITY, f64::min),
+            mean_nm: heights.sum::<f64>() / cusps.len() as f64,
+            count: cusps.len(),
+        }
+    });
+    ScallopAnalysis {
+        cusps,
+        map_mm,
+        stats,
+        resolution_note,
+    }
+}
+
+/// A run of samples `start..end` left by one pass (`pass == NO_PASS` for uncut runs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Segment {
+    start: usize,
+    end: usize,
+    pass: u32,
+}
+
+fn segments(passes: &[u32]) -> Vec<Segment> {
+    let mut out: Vec<Segment> = Vec::new();
+    for (i, &pass) in passes.iter().enumerate() {
+        match out.last_mut() {
+            Some(segment) if segment.pass == pass => segment.end = i + 1,
+            _ => out.push(Segment {
+                start: i,
+                end: i + 1,
+                pass,
+            }),
+        }
+    }
+    out
+}
+
+/// Cusps between interior neighbouring segments of one row.
+fn row_cusps(
+    grid: &PolarGrid,
+    azimuth: u32,
+    depths: &[f64],
+    passes: &[u32],
+    segments: &[Segment],
+) -> Vec<Cusp> {
+    let s = |i: usize| grid.rings[i].arc_length_mm;
+    let bottoms: Vec<(f64, f64)> = segments
+        .iter()
+        .map(|seg| bottom(grid, depths, *seg))
+        .collect();
+    let mut cusps = Vec::new();
+    // Interior: both neighbours and their own outer neighbours are cut segments, so
+    // neither bottom is a truncated run at a row end or beside an uncut patch.
+    for i in 1..segments.len().saturating_sub(2) {
+        let window = &segments[i - 1..i + 3];
+        if window.iter().any(|seg| seg.pass == NO_PASS) {
+            continue;
+        }
+        let (left, right) = (segments[i], segments[i + 1]);
+        debug_assert_ne!(passes[left.start], passes[right.start]);
+        let left_fit = Quadratic::through(
+            grid,
+            depths,
+            left.end.saturating_sub(FIT_POINTS).max(left.start)..left.end,
+        );
+        let right_fit = Quadratic::through(
+            grid,
+            depths,
+            right.start..(right.start + FIT_POINTS).min(right.end),
+        );
+        let (a, b) = (s(left.end - 1), s(right.start));
+        let (at, depth) = cusp_between(&left_fit, &right_fit, a, b);
+        let ((s_left, bottom_left), (s_right, bottom_right)) = (bottoms[i], bottoms[i + 1]);
+        let base = bottom_left + (bottom_right - bottom_left) * (at - s_left) / (s_right - s_left);
+        cusps.push(Cusp {
+            azimuth,
+            arc_length_mm: at,
+            depth_mm: depth,
+            scallop_mm: depth - base,
+        });
+    }
+    cusps
+}
+
+/// (arc length, depth) of a segment's lowest point.
+fn bottom(grid: &PolarGrid, depths: &[f64], segment: Segment) -> (f64, f64) {
+    let lowest = (segment.start..segment.end)
+        .min_by(|&a, &b| depths[a].total_cmp(&depths[b]))
+        .unwrap_or(segment.start);
+    let s = grid.rings[lowest].arc_length_mm;
+    if lowest == segment.start || lowest + 1 == segment.end {
+        return (s, depths[lowest]);
+    }
+    // Parabola vertex through the lowest sample and its two neighbours (even pitch).
+    let (left, mid, right) = (depths[lowest - 1], depths[lowest], depths[lowest + 1]);
+    let curvature = left - 2.0 * mid + right;
+    if curvature <= 0.0 {
+        return (s, mid);
+    }
+    let shift = 0.5 * (left - right) / curvature;
+    (
+        s + shift * grid.pitch_mm,
+        mid - 0.125 * (left - right) * (left - right) / curvature,
+    )
+}
+
+/// Least-squares quadratic (or lower, with fewer points) through up to `FIT_POINTS`
+/// samples of one pass, in x = (s − origin)/pitch so the normal equations stay well
+/// conditioned. More than three points average out the GPU's f32 steps; each side of a
+/// cusp is a smooth arc, so the extra reach costs no accuracy.
+struct Quadratic {
+    origin: f64,
+    scale: f64,
+    coefficients: [f64; 3],
+}
+
+/// Samples per side used in a cusp fit.
+const FIT_POINTS: usize = 5;
+
+impl Quadratic {
+    fn through(grid: &PolarGrid, depths: &[f64], range: std::ops::Range<usize>) -> Self {
+        let origin = grid.rings[range.start].arc_length_mm;
+        let scale = grid.pitch_mm;
+        let points: Vec<(f64, f64)> = range
+            .map(|i| ((grid.rings[i].arc_length_mm - origin) / scale, depths[i]))
+            .collect();
+        let order = points.len().min(3);
+        // Normal equations Σ x^(i+j) c_j = Σ x^i y for the first `order` powers.
+        let mut matrix = [[0.0; 3]; 3];
+        let mut rhs = [0.0; 3];
+        for &(x, y) in &points {
+            let powers = [1.0, x, x * x];
+            for i in 0..order {
+                rhs[i] += powers[i] * y;
+                for j in 0..order {
+                    matrix[i][j] += powers[i] * powers[j];
+                }
+            }
+        }
+        Self {
+            origin,
+            scale,
+            coefficients: solve(matrix, rhs, order),
+        }
+    }
+
+    fn eval(&self, s: f64) -> f64 {
+        let x = (s - self.origin) / self.scale;
+        self.coefficients[0] + x * (self.coefficients[1] + x * self.coefficients[2])
+    }
+}
+
+/// Solves the leading `order`×`order` block of a small symmetric system (Gaussian
+/// elimination; the fits' systems are well conditioned by construction).
+fn solve(mut matrix: [[f64; 3]; 3], mut rhs: [f64; 3], order: usize) -> [f64; 3] {
+    for pivot in 0..order {
+        for row in pivot + 1..order {
+            let factor = matrix[row][pivot] / matrix[pivot][pivot];
+            let pivot_row = matrix[pivot];
+            for (entry, pivot_entry) in matrix[row][pivot..order]
+                .iter_mut()
+                .zip(&pivot_row[pivot..order])
+            {
+                *entry -= factor * pivot_entry;
+            }
+            rhs[row] -= factor * rhs[pivot];
+        }
+    }
+    let mut solution = [0.0; 3];
+    for row in (0..order).rev() {
+        let known: f64 = (row + 1..order).map(|c| matrix[row][c] * solution[c]).sum();
+        solution[row] = (rhs[row] - known) / matrix[row][row];
+    }
+    solution
+}
+
+/// The cusp between a and b: the highest point of the lower envelope min(left, right)
+/// of the two fits, which is where they cross, or an end of [a, b] when sampling noise
+/// (e.g. the GPU's f32 steps) moves their crossing just outside it. Returns (s, depth).
+fn cusp_between(left: &Quadratic, right: &Quadratic, a: f64, b: f64) -> (f64, f64) {
+    let envelope = |s: f64| left.eval(s).min(right.eval(s));
+    let difference = |s: f64| left.eval(s) - right.eval(s);
+    let (mut lo, mut hi) = (a, b);
+    let sign_lo = difference(lo).signum();
+    if sign_lo == difference(hi).signum() {
+        return if envelope(a) >= envelope(b) {
+            (a, envelope(a))
+        } else {
+            (b, envelope(b))
+        };
+    }
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if difference(mid).signum() == sign_lo {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let at = 0.5 * (lo + hi);
+    (at, envelope(at))
+}
+
+/// Scallop height along a row: linear between cusps, held flat beyond the first/last.
+fn fill_row_map(grid: &PolarGrid, cusps: &[Cusp], row: &mut [f64]) {
+    if cusps.is_empty() {
+        return;
+    }
+    let mut next = 0;
+    for (i, value) in row.iter_mut().enumerate() {
+        let s = grid.rings[i].arc_length_mm;
+        while next < cusps.len() && cusps[next].arc_length_mm < s {
+            next += 1;
+        }
+        *value = if next == 0 {
+            cusps[0].scallop_mm
+        } else if next == cusps.len() {
+            cusps[cusps.len() - 1].scallop_mm
+        } else {
+            let (a, b) = (cusps[next - 1], cusps[next]);
+            let t = (s - a.arc_length_mm) / (b.arc_length_mm - a.arc_length_mm);
+            a.scallop_mm + t * (b.scallop_mm - a.scallop_mm)
+        };
+    }
+}

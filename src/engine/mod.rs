@@ -1,0 +1,47 @@
+//! Material removal: one trait, two engines with the same semantics — `cpu` (f64,
+//! the reference) and `gpu` (WGSL compute through wgpu, f32 in local frames).
+
+pub mod cpu;
+pub mod gpu;
+pub mod scene;
+
+pub use scene::TurningScene;
+
+use crate::field::DexelField;
+
+/// What ran a removal: recorded in every output.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct EngineInfo {
+    /// "cpu" or "gpu".
+    pub kind: String,
+    /// Adapter name (GPU) or processor description (CPU).
+    pub adapter: String,
+    pub backend: String,
+    pub driver: String,
+    /// e.g. "DiscreteGpu", "Cpu" (a software rasteriser such as lavapipe), "host".
+    pub device_type: String,
+}
+
+/// Progress callback: `(samples finished, samples in total)`.
+pub type Progress<'a> = &'a (dyn Fn(u64, u64) + Sync);
+
+#[derive(Debug)]
+pub struct EngineError(pub String);
+
+impl std::fmt::Display for EngineError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for EngineError {}
+
+pub trait RemovalEngine {
+    fn info(&self) -> EngineInfo;
+    /// Removes material for every sample of the scene's grid.
+    fn remove(
+        &mut self,
+        scene: &TurningScene,
+        progress: Progress<'_>,
+    ) -> Result<DexelField, EngineError>;
+}

@@ -1,0 +1,8 @@
+//! Nominal surfaces and tools: pure f64 geometry, no knowledge of processes or GPUs.
+
+pub mod cutter;
+pub mod surface;
+pub mod tool;
+
+pub use surface::{Form, MeridianArcLength, SurfaceOfRevolution};
+pub use tool::ArcNoseTool;

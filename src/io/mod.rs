@@ -1,0 +1,10 @@
+//! Files in and out: job TOML, EXR/PNG/CSV/JSON writers. Every writer goes through
+//! `atomic` (temp name, then rename).
+
+pub mod atomic;
+pub mod colour;
+pub mod exr_io;
+pub mod font;
+pub mod job;
+pub mod outputs;
+pub mod png_out;

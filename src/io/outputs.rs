@@ -1,0 +1,386 @@
+//! Everything a run writes into its output folder (each file via temp + rename):
+//!
+//! | file | what |
+//! | --- | --- |
+//! | `surface.exr` | top view, f32 channels `deviation_nm`, `height_mm`, `scallop_nm`, `valid`; metadata |
+//! | `polar.exr` | the native field: one row per azimuth, one column per ring; `deviation_nm`, `scallop_nm`, `pass` |
+//! | `deviation.png` | 16-bit grey top view of the deviation; scale in its text chunks and in `summary.json` |
+//! | `deviation_colour.png` | false-colour deviation with colour bar, for people |
+//! | `scallop_colour.png` | false-colour scallop height with colour bar |
+//! | `radial_profile.csv` | per ring: r, s, z, deviation on azimuth 0, mean/min/max over azimuths, scallop |
+//! | `summary.json` | schema `toolmark.summary/1` (README) |
+//! | `job.resolved.toml` | the job with every default filled in |
+
+use super::atomic::write_bytes_atomically;
+use super::colour::ColourMap;
+use super::exr_io::{ExrImage, write_exr};
+use super::png_out::{FalseColourPlot, write_false_colour_png, write_png16_gray};
+use crate::analysis::{Raster, top_view};
+use crate::field::NO_PASS;
+use crate::run::RunResult;
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::io;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub const SUMMARY_SCHEMA: &str = "toolmark.summary/1";
+
+/// Writes all outputs of a run into `dir` and returns the paths written.
+pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
+    let started = Instant::now();
+    std::fs::create_dir_all(dir)?;
+    let grid = result.grid();
+    let pixels = result.job.map_pixels as usize;
+
+    // Per-sample quantities in report units, then their top views.
+    let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
+    let scallop_nm: Vec<f64> = result.scallops.map_mm.iter().map(|d| d * 1e6).collect();
+    // The machined height: nominal z plus the normal offset seen along Z.
+    let rings = grid.ring_count();
+    let height_mm: Vec<f64> = result
+        .field
+        .depth_mm
+        .iter()
+        .enumerate()
+        .map(|(sample, depth)| {
+            let ring = &grid.rings[sample % rings];
+            ring.height_mm + depth / ring.normal.y
+        })
+        .collect();
+    let deviation_map = top_view(grid, &deviation_nm, pixels);
+    let scallop_map = top_view(grid, &scallop_nm, pixels);
+    let height_map = top_view(grid, &height_mm, pixels);
+
+    let attributes = common_attributes(result, &deviation_map);
+    let mut written = Vec::new();
+    let mut file = |name: &str| {
+        let path = dir.join(name);
+        written.push(path.clone());
+        path
+    };
+
+    let valid_channel: Vec<f32> = deviation_map
+        .valid
+        .iter()
+        .map(|&v| v as u8 as f32)
+        .collect();
+    write_exr(
+        &file("surface.exr"),
+        &ExrImage {
+            width: pixels,
+            height: pixels,
+            channels: vec![
+                ("deviation_nm".into(), deviation_map.values.clone()),
+                ("height_mm".into(), height_map.values.clone()),
+                ("scallop_nm".into(), scallop_map.values.clone()),
+                ("valid".into(), valid_channel),
+            ],
+            attributes: attributes.clone(),
+        },
+    )?;
+
+    let mut polar_attributes = attributes.clone();
+    polar_attributes.insert(
+        "frame".into(),
+        format!(
+            "polar: column i = ring at meridian arc length {:.9} + i × {:.9} mm from the axis; row j = azimuth 360°·j/{} (counter-clockwise from +X seen from +Z)",
+            grid.rings[0].arc_length_mm, grid.pitch_mm, grid.azimuths
+        ),
+    );
+    polar_attributes.remove("pixel_pitch_mm");
+    polar_attributes.insert(
+        "units".into(),
+        "deviation_nm: nm along the outward normal, + = material left; scallop_nm: nm; pass: revolution·2 + branch (−1 = uncut)".into(),
+    );
+    write_exr(
+        &file("polar.exr"),
+        &ExrImage {
+            width: rings,
+            height: grid.azimuths as usize,
+            channels: vec![
+                (
+                    "deviation_nm".into(),
+                    deviation_nm.iter().map(|&v| v as f32).collect(),
+                ),
+                (
+                    "scallop_nm".into(),
+                    scallop_nm.iter().map(|&v| v as f32).collect(),
+                ),
+                (
+                    "pass".into(),
+                    result
+                        .field
+                        .pass
+                        .iter()
+                        .map(|&p| if p == NO_PASS { -1.0 } else { p as f32 })
+                        .collect(),
+                ),
+            ],
+            attributes: polar_attributes,
+        },
+    )?;
+
+    let png_scale = write_deviation_png16(&file("deviation.png"), &deviation_map, &attributes)?;
+    let stats = &result.deviation;
+    // Diverging colours centred on the map's mean (white), so form shows even when the
+    // whole surface sits above nominal; the bar is labelled in true deviation values.
+    let (low, high, mean) = valid_range(&deviation_map);
+    let half_range = (high - mean).max(mean - low);
+    let footer = format!(
+        "PV {:.1} nm  RMS {:.1} nm  white = mean {mean:.2} nm  {} engine",
+        stats.pv_nm, stats.rms_nm, result.engine.kind
+    );
+    write_false_colour_png(
+        &file("deviation_colour.png"),
+        &FalseColourPlot {
+            values: &deviation_map.values,
+            valid: &deviation_map.valid,
+            width: pixels as u32,
+            height: pixels as u32,
+            range: (mean - half_range, mean + half_range),
+            colour_map: ColourMap::Diverging,
+            title: &format!("{}: deviation", result.job.name),
+            unit_label: "deviation (nm)",
+            footer: &footer,
+        },
+        &png_text(&attributes),
+    )?;
+    let scallop_footer = match &result.scallops.stats {
+        Some(s) => format!("scallop max {:.1} nm  mean {:.1} nm", s.max_nm, s.mean_nm),
+        None => "scallops not resolved by the grid".to_string(),
+    };
+    let (scallop_low, scallop_high, _) = valid_range(&scallop_map);
+    write_false_colour_png(
+        &file("scallop_colour.png"),
+        &FalseColourPlot {
+            values: &scallop_map.values,
+            valid: &scallop_map.valid,
+            width: pixels as u32,
+            height: pixels as u32,
+            range: (scallop_low, scallop_high),
+            colour_map: ColourMap::Sequential,
+            title: &format!("{}: scallop height", result.job.name),
+            unit_label: "scallop (nm)",
+            footer: &scallop_footer,
+        },
+        &png_text(&attributes),
+    )?;
+
+    write_bytes_atomically(
+        &file("radial_profile.csv"),
+        radial_profile_csv(result).as_bytes(),
+    )?;
+    let resolved = toml::to_string_pretty(&result.job.resolved).map_err(io::Error::other)?;
+    write_bytes_atomically(
+        &file("job.resolved.toml"),
+        format!(
+            "# {} — resolved by toolmark {}\n{resolved}",
+            result.job.name,
+            env!("CARGO_PKG_VERSION")
+        )
+        .as_bytes(),
+    )?;
+
+    let output_s = started.elapsed().as_secs_f64();
+    let summary = summary_json(result, &deviation_map, png_scale, output_s);
+    let text = serde_json::to_string_pretty(&summary).map_err(io::Error::other)?;
+    write_bytes_atomically(&file("summary.json"), text.as_bytes())?;
+    Ok(written)
+}
+
+/// Metadata stored in every EXR and PNG.
+fn common_attributes(result: &RunResult, map: &Raster) -> BTreeMap<String, String> {
+    let engine = &result.engine;
+    BTreeMap::from([
+        ("toolmark_version".into(), env!("CARGO_PKG_VERSION").into()),
+        ("job_name".into(), result.job.name.clone()),
+        ("job_hash".into(), result.job.hash()),
+        ("engine".into(), engine.kind.clone()),
+        ("adapter".into(), engine.adapter.clone()),
+        ("backend".into(), engine.backend.clone()),
+        ("driver".into(), engine.driver.clone()),
+        ("pixel_pitch_mm".into(), format!("{:.9}", map.pitch_mm)),
+        (
+            "frame".into(),
+            format!(
+                "workpiece top view from +Z (the spindle axis, toward the tool): origin on the axis, column 0 at x = −{0:.6} mm, row 0 at y = +{0:.6} mm, pixel centres every pixel_pitch_mm",
+                map.half_width_mm
+            ),
+        ),
+        (
+            "units".into(),
+            "deviation_nm: nm along the outward surface normal, + = material left; height_mm: machined surface height along +Z in mm; scallop_nm: cusp height above the local cut bottoms in nm; valid: 1 inside the simulated aperture".into(),
+        ),
+    ])
+}
+
+/// (min, max, mean) of a raster's valid pixels; zeros when none is valid.
+fn valid_range(map: &Raster) -> (f32, f32, f32) {
+    let (mut low, mut high, mut sum, mut count) =
+        (f32::INFINITY, f32::NEG_INFINITY, 0.0f64, 0usize);
+    for (&value, _) in map
+        .values
+        .iter()
+        .zip(&map.valid)
+        .filter(|(_, valid)| **valid)
+    {
+        low = low.min(value);
+        high = high.max(value);
+        sum += value as f64;
+        count += 1;
+    }
+    if count == 0 {
+        return (0.0, 0.0, 0.0);
+    }
+    (low, high, (sum / count as f64) as f32)
+}
+
+fn png_text(attributes: &BTreeMap<String, String>) -> Vec<(String, String)> {
+    attributes
+        .iter()
+        .map(|(k, v)| (k.clone(), v.clone()))
+        .collect()
+}
+
+/// The linear map of the 16-bit PNG: deviation_nm = offset_nm + (value − 1) × scale_nm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Png16Scale {
+    pub offset_nm: f64,
+    pub scale_nm_per_count: f64,
+}
+
+fn write_deviation_png16(
+    path: &Path,
+    map: &Raster,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<Png16Scale> {
+    let (min, max, _) = valid_range(map);
+    let (min, max) = (min as f64, max as f64);
+    let scale = Png16Scale {
+        offset_nm: min,
+        scale_nm_per_count: if max > min {
+            (max - min) / 65534.0
+        } else {
+            1.0
+        },
+    };
+    // 0 marks pixels outside the aperture; valid pixels use 1..=65535.
+    let samples: Vec<u16> = map
+        .values
+        .iter()
+        .zip(&map.valid)
+        .map(|(&v, &valid)| {
+            if valid {
+                1 + ((v as f64 - scale.offset_nm) / scale.scale_nm_per_count).round() as u16
+            } else {
+                0
+            }
+        })
+        .collect();
+    let mut text = png_text(attributes);
+    text.push((
+        "deviation_offset_nm".into(),
+        format!("{:.6}", scale.offset_nm),
+    ));
+    text.push((
+        "deviation_scale_nm_per_count".into(),
+        format!("{:.9e}", scale.scale_nm_per_count),
+    ));
+    text.push((
+        "encoding".into(),
+        "deviation_nm = deviation_offset_nm + (value - 1) * deviation_scale_nm_per_count; value 0 = outside the aperture".into(),
+    ));
+    write_png16_gray(path, map.pixels as u32, map.pixels as u32, &samples, &text)?;
+    Ok(scale)
+}
+
+fn radial_profile_csv(result: &RunResult) -> String {
+    let mut csv = String::from(
+        "# toolmark radial profile; deviation along the outward normal, + = material left\nradius_mm,arc_length_mm,height_mm,deviation_nm,mean_deviation_nm,min_deviation_nm,max_deviation_nm,scallop_nm\n",
+    );
+    for p in &result.profile {
+        let _ = writeln!(
+            csv,
+            "{:.9},{:.9},{:.9},{:.6},{:.6},{:.6},{:.6},{:.6}",
+            p.radius_mm,
+            p.arc_length_mm,
+            p.height_mm,
+            p.deviation_nm,
+            p.mean_nm,
+            p.min_nm,
+            p.max_nm,
+            p.scallop_nm
+        );
+    }
+    csv
+}
+
+fn summary_json(
+    result: &RunResult,
+    map: &Raster,
+    png_scale: Png16Scale,
+    output_s: f64,
+) -> serde_json::Value {
+    let grid = result.grid();
+    let job = &result.job;
+    let scene = &result.scene;
+    let pairs = scene.pair_count();
+    let t = &result.timings;
+    let revolutions = scene.poses.end_angle_rad() / std::f64::consts::TAU;
+    let scallop = match &result.scallops.stats {
+        Some(s) => json!({
+            "max_nm": s.max_nm, "mean_nm": s.mean_nm, "min_nm": s.min_nm, "count": s.count, "note": null
+        }),
+        None => json!({
+            "max_nm": null, "mean_nm": null, "min_nm": null, "count": 0,
+            "note": result.scallops.resolution_note,
+        }),
+    };
+    json!({
+        "schema": SUMMARY_SCHEMA,
+        "toolmark_version": env!("CARGO_PKG_VERSION"),
+        "job_name": job.name,
+        "job_hash": job.hash(),
+        "job": job.resolved,
+        "engine": result.engine,
+        "grid": {
+            "kind": "polar",
+            "rings": grid.ring_count(),
+            "azimuths": grid.azimuths,
+            "samples": grid.sample_count(),
+            "pitch_um": grid.pitch_mm * 1e3,
+            "inner_radius_mm": grid.rings[0].radius_mm,
+            "outer_radius_mm": grid.rings[grid.ring_count() - 1].radius_mm,
+            "meridian_length_mm": grid.rings[grid.ring_count() - 1].arc_length_mm - grid.rings[0].arc_length_mm,
+        },
+        "path": {
+            "revolutions": revolutions,
+            "pose_nodes": scene.poses.poses.len(),
+            "steps_per_rev": scene.poses.steps_per_rev,
+            "feed_per_rev_um": job.spiral.feed_per_rev_mm * 1e3,
+            "machining_time_s": job.spindle_rpm.map(|rpm| revolutions / rpm * 60.0),
+        },
+        "work": {
+            "dexel_pass_pairs": pairs,
+            "pairs_per_second": pairs as f64 / t.removal_s.max(1e-12),
+        },
+        "timings_s": {
+            "prepare": t.prepare_s,
+            "removal": t.removal_s,
+            "analysis": t.analysis_s,
+            "output": output_s,
+            "total": t.prepare_s + t.removal_s + t.analysis_s + output_s,
+        },
+        "deviation": result.deviation,
+        "scallop": scallop,
+        "maps": {
+            "pixels": map.pixels,
+            "pixel_pitch_mm": map.pitch_mm,
+            "png16_offset_nm": png_scale.offset_nm,
+            "png16_scale_nm_per_count": png_scale.scale_nm_per_count,
+        },
+        "warnings": job.warnings,
+    })
+}

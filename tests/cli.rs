@@ -1,0 +1,189 @@
+//! The command line as a user runs it: outputs, summary schema, engine choice.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn toolmark(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_toolmark"));
+    command.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+    for (key, value) in env {
+        command.env(key, value);
+    }
+    command.output().expect("toolmark runs")
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("toolmark-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn summary(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("summary.json")).expect("summary.json written");
+    serde_json::from_str(&text).expect("summary.json is JSON")
+}
+
+#[test]
+fn run_writes_every_output_with_the_documented_summary_schema() {
+    let dir = out_dir("flat");
+    let output = toolmark(
+        &[
+            "run",
+            "examples/flat_facing.toml",
+            "--engine",
+            "cpu",
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    for file in [
+        "surface.exr",
+        "polar.exr",
+        "deviation.png",
+        "deviation_colour.png",
+        "scallop_colour.png",
+        "radial_profile.csv",
+        "summary.json",
+        "job.resolved.toml",
+    ] {
+        assert!(dir.join(file).is_file(), "{file} missing");
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+
+    let s = summary(&dir);
+    assert_eq!(s["schema"], "toolmark.summary/1");
+    assert_eq!(s["engine"]["kind"], "cpu");
+    // Flat facing, R 0.5 mm, f 10 µm: cusps R − √(R² − f²/4) = 25.0006 nm (closed form);
+    // the deviation PV is the cusp height (bottoms touch nominal).
+    let pv = s["deviation"]["pv_nm"].as_f64().unwrap();
+    let scallop = s["scallop"]["max_nm"].as_f64().unwrap();
+    assert!((scallop - 25.0006).abs() < 0.25, "scallop.max_nm {scallop}");
+    assert!((pv - 25.0006).abs() < 0.25, "deviation.pv_nm {pv}");
+    for key in ["rms_nm", "mean_nm"] {
+        assert!(s["deviation"][key].as_f64().is_some(), "deviation.{key}");
+    }
+    assert!(s["scallop"]["mean_nm"].as_f64().is_some());
+    assert!(s["timings_s"]["removal"].as_f64().unwrap() >= 0.0);
+    assert_eq!(s["grid"]["azimuths"], 32);
+    assert_eq!(s["job"]["process"]["feed_per_rev_mm"], 0.01);
+    assert_eq!(s["job_hash"].as_str().unwrap().len(), 16);
+
+    // The EXR carries its metadata and a valid deviation channel.
+    let exr = toolmark::io::exr_io::read_exr(&dir.join("surface.exr")).unwrap();
+    for key in [
+        "units",
+        "pixel_pitch_mm",
+        "frame",
+        "engine",
+        "adapter",
+        "job_hash",
+    ] {
+        assert!(exr.attributes.contains_key(key), "surface.exr lacks {key}");
+    }
+    assert_eq!(exr.attributes["job_hash"], s["job_hash"].as_str().unwrap());
+    let deviation = exr.channel("deviation_nm").unwrap();
+    let valid = exr.channel("valid").unwrap();
+    assert!(deviation.iter().all(|v| v.is_finite()));
+    assert!(valid.iter().filter(|&&v| v == 1.0).count() > deviation.len() / 2);
+}
+
+#[test]
+fn same_job_gives_byte_identical_cpu_maps() {
+    let (a, b) = (out_dir("det-a"), out_dir("det-b"));
+    for dir in [&a, &b] {
+        let output = toolmark(
+            &[
+                "run",
+                "golden/concave_sphere_xzb.toml",
+                "--engine",
+                "cpu",
+                "--out",
+                dir.to_str().unwrap(),
+            ],
+            &[],
+        );
+        assert!(output.status.success());
+    }
+    for file in [
+        "polar.exr",
+        "surface.exr",
+        "deviation.png",
+        "radial_profile.csv",
+    ] {
+        assert_eq!(
+            std::fs::read(a.join(file)).unwrap(),
+            std::fs::read(b.join(file)).unwrap(),
+            "{file} differs between two CPU runs"
+        );
+    }
+}
+
+#[test]
+fn gpu_engine_runs_from_the_cli_and_is_recorded() {
+    let dir = out_dir("gpu");
+    let output = toolmark(
+        &[
+            "run",
+            "examples/flat_facing.toml",
+            "--engine",
+            "gpu",
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        output.status.success(),
+        "the GPU engine must run here (CI: lavapipe): {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let s = summary(&dir);
+    assert_eq!(s["engine"]["kind"], "gpu");
+    assert!(!s["engine"]["adapter"].as_str().unwrap().is_empty());
+}
+
+#[test]
+fn without_an_adapter_auto_falls_back_to_cpu_and_gpu_fails() {
+    // Asking wgpu for a backend this platform lacks leaves it with no adapter.
+    let no_gpu = [("WGPU_BACKEND", "metal")];
+    let dir = out_dir("fallback");
+    let output = toolmark(
+        &[
+            "run",
+            "golden/flat_facing.toml",
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        &no_gpu,
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains("no GPU adapter found"), "{stderr}");
+    assert!(stderr.contains("using the CPU engine"), "{stderr}");
+    assert_eq!(summary(&dir)["engine"]["kind"], "cpu");
+
+    let output = toolmark(
+        &[
+            "run",
+            "golden/flat_facing.toml",
+            "--engine",
+            "gpu",
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        &no_gpu,
+    );
+    assert_eq!(output.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("--engine gpu"));
+}

@@ -1,0 +1,126 @@
+//! Simulated scallop heights against the closed forms of `toolmark::formulas`
+//! (flat: R − √(R² − f²/4), DESIGN §3 / seed 004; spheres: the curvature-corrected
+//! form derived in `formulas::sphere_scallop_height`). Both engines are checked.
+
+mod common;
+use common::*;
+use toolmark::formulas::{
+    flat_scallop_height, sphere_angle_step_for_radial_feed, sphere_scallop_height,
+};
+use toolmark::run::RunResult;
+
+/// Worst relative error of the interior cusps against `expected(cusp arc length)`,
+/// skipping the first and last `margin_mm` of the meridian (lead-in and centre dwell).
+fn worst_relative_error(
+    result: &RunResult,
+    margin_mm: f64,
+    expected: impl Fn(f64) -> f64,
+) -> (f64, usize) {
+    let grid = result.grid();
+    let (low, high) = (
+        grid.rings[0].arc_length_mm + margin_mm,
+        grid.rings[grid.ring_count() - 1].arc_length_mm - margin_mm,
+    );
+    let mut worst = 0.0f64;
+    let mut count = 0;
+    for cusp in result
+        .scallops
+        .cusps
+        .iter()
+        .filter(|c| (low..high).contains(&c.arc_length_mm))
+    {
+        let expected = expected(cusp.arc_length_mm);
+        worst = worst.max((cusp.scallop_mm - expected).abs() / expected);
+        count += 1;
+    }
+    (worst, count)
+}
+
+#[test]
+fn flat_facing_scallop_equals_r_minus_root_within_one_percent() {
+    // (nose radius mm, feed mm): cusps from 2 nm to 1.2 µm.
+    let pairs = [
+        (0.5, 0.01),
+        (0.191, 0.02),
+        (1.0, 0.05),
+        (0.1, 0.004),
+        (2.0, 0.1),
+    ];
+    for (radius, feed) in pairs {
+        let expected = flat_scallop_height(radius, feed);
+        let aperture = 60.0 * feed;
+        let job = turning_job(
+            &format!("kind = \"plane\"\naperture_diameter_mm = {aperture}"),
+            radius,
+            feed,
+            "mode = \"xz\"",
+            &format!("pitch_um = {}\nazimuths = 6", feed * 1e3 / 40.0),
+        );
+        for (engine, result) in [("cpu", run_cpu(job.clone())), ("gpu", run_gpu(job))] {
+            let (worst, count) = worst_relative_error(&result, 3.0 * feed, |_| expected);
+            let stats = result.scallops.stats.expect("scallops resolved");
+            println!(
+                "flat R = {radius} mm, f = {feed} mm [{engine}]: expected {:.4} nm, mean {:.4} nm, worst cusp error {:.4} % over {count} cusps",
+                expected * 1e6,
+                stats.mean_nm,
+                worst * 100.0
+            );
+            assert!(count >= 20, "too few cusps checked: {count}");
+            assert!(
+                worst < 0.01,
+                "R = {radius}, f = {feed} [{engine}]: error {:.3} %",
+                worst * 100.0
+            );
+        }
+    }
+}
+
+#[test]
+fn sphere_scallops_follow_the_curvature_corrected_closed_form_within_two_percent() {
+    // (form, part radius, nose radius, feed, feed along, aperture Ø)
+    let cases = [
+        ("convex", 20.0, 0.5, 0.01, "arc_length", 8.0),
+        ("concave", 10.0, 0.8, 0.012, "arc_length", 8.0),
+        ("convex", 3.0, 0.2, 0.01, "arc_length", 4.0),
+        ("convex", 12.0, 0.5, 0.01, "radial", 16.0),
+    ];
+    for (form, part_radius, tool_radius, feed, along, aperture) in cases {
+        let convex = form == "convex";
+        let job = turning_job(
+            &format!(
+                "kind = \"sphere\"\nform = \"{form}\"\nradius_mm = {part_radius}\naperture_diameter_mm = {aperture}"
+            ),
+            tool_radius,
+            feed,
+            &format!("mode = \"xzb\"\nfeed_along = \"{along}\""),
+            &format!("pitch_um = {}\nazimuths = 4", feed * 1e3 / 30.0),
+        );
+        let flat = flat_scallop_height(tool_radius, feed) * 1e6;
+        let expected = |s: f64| {
+            let step = if along == "arc_length" {
+                feed / part_radius
+            } else {
+                sphere_angle_step_for_radial_feed(
+                    part_radius,
+                    part_radius * (s / part_radius).sin(),
+                    feed,
+                )
+            };
+            sphere_scallop_height(tool_radius, part_radius, step, convex)
+        };
+        for (engine, result) in [("cpu", run_cpu(job.clone())), ("gpu", run_gpu(job))] {
+            let (worst, count) = worst_relative_error(&result, 3.0 * feed, expected);
+            println!(
+                "{form} sphere ρ = {part_radius} mm, R = {tool_radius} mm, f = {feed} mm ({along}) [{engine}]: closed form {:.4} nm at the centre (flat would be {flat:.4} nm), worst cusp error {:.4} % over {count} cusps",
+                expected(0.0) * 1e6,
+                worst * 100.0
+            );
+            assert!(count >= 100, "too few cusps: {count}");
+            assert!(
+                worst < 0.02,
+                "{form} ρ = {part_radius} [{engine}]: {:.3} %",
+                worst * 100.0
+            );
+        }
+    }
+}
