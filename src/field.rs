@@ -103,6 +103,15 @@ pub struct DexelField {
 }
 
 impl DexelField {
+    /// The winning pass of each sample as f32 for image channels: −1 where uncut
+    /// (pass ids stay far below 2²⁴, so f32 holds them exactly).
+    pub fn pass_channel(&self) -> Vec<f32> {
+        self.pass
+            .iter()
+            .map(|&p| if p == NO_PASS { -1.0 } else { p as f32 })
+            .collect()
+    }
+
     pub fn row<'a>(&'a self, grid: &PolarGrid, azimuth: u32) -> (&'a [f64], &'a [u32]) {
         let start = grid.sample_index(0, azimuth);
         let end = start + grid.ring_count();

@@ -5,7 +5,6 @@ mod common;
 use common::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use toolmark::field::NO_PASS;
 use toolmark::io::colour::ColourMap;
 use toolmark::io::exr_io::{ExrImage, read_exr, write_exr};
 use toolmark::io::job::Job;
@@ -35,15 +34,7 @@ fn field_image(result: &RunResult) -> ExrImage {
                     .map(|d| (d * 1e6) as f32)
                     .collect(),
             ),
-            (
-                "pass".into(),
-                result
-                    .field
-                    .pass
-                    .iter()
-                    .map(|&p| if p == NO_PASS { -1.0 } else { p as f32 })
-                    .collect(),
-            ),
+            ("pass".into(), result.field.pass_channel()),
         ],
         attributes: BTreeMap::from([
             ("job_hash".to_string(), result.job.hash()),

@@ -16,7 +16,6 @@ use super::colour::ColourMap;
 use super::exr_io::{ExrImage, write_exr};
 use super::png_out::{FalseColourPlot, write_false_colour_png, write_png16_gray};
 use crate::analysis::{Raster, top_view};
-use crate::field::NO_PASS;
 use crate::run::RunResult;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -108,15 +107,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
                     "scallop_nm".into(),
                     scallop_nm.iter().map(|&v| v as f32).collect(),
                 ),
-                (
-                    "pass".into(),
-                    result
-                        .field
-                        .pass
-                        .iter()
-                        .map(|&p| if p == NO_PASS { -1.0 } else { p as f32 })
-                        .collect(),
-                ),
+                ("pass".into(), result.field.pass_channel()),
             ],
             attributes: polar_attributes,
         },
