@@ -1,14 +1,14 @@
 // Turning removal kernel: one invocation per dexel (sample of the nominal surface).
-// For every spindle revolution whose tool can reach the sample (ranges prepared on
-// the CPU), find where the arc-nosed edge enters the sample's normal ray and keep the
-// lowest entry. f64 twin: `sample_dexel` in src/engine/cpu.rs + `edge_entry` in
-// src/geometry/tool.rs — change them together.
+// For every spindle revolution whose tool can reach the sample (ranges prepared on the
+// CPU, per branch: direct, mirrored past the axis, flank), find where the tool enters
+// the sample's normal ray and keep the lowest entry.
+// f64 twin: `sample_dexel` and its helpers in src/engine/cpu.rs, `EdgeModel::entry` in
+// src/geometry/tool.rs, pass bookkeeping in src/engine/scene.rs — change them together.
 //
 // Precision: nanometre features on 20 mm parts do not fit f32 absolute coordinates
-// (ulp at 20 mm ≈ 2 nm), so every absolute coordinate arrives as a hi + lo pair of
-// f32 (value = hi + lo to f64 accuracy) and is only ever used in the difference
-// sample − nose centre, which is sub-millimetre: (a_hi − b_hi) + (a_lo − b_lo) keeps
-// ~0.03 nm.
+// (ulp at 20 mm ≈ 2 nm), so every absolute coordinate arrives as a hi + lo pair of f32
+// (value = hi + lo to f64 accuracy) and is only used in the difference sample − nose
+// centre, which is sub-millimetre: (a_hi − b_hi) + (a_lo − b_lo) keeps ~0.03 nm.
 
 struct Params {
     ring_count: u32,
@@ -20,9 +20,21 @@ struct Params {
     base_steps: i32,
     dispatch_width: u32,
     nose_radius_mm: f32,
+    radius_error_mm: f32,
+    tip_offset_mm: f32,
     cos_half_span: f32,
     stock_top_mm: f32,
-    _padding: f32,
+    edge_plane_y_mm: f32,
+    tan_clearance: f32,
+    start_phase_rad: f32,
+    azimuth_step_rad: f32,
+    inverse_step_rad: f32,
+    deviation_start_rad: f32,
+    deviation_inverse_step: f32,
+    deviation_count: u32,
+    edge_refinements: u32,
+    ray_refinements: u32,
+    _padding: u32,
 }
 
 struct Ring {
@@ -30,19 +42,18 @@ struct Ring {
     r_lo: f32,
     z_hi: f32,
     z_lo: f32,
+    q_hi: f32,
+    q_lo: f32,
     normal_r: f32,
     normal_z: f32,
+    direct_azimuth_rad: f32,
+    _padding: f32,
     direct_first: u32,
     direct_last: u32,
     mirrored_first: u32,
     mirrored_last: u32,
-}
-
-struct Phase {
-    direct_whole: u32,
-    direct_fraction: f32,
-    mirrored_whole: u32,
-    mirrored_fraction: f32,
+    flank_first: u32,
+    flank_last: u32,
 }
 
 struct Pose {
@@ -60,36 +71,112 @@ struct Dexel {
 }
 
 const NO_PASS: u32 = 0xffffffffu;
+const PASS_ID_STRIDE: u32 = 4u;
 const MISS: f32 = 3.0e38;
+const TAU: f32 = 6.283185307179586;
+const PI: f32 = 3.141592653589793;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> rings: array<Ring>;
-@group(0) @binding(2) var<storage, read> phases: array<Phase>;
-@group(0) @binding(3) var<storage, read> poses: array<Pose>;
+@group(0) @binding(2) var<storage, read> poses: array<Pose>;
+@group(0) @binding(3) var<storage, read> edge_deviation: array<f32>;
 @group(0) @binding(4) var<storage, read_write> dexels: array<Dexel>;
 
-// Lower entry of the ray w + d·n (w = sample − nose centre) into the edge circle,
-// or MISS when the ray misses the circle or meets it outside the edge arc.
-// d = c / (√(b² − c) − b) for b < 0 avoids cancelling two ~R-sized numbers.
-fn edge_entry(w: vec2<f32>, n: vec2<f32>, tip: vec2<f32>, radius: f32, cos_half_span: f32) -> f32 {
-    let b = dot(w, n);
+fn tip_direction(b_rad: f32) -> vec2<f32> {
+    return vec2<f32>(-sin(b_rad), -cos(b_rad));
+}
+
+// Radial deviation w(ψ) of the edge from its circle: linear in the table, held outside.
+fn deviation_at(psi: f32) -> f32 {
+    let count = params.deviation_count;
+    if count == 0u {
+        return 0.0;
+    }
+    if count == 1u {
+        return edge_deviation[0];
+    }
+    let u = clamp((psi - params.deviation_start_rad) * params.deviation_inverse_step, 0.0, f32(count - 1u));
+    let i = min(u32(floor(u)), count - 2u);
+    let t = u - f32(i);
+    return edge_deviation[i] + t * (edge_deviation[i + 1u] - edge_deviation[i]);
+}
+
+// Lower root of |w + d m|² = ρ²; d = c / (√(b² − a c) − b) for b < 0 avoids cancelling
+// two ρ-sized numbers when the entry is nanometres from the origin.
+fn circle_entry(w: vec2<f32>, m: vec2<f32>, radius: f32) -> f32 {
+    let a = dot(m, m);
+    let b = dot(w, m);
     let c = dot(w, w) - radius * radius;
-    let discriminant = b * b - c;
+    let discriminant = b * b - a * c;
     if discriminant < 0.0 {
         return MISS;
     }
     let root = sqrt(discriminant);
-    var d: f32;
     if b < 0.0 {
-        d = c / (root - b);
-    } else {
-        d = -b - root;
+        return c / (root - b);
     }
-    let hit = w + d * n;
-    if dot(hit, tip) < radius * cos_half_span {
+    return (-b - root) / a;
+}
+
+// Entry of the line (pivot + from_pivot) + d·m into the real edge: the arc of radius
+// R + e + w(ψ) about a centre tip_offset behind the pivot (tools are set at their tip).
+fn edge_entry(from_pivot: vec2<f32>, m: vec2<f32>, tip: vec2<f32>, psi_sign: f32) -> f32 {
+    let w = from_pivot + params.tip_offset_mm * tip;
+    var radius = params.nose_radius_mm + params.radius_error_mm;
+    var passes = 0u;
+    if params.deviation_count > 0u {
+        passes = params.edge_refinements;
+    }
+    var d = circle_entry(w, m, radius);
+    if d == MISS {
         return MISS;
     }
+    for (var refinement = 0u; refinement <= passes; refinement = refinement + 1u) {
+        let hit = w + d * m;
+        if dot(hit, tip) < length(hit) * params.cos_half_span {
+            return MISS;
+        }
+        if refinement == passes {
+            break;
+        }
+        let psi = psi_sign * atan2(hit.x * tip.y - hit.y * tip.x, dot(hit, tip));
+        radius = params.nose_radius_mm + params.radius_error_mm + deviation_at(psi);
+        d = circle_entry(w, m, radius);
+        if d == MISS {
+            return MISS;
+        }
+    }
     return d;
+}
+
+struct PassNode {
+    node: i32,
+    t: f32,
+    valid: bool,
+}
+
+// Pose-table position of pass `rev` at spindle phase β (integer node arithmetic).
+fn pass_node(rev: u32, phase_rad: f32) -> PassNode {
+    let steps_in = (phase_rad + params.start_phase_rad) * params.inverse_step_rad;
+    let whole = floor(steps_in);
+    let fraction = steps_in - whole;
+    let base = params.base_steps + i32(rev * params.steps_per_rev) - i32(whole);
+    var node = base;
+    var t = 0.0;
+    if fraction > 0.0 {
+        node = base - 1;
+        t = 1.0 - fraction;
+    }
+    let last = i32(params.pose_count) - 1;
+    if node == last && t == 0.0 {
+        node = node - 1;
+        t = 1.0;
+    }
+    return PassNode(node, t, node >= 0 && node < last);
+}
+
+fn wrap_phase(angle: f32) -> f32 {
+    return angle - TAU * floor(angle / TAU);
 }
 
 struct Best {
@@ -97,39 +184,81 @@ struct Best {
     pass_id: u32,
 }
 
-// Scans one branch's revolutions (sign = +1 direct, −1 mirrored past the axis).
-fn scan_branch(ring: Ring, first: u32, last: u32, whole: u32, fraction: f32, sign: f32, branch: u32, best_in: Best) -> Best {
+// Direct (sign +1, branch 0) or mirrored (sign −1, branch 1) passes through the edge.
+fn scan_edge(ring: Ring, first: u32, last: u32, phase: f32, sign: f32, branch: u32, best_in: Best) -> Best {
     var best = best_in;
     let n = vec2<f32>(ring.normal_r, ring.normal_z);
-    let last_node = i32(params.pose_count) - 1;
+    let y0 = params.edge_plane_y_mm;
+    let r = ring.r_hi;
+    let lateral = ring.q_hi;
+    var direction = n;
+    if y0 != 0.0 {
+        direction = vec2<f32>(r * n.x / lateral, n.y);
+    }
     for (var rev = first; rev <= last; rev = rev + 1u) {
-        let base = params.base_steps + i32(rev * params.steps_per_rev) - i32(whole);
-        var node = base;
-        var t = 0.0;
-        if fraction > 0.0 {
-            node = base - 1;
-            t = 1.0 - fraction;
-        }
-        if node == last_node && t == 0.0 {
-            node = node - 1;
-            t = 1.0;
-        }
-        if node < 0 || node >= last_node {
+        let pn = pass_node(rev, phase);
+        if !pn.valid {
             continue;
         }
-        let p0 = poses[node];
-        let p1 = poses[node + 1];
+        let p0 = poses[pn.node];
+        let p1 = poses[pn.node + 1];
+        let t = pn.t;
         let step_x = (p1.x_hi - p0.x_hi) + (p1.x_lo - p0.x_lo);
         let step_z = (p1.z_hi - p0.z_hi) + (p1.z_lo - p0.z_lo);
-        let w = vec2<f32>(
-            (ring.r_hi - sign * p0.x_hi) + (ring.r_lo - sign * p0.x_lo) - sign * t * step_x,
+        let from_pivot = vec2<f32>(
+            (ring.q_hi - sign * p0.x_hi) + (ring.q_lo - sign * p0.x_lo) - sign * t * step_x,
             (ring.z_hi - p0.z_hi) + (ring.z_lo - p0.z_lo) - t * step_z,
         );
         let b_rad = p0.b_rad + t * (p1.b_rad - p0.b_rad);
-        let tip = vec2<f32>(-sin(b_rad) * sign, -cos(b_rad));
-        let depth = edge_entry(w, n, tip, params.nose_radius_mm, params.cos_half_span);
-        if depth < best.depth_mm {
-            best = Best(depth, rev * 2u + branch);
+        let tip = tip_direction(b_rad) * vec2<f32>(sign, 1.0);
+        var d = edge_entry(from_pivot, direction, tip, sign);
+        if y0 != 0.0 {
+            for (var i = 0u; i < params.ray_refinements && d != MISS; i = i + 1u) {
+                let rho = r + d * n.x;
+                if rho <= abs(y0) {
+                    d = MISS;
+                    break;
+                }
+                let q = sqrt(rho * rho - y0 * y0);
+                let shift = d * n.x * (2.0 * r + d * n.x) / (q + lateral);
+                let slope = vec2<f32>(rho * n.x / q, n.y);
+                d = edge_entry(from_pivot + vec2<f32>(shift, d * n.y) - d * slope, slope, tip, sign);
+            }
+        }
+        if d < best.depth_mm {
+            best = Best(d, rev * PASS_ID_STRIDE + branch);
+        }
+    }
+    return best;
+}
+
+// Flank passes over the pip of a tool above centre (branch 2): the flank meets the sample
+// at machine (0, −r), (|y₀| − r)·tan(clearance) above the edge's height at x = 0.
+fn scan_flank(ring: Ring, first: u32, last: u32, phase: f32, best_in: Best) -> Best {
+    var best = best_in;
+    let radius = params.nose_radius_mm + params.radius_error_mm;
+    let behind = abs(params.edge_plane_y_mm) - ring.r_hi;
+    let slope_factor = ring.normal_z + ring.normal_r * params.tan_clearance;
+    for (var rev = first; rev <= last; rev = rev + 1u) {
+        let pn = pass_node(rev, phase);
+        if !pn.valid {
+            continue;
+        }
+        let p0 = poses[pn.node];
+        let p1 = poses[pn.node + 1];
+        let t = pn.t;
+        let b_rad = p0.b_rad + t * (p1.b_rad - p0.b_rad);
+        let offset = params.tip_offset_mm * tip_direction(b_rad);
+        let centre_x = (p0.x_hi + p0.x_lo) + t * ((p1.x_hi - p0.x_hi) + (p1.x_lo - p0.x_lo)) - offset.x;
+        if abs(centre_x) >= radius {
+            continue;
+        }
+        let centre_above = (p0.z_hi - ring.z_hi) + (p0.z_lo - ring.z_lo)
+            + t * ((p1.z_hi - p0.z_hi) + (p1.z_lo - p0.z_lo)) - offset.y;
+        let above = centre_above - sqrt(radius * radius - centre_x * centre_x) + behind * params.tan_clearance;
+        let d = above / slope_factor;
+        if d < best.depth_mm {
+            best = Best(d, rev * PASS_ID_STRIDE + 2u);
         }
     }
     return best;
@@ -143,12 +272,13 @@ fn remove_turning(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let sample = params.sample_offset + local_index;
     let ring_index = sample % params.ring_count;
-    let azimuth = sample / params.ring_count;
+    let azimuth = f32(sample / params.ring_count) * params.azimuth_step_rad;
     let ring = rings[ring_index];
-    let phase = phases[azimuth];
 
     var best = Best(params.stock_top_mm, NO_PASS);
-    best = scan_branch(ring, ring.direct_first, ring.direct_last, phase.direct_whole, phase.direct_fraction, 1.0, 0u, best);
-    best = scan_branch(ring, ring.mirrored_first, ring.mirrored_last, phase.mirrored_whole, phase.mirrored_fraction, -1.0, 1u, best);
+    let alpha = ring.direct_azimuth_rad;
+    best = scan_edge(ring, ring.direct_first, ring.direct_last, wrap_phase(azimuth - alpha), 1.0, 0u, best);
+    best = scan_edge(ring, ring.mirrored_first, ring.mirrored_last, wrap_phase(azimuth - (PI - alpha)), -1.0, 1u, best);
+    best = scan_flank(ring, ring.flank_first, ring.flank_last, wrap_phase(azimuth + 0.5 * PI), best);
     dexels[local_index] = Dexel(best.depth_mm, best.pass_id);
 }

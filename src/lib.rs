@@ -4,6 +4,7 @@
 //! analysis → outputs. Modules follow that flow:
 //! - [`geometry`]: nominal surfaces and tools (pure f64 math)
 //! - [`process`]: kinematics, machine motion → tool poses
+//! - [`effects`]: the setup and tool errors that make a real part differ
 //! - [`field`]: the normal-dexel grid and its machined result
 //! - [`engine`]: material removal, CPU (f64 reference) and GPU (WGSL via wgpu)
 //! - [`analysis`]: deviation, scallop, profile and map products
@@ -13,6 +14,7 @@
 
 pub mod analysis;
 pub mod bench;
+pub mod effects;
 pub mod engine;
 pub mod field;
 pub mod formulas;

@@ -1,6 +1,6 @@
 //! The pipeline, one way: job → process → scene → engine → field → analysis.
 
-use crate::analysis::{self, DeviationStats, ProfilePoint, ScallopAnalysis};
+use crate::analysis::{self, DeviationStats, ProfilePoint, Protrusion, ScallopAnalysis};
 use crate::engine::{EngineError, EngineInfo, Progress, RemovalEngine, TurningScene};
 use crate::field::{DexelField, PolarGrid};
 use crate::io::job::Job;
@@ -24,6 +24,7 @@ pub struct RunResult {
     pub engine: EngineInfo,
     pub deviation: DeviationStats,
     pub scallops: ScallopAnalysis,
+    pub protrusion: Protrusion,
     pub profile: Vec<ProfilePoint>,
     pub timings: Timings,
 }
@@ -37,7 +38,8 @@ impl RunResult {
 /// Builds the engine-ready scene for a validated job.
 pub fn prepare_scene(job: &Job) -> TurningScene {
     let meridian = job.meridian();
-    let poses = job.spiral.pose_table(&job.surface, &meridian, &job.tool);
+    let mut poses = job.spiral.pose_table(&job.surface, &meridian, &job.tool);
+    job.effects.apply_to_poses(&mut poses);
     let grid = PolarGrid::new(
         &job.surface,
         &meridian,
@@ -46,13 +48,17 @@ pub fn prepare_scene(job: &Job) -> TurningScene {
         job.pitch_mm,
         job.azimuths,
     );
+    let edge = job.effects.edge_model(&job.tool);
+    let extra_reach = job.effects.extra_reach_mm(&edge);
     TurningScene::new(
         grid,
         poses,
-        job.tool,
+        &job.tool,
+        edge,
+        job.effects.edge_plane_y_mm(),
         job.spiral.stock_allowance_mm,
         job.spiral.target_offset_mm(),
-        0.0,
+        extra_reach,
     )
 }
 
@@ -73,6 +79,9 @@ pub fn simulate(
     let started = Instant::now();
     let deviation = analysis::deviation_stats(&scene.grid, &field);
     let scallops = analysis::analyse_scallops(&scene.grid, &field);
+    // Near the axis consecutive passes are one feed apart along the surface.
+    let protrusion =
+        analysis::analyse_protrusion(&scene.grid, &field, job.spiral.feed_per_rev_mm, None);
     let profile = analysis::radial_profile(&scene.grid, &field, &scallops);
     let analysis_s = started.elapsed().as_secs_f64();
 
@@ -83,6 +92,7 @@ pub fn simulate(
         field,
         deviation,
         scallops,
+        protrusion,
         profile,
         timings: Timings {
             prepare_s,

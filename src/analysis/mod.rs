@@ -3,10 +3,12 @@
 
 pub mod deviation;
 pub mod maps;
+pub mod protrusion;
 pub mod scallop;
 
 pub use deviation::{DeviationStats, deviation_stats};
 pub use maps::{Raster, top_view};
+pub use protrusion::{Protrusion, ProtrusionShape, analyse_protrusion};
 pub use scallop::{ScallopAnalysis, ScallopStats, analyse_scallops};
 
 use crate::field::{DexelField, PolarGrid};

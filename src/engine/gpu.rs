@@ -3,9 +3,11 @@
 //! sample-relative coordinates so f32 resolves sub-nanometre depths. Grids whose
 //! result does not fit one storage binding are processed in tiles.
 
-use super::scene::{Branch, TurningScene};
+use super::cpu::RAY_REFINEMENTS;
+use super::scene::TurningScene;
 use super::{EngineError, EngineInfo, Progress, RemovalEngine};
 use crate::field::DexelField;
+use crate::geometry::tool::EDGE_REFINEMENTS;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
@@ -33,9 +35,21 @@ pub mod layout {
         pub base_steps: i32,
         pub dispatch_width: u32,
         pub nose_radius_mm: f32,
+        pub radius_error_mm: f32,
+        pub tip_offset_mm: f32,
         pub cos_half_span: f32,
         pub stock_top_mm: f32,
-        pub _padding: f32,
+        pub edge_plane_y_mm: f32,
+        pub tan_clearance: f32,
+        pub start_phase_rad: f32,
+        pub azimuth_step_rad: f32,
+        pub inverse_step_rad: f32,
+        pub deviation_start_rad: f32,
+        pub deviation_inverse_step: f32,
+        pub deviation_count: u32,
+        pub edge_refinements: u32,
+        pub ray_refinements: u32,
+        pub _padding: u32,
     }
 
     #[repr(C)]
@@ -45,21 +59,18 @@ pub mod layout {
         pub r_lo: f32,
         pub z_hi: f32,
         pub z_lo: f32,
+        pub q_hi: f32,
+        pub q_lo: f32,
         pub normal_r: f32,
         pub normal_z: f32,
+        pub direct_azimuth_rad: f32,
+        pub _padding: f32,
         pub direct_first: u32,
         pub direct_last: u32,
         pub mirrored_first: u32,
         pub mirrored_last: u32,
-    }
-
-    #[repr(C)]
-    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
-    pub struct Phase {
-        pub direct_whole: u32,
-        pub direct_fraction: f32,
-        pub mirrored_whole: u32,
-        pub mirrored_fraction: f32,
+        pub flank_first: u32,
+        pub flank_last: u32,
     }
 
     #[repr(C)]
@@ -135,6 +146,8 @@ impl GpuEngine {
             ))
         })?;
 
+        let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("turning.wgsl"),
             source: wgpu::ShaderSource::Wgsl(TURNING_SHADER.into()),
@@ -181,6 +194,18 @@ impl GpuEngine {
             compilation_options: Default::default(),
             cache: None,
         });
+        // Errors surface as values, not as wgpu's default panic.
+        for (scope, what) in [
+            (validation, "the turning kernel failed validation"),
+            (out_of_memory, "out of GPU memory"),
+        ] {
+            if let Some(err) = pollster::block_on(scope.pop()) {
+                return Err(EngineError(format!(
+                    "{what} on {}: {err}",
+                    adapter_info.name
+                )));
+            }
+        }
 
         let info = EngineInfo {
             kind: "gpu".into(),
@@ -253,42 +278,35 @@ impl GpuEngine {
     }
 }
 
-/// The scene's rings, phases and poses in the shader's layouts.
-fn gpu_inputs(scene: &TurningScene) -> (Vec<layout::Ring>, Vec<layout::Phase>, Vec<layout::Pose>) {
+/// The scene's rings and poses in the shader's layouts.
+fn gpu_inputs(scene: &TurningScene) -> (Vec<layout::Ring>, Vec<layout::Pose>) {
     let rings = scene
         .grid
         .rings
         .iter()
-        .zip(&scene.ring_revs)
-        .map(|(ring, revs)| {
+        .zip(&scene.rings)
+        .map(|(ring, passes)| {
             let (r_hi, r_lo) = split_f64(ring.radius_mm);
             let (z_hi, z_lo) = split_f64(ring.height_mm);
-            let [direct, mirrored] = *revs;
+            let (q_hi, q_lo) = split_f64(passes.lateral_mm);
+            let [direct, mirrored, flank] = passes.revs;
             layout::Ring {
                 r_hi,
                 r_lo,
                 z_hi,
                 z_lo,
+                q_hi,
+                q_lo,
                 normal_r: ring.normal.x as f32,
                 normal_z: ring.normal.y as f32,
+                direct_azimuth_rad: passes.direct_azimuth_rad as f32,
+                _padding: 0.0,
                 direct_first: direct.first,
                 direct_last: direct.last,
                 mirrored_first: mirrored.first,
                 mirrored_last: mirrored.last,
-            }
-        })
-        .collect();
-    let phases = scene
-        .azimuth_phases
-        .iter()
-        .map(|phases| {
-            let direct = phases[Branch::Direct as usize];
-            let mirrored = phases[Branch::Mirrored as usize];
-            layout::Phase {
-                direct_whole: direct.whole_steps,
-                direct_fraction: direct.fraction as f32,
-                mirrored_whole: mirrored.whole_steps,
-                mirrored_fraction: mirrored.fraction as f32,
+                flank_first: flank.first,
+                flank_last: flank.last,
             }
         })
         .collect();
@@ -309,7 +327,53 @@ fn gpu_inputs(scene: &TurningScene) -> (Vec<layout::Ring>, Vec<layout::Phase>, V
             }
         })
         .collect();
-    (rings, phases, poses)
+    (rings, poses)
+}
+
+/// The uniform parameters of one tile.
+fn tile_params(
+    scene: &TurningScene,
+    offset: u64,
+    count: u64,
+    dispatch_width: u32,
+) -> Result<layout::Params, EngineError> {
+    let edge = &scene.edge;
+    let deviation = &edge.deviation;
+    Ok(layout::Params {
+        ring_count: scene.grid.ring_count() as u32,
+        azimuth_count: scene.grid.azimuths,
+        sample_offset: offset as u32,
+        sample_count: count as u32,
+        pose_count: scene.poses.poses.len() as u32,
+        steps_per_rev: scene.poses.steps_per_rev,
+        base_steps: i32::try_from(scene.base_steps)
+            .map_err(|_| EngineError("pose table start is too far from spindle angle 0".into()))?,
+        dispatch_width,
+        nose_radius_mm: edge.nominal_radius_mm as f32,
+        radius_error_mm: edge.radius_error_mm as f32,
+        tip_offset_mm: edge.tip_offset_mm() as f32,
+        cos_half_span: edge.cos_half_span() as f32,
+        stock_top_mm: scene.stock_top_mm as f32,
+        edge_plane_y_mm: scene.edge_plane_y_mm as f32,
+        tan_clearance: scene.tan_clearance as f32,
+        start_phase_rad: scene.start_phase_rad as f32,
+        azimuth_step_rad: (std::f64::consts::TAU / scene.grid.azimuths as f64) as f32,
+        inverse_step_rad: (1.0 / scene.poses.step_rad()) as f32,
+        deviation_start_rad: deviation.start_rad as f32,
+        deviation_inverse_step: if deviation.step_rad > 0.0 {
+            (1.0 / deviation.step_rad) as f32
+        } else {
+            0.0
+        },
+        deviation_count: if deviation.is_zero() {
+            0
+        } else {
+            deviation.values_mm.len() as u32
+        },
+        edge_refinements: EDGE_REFINEMENTS as u32,
+        ray_refinements: RAY_REFINEMENTS as u32,
+        _padding: 0,
+    })
 }
 
 impl RemovalEngine for GpuEngine {
@@ -328,10 +392,17 @@ impl RemovalEngine for GpuEngine {
                 "{sample_count} samples exceed the GPU engine's 2³² sample index"
             )));
         }
-        let (rings, phases, poses) = gpu_inputs(scene);
+        let (rings, poses) = gpu_inputs(scene);
         let ring_buffer = self.upload("rings", &rings)?;
-        let phase_buffer = self.upload("phases", &phases)?;
         let pose_buffer = self.upload("poses", &poses)?;
+        let deviation: Vec<f32> = scene
+            .edge
+            .deviation
+            .values_mm
+            .iter()
+            .map(|&v| v as f32)
+            .collect();
+        let deviation_buffer = self.upload("edge deviation", &deviation)?;
 
         let dexel_bytes = std::mem::size_of::<layout::Dexel>() as u64;
         let tile_samples = (self.max_binding_bytes / dexel_bytes)
@@ -357,31 +428,25 @@ impl RemovalEngine for GpuEngine {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let buffers = [
+            &params_buffer,
+            &ring_buffer,
+            &pose_buffer,
+            &deviation_buffer,
+            &output,
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                binding: binding as u32,
+                resource: buffer.as_entire_binding(),
+            })
+            .collect();
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("turning bindings"),
             layout: &self.bind_group_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: params_buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: ring_buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: phase_buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: pose_buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: output.as_entire_binding(),
-                },
-            ],
+            entries: &entries,
         });
 
         let mut depth_mm = Vec::with_capacity(sample_count as usize);
@@ -392,22 +457,9 @@ impl RemovalEngine for GpuEngine {
             let groups = count.div_ceil(WORKGROUP_SIZE as u64) as u32;
             let groups_x = groups.min(65_535);
             let groups_y = groups.div_ceil(groups_x);
-            let params = layout::Params {
-                ring_count: scene.grid.ring_count() as u32,
-                azimuth_count: scene.grid.azimuths,
-                sample_offset: offset as u32,
-                sample_count: count as u32,
-                pose_count: scene.poses.poses.len() as u32,
-                steps_per_rev: scene.poses.steps_per_rev,
-                base_steps: i32::try_from(scene.base_steps).map_err(|_| {
-                    EngineError("pose table start is too far from spindle angle 0".into())
-                })?,
-                dispatch_width: groups_x * WORKGROUP_SIZE,
-                nose_radius_mm: scene.tool.nose_radius_mm as f32,
-                cos_half_span: scene.cos_half_span() as f32,
-                stock_top_mm: scene.stock_top_mm as f32,
-                _padding: 0.0,
-            };
+            let params = tile_params(scene, offset, count, groups_x * WORKGROUP_SIZE)?;
+            let out_of_memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+            let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
             self.queue
                 .write_buffer(&params_buffer, 0, bytemuck::bytes_of(&params));
             let mut encoder = self
@@ -424,9 +476,16 @@ impl RemovalEngine for GpuEngine {
                 compute.set_bind_group(0, &bind_group, &[]);
                 compute.dispatch_workgroups(groups_x, groups_y, 1);
             }
-            let bytes = count * dexel_bytes;
-            encoder.copy_buffer_to_buffer(&output, 0, &staging, 0, bytes);
+            encoder.copy_buffer_to_buffer(&output, 0, &staging, 0, count * dexel_bytes);
             self.queue.submit([encoder.finish()]);
+            for (scope, what) in [
+                (validation, "GPU dispatch failed"),
+                (out_of_memory, "out of GPU memory"),
+            ] {
+                if let Some(err) = pollster::block_on(scope.pop()) {
+                    return Err(EngineError(format!("{what}: {err}")));
+                }
+            }
             let dexels = self.read_back(&staging)?;
             for dexel in &dexels[..count as usize] {
                 depth_mm.push(dexel.depth_mm as f64);

@@ -1,37 +1,46 @@
 //! Everything a removal engine needs for a turning job, prepared once in f64: the
-//! grid, the pose table, and for each ring the spindle revolutions whose tool can
-//! reach it, so cost follows the dexel–pass pairs that can touch (a rotating process
+//! grid, the pose table, the edge, and for each ring the spindle revolutions whose tool
+//! can reach it, so cost follows the dexel–pass pairs that can touch (a rotating process
 //! revisits a sample once per revolution) rather than samples × all poses.
 //!
-//! Pass geometry. The tool sits at machine azimuth 0; the workpiece turns by the
-//! spindle angle C, so a sample at workpiece azimuth φ meets the edge whenever
-//! `C = 2πk − φ`: one pass per revolution k (rev k spans C ∈ (2π(k−1), 2πk]).
-//! Near the axis the edge also reaches past it, cutting samples on the far side
-//! (φ + π) with its x < 0 part: the *mirrored* branch, with the nose-centre x negated.
+//! Pass geometry. The tool's edge lies in its rake plane y = y₀ of the machine frame
+//! (y₀ = 0 on centre). The workpiece turns by the spindle angle C (counter-clockwise
+//! seen from +Z), so a sample at workpiece azimuth φ and radius r meets the edge point
+//! at machine x = ±q, q = √(r² − y₀²), whenever its machine azimuth φ + C equals that
+//! point's azimuth α = atan2(y₀, ±q): once per revolution k, at C = 2πk − β with
+//! β = (φ − α) mod 2π (rev k spans C ∈ (2π(k−1), 2πk]). The + side is the *direct*
+//! branch; near the axis the edge also reaches past it and cuts with its x < 0 part, the
+//! *mirrored* branch (frame mirrored: nose-centre x negated). Samples closer to the axis
+//! than |y₀| never meet the edge; with the tool above centre its flank, which straddles
+//! the axis, reaches them at machine (0, −r): the *flank* branch.
 
 use crate::field::PolarGrid;
-use crate::geometry::tool::ArcNoseTool;
+use crate::geometry::tool::{ArcNoseTool, EdgeModel};
 use crate::process::PoseTable;
-use std::f64::consts::{PI, TAU};
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
-/// The two ways an edge point can reach a sample: on the tool's side of the axis, or past it.
+/// The ways a pass can reach a sample.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Branch {
     Direct = 0,
     Mirrored = 1,
+    Flank = 2,
 }
 
 impl Branch {
-    pub const BOTH: [Branch; 2] = [Branch::Direct, Branch::Mirrored];
+    pub const ALL: [Branch; 3] = [Branch::Direct, Branch::Mirrored, Branch::Flank];
 
-    /// +1 or −1: the factor on the nose-centre x in this branch.
+    /// +1 or −1: the factor on machine x in this branch's frame.
     pub fn x_sign(self) -> f64 {
         match self {
-            Branch::Direct => 1.0,
             Branch::Mirrored => -1.0,
+            _ => 1.0,
         }
     }
 }
+
+/// Pass ids: `rev · PASS_ID_STRIDE + branch`.
+pub const PASS_ID_STRIDE: u32 = 4;
 
 /// An inclusive range of revolutions (relative to the scene's first), empty when first > last.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -68,39 +77,47 @@ impl RevRange {
     }
 }
 
-/// Where a sample row's passes fall in the pose table: for pass k the fractional node
-/// index is `(k_rel·S + base) − (whole + fraction)`, kept as integer + fraction so the
-/// f32 GPU path indexes exactly like the f64 path.
+/// Per ring: the edge's lateral coordinate q = √(r² − y₀²) there (0 when the edge
+/// cannot reach the ring), the direct branch's pass azimuth α, and the revolutions
+/// each branch can reach it in.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AzimuthPhase {
-    pub whole_steps: u32,
-    pub fraction: f64,
+pub struct RingPasses {
+    pub lateral_mm: f64,
+    pub direct_azimuth_rad: f64,
+    pub revs: [RevRange; 3],
 }
 
 #[derive(Debug, Clone)]
 pub struct TurningScene {
     pub grid: PolarGrid,
+    /// The poses the machine runs (effects such as a decentre already applied).
     pub poses: PoseTable,
-    pub tool: ArcNoseTool,
+    pub edge: EdgeModel,
+    /// Machine y of the edge's rake plane (0 = on centre).
+    pub edge_plane_y_mm: f64,
+    /// tan(clearance angle) of the flank.
+    pub tan_clearance: f64,
     /// Normal distance of the stock's top above nominal: the value of uncut samples.
     pub stock_top_mm: f64,
     /// Number of revolutions with passes (relative index 0 = the first).
     pub rev_count: u32,
-    /// Node index of pass (k_rel = 0, φ = 0) before subtracting the phase: (k_first − k0)·S.
+    /// Node index of pass (rev 0, β = 0) before subtracting the phase: (k_first − k0)·S.
     pub base_steps: i64,
-    /// Per ring, per branch: the revolutions whose tool can reach it.
-    pub ring_revs: Vec<[RevRange; 2]>,
-    /// Per azimuth row, per branch.
-    pub azimuth_phases: Vec<[AzimuthPhase; 2]>,
+    /// Spindle angle of the table start within its revolution, C₀ − 2πk₀ ∈ [0, 2π).
+    pub start_phase_rad: f64,
+    pub rings: Vec<RingPasses>,
 }
 
 impl TurningScene {
-    /// `extra_reach_mm` widens the reach test for anything that can push the tool
-    /// further than its nominal path (none in a nominal job).
+    /// `extra_reach_mm` widens the reach test for anything that can push the cut beyond
+    /// the nominal band (effects; 0 for a nominal job).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         grid: PolarGrid,
         poses: PoseTable,
-        tool: ArcNoseTool,
+        tool: &ArcNoseTool,
+        edge: EdgeModel,
+        edge_plane_y_mm: f64,
         stock_allowance_mm: f64,
         target_offset_mm: f64,
         extra_reach_mm: f64,
@@ -108,59 +125,53 @@ impl TurningScene {
         let steps = poses.steps_per_rev as i64;
         let start = poses.start_angle_rad;
         let whole_revs_before_start = (start / TAU).floor();
-        let start_fraction_rad = start - whole_revs_before_start * TAU;
+        let start_phase_rad = start - whole_revs_before_start * TAU;
         let first_rev = (start / TAU).ceil() as i64;
         let last_rev = (poses.end_angle_rad() / TAU).ceil() as i64;
         let rev_count = (last_rev - first_rev + 1).max(0) as u32;
         let base_steps = (first_rev - whole_revs_before_start as i64) * steps;
 
-        let azimuth_phases = (0..grid.azimuths)
-            .map(|j| {
-                let phi = grid.azimuth_rad(j);
-                Branch::BOTH.map(|branch| {
-                    let azimuth = match branch {
-                        Branch::Direct => phi,
-                        Branch::Mirrored => (phi + PI) % TAU,
-                    };
-                    let steps_in = (azimuth + start_fraction_rad) / poses.step_rad();
-                    let whole = steps_in.floor();
-                    AzimuthPhase {
-                        whole_steps: whole as u32,
-                        fraction: steps_in - whole,
-                    }
-                })
-            })
-            .collect();
-
         // A pass farther than R + margin from a sample cannot enter its dexel within
-        // ±margin of the nominal surface, where every nominal cut lies.
+        // ±margin of the nominal surface, where every cut of this job lies.
         let margin = stock_allowance_mm + target_offset_mm.abs() + extra_reach_mm + 1e-6;
-        let reach = tool.nose_radius_mm + margin;
-        let ring_revs = reachable_revolutions(&grid, &poses, first_rev, rev_count, reach);
+        let reach = edge.nominal_radius_mm + margin;
+        let rings =
+            reachable_revolutions(&grid, &poses, first_rev, rev_count, reach, edge_plane_y_mm);
 
         Self {
             grid,
             poses,
-            tool,
+            edge,
+            edge_plane_y_mm,
+            tan_clearance: tool.clearance_angle_deg.to_radians().tan(),
             stock_top_mm: stock_allowance_mm,
             rev_count,
             base_steps,
-            ring_revs,
-            azimuth_phases,
+            start_phase_rad,
+            rings,
         }
     }
 
-    pub fn cos_half_span(&self) -> f64 {
-        self.tool.half_span_rad().min(PI).cos()
+    /// Spindle-angle phase β of a branch's passes for a sample (rad, in [0, 2π)).
+    pub fn pass_phase(&self, ring: usize, azimuth_rad: f64, branch: Branch) -> f64 {
+        let alpha = match branch {
+            Branch::Direct => self.rings[ring].direct_azimuth_rad,
+            Branch::Mirrored => PI - self.rings[ring].direct_azimuth_rad,
+            Branch::Flank => -FRAC_PI_2,
+        };
+        (azimuth_rad - alpha).rem_euclid(TAU)
     }
 
-    /// The pose-table position (node index, fraction) of pass `rev` for a row's phase,
-    /// or `None` when that pass lies outside the table.
-    pub fn pass_position(&self, rev: u32, phase: AzimuthPhase) -> Option<(usize, f64)> {
-        let base = self.base_steps + rev as i64 * self.poses.steps_per_rev as i64
-            - phase.whole_steps as i64;
-        let (mut index, mut t) = if phase.fraction > 0.0 {
-            (base - 1, 1.0 - phase.fraction)
+    /// The pose-table position (node index, fraction) of pass `rev` at phase β, or
+    /// `None` when the pass lies outside the table. Integer node arithmetic keeps the
+    /// f32 GPU path indexing exactly like this one.
+    pub fn pass_position(&self, rev: u32, phase_rad: f64) -> Option<(usize, f64)> {
+        let steps_in = (phase_rad + self.start_phase_rad) / self.poses.step_rad();
+        let whole = steps_in.floor();
+        let fraction = steps_in - whole;
+        let base = self.base_steps + rev as i64 * self.poses.steps_per_rev as i64 - whole as i64;
+        let (mut index, mut t) = if fraction > 0.0 {
+            (base - 1, 1.0 - fraction)
         } else {
             (base, 0.0)
         };
@@ -178,51 +189,88 @@ impl TurningScene {
     /// Dexel–pass pairs an engine evaluates: the work measure for throughput.
     pub fn pair_count(&self) -> u64 {
         let per_row: u64 = self
-            .ring_revs
+            .rings
             .iter()
-            .map(|ranges| ranges[0].len() + ranges[1].len())
+            .map(|ring| ring.revs.iter().map(|r| r.len()).sum::<u64>())
             .sum();
         per_row * self.grid.azimuths as u64
     }
 }
 
 /// For each ring and branch, the revolutions whose nose centre comes within `reach`
-/// of the ring's nominal point (tested against each revolution's bounding box).
+/// of the ring's point in that branch's frame (tested against each revolution's
+/// bounding box).
 fn reachable_revolutions(
     grid: &PolarGrid,
     poses: &PoseTable,
     first_rev: i64,
     rev_count: u32,
     reach: f64,
-) -> Vec<[RevRange; 2]> {
-    let mut ranges = vec![[RevRange::EMPTY; 2]; grid.ring_count()];
-    let ring_radii: Vec<f64> = grid.rings.iter().map(|ring| ring.radius_mm).collect();
+    edge_plane_y: f64,
+) -> Vec<RingPasses> {
+    let y0 = edge_plane_y;
+    let mut rings: Vec<RingPasses> = grid
+        .rings
+        .iter()
+        .map(|ring| {
+            let lateral = (ring.radius_mm * ring.radius_mm - y0 * y0).max(0.0).sqrt();
+            RingPasses {
+                lateral_mm: lateral,
+                direct_azimuth_rad: y0.atan2(lateral),
+                revs: [RevRange::EMPTY; 3],
+            }
+        })
+        .collect();
+    // Rings the edge reaches have r > |y₀|; those inside are the flank's (tool above centre).
+    let reached = |ring: &crate::field::Ring| y0 == 0.0 || ring.radius_mm > y0.abs();
+    let flank_active = y0 < 0.0;
+    let laterals: Vec<f64> = rings.iter().map(|r| r.lateral_mm).collect();
     for rev in 0..rev_count {
         let k = first_rev + rev as i64;
         let Some(bounds) = revolution_bounds(poses, TAU * (k - 1) as f64, TAU * k as f64) else {
             continue;
         };
-        for branch in Branch::BOTH {
-            let sign = branch.x_sign();
-            let (x_lo, x_hi) = if sign > 0.0 {
+        for branch in [Branch::Direct, Branch::Mirrored] {
+            let (x_lo, x_hi) = if branch == Branch::Direct {
                 (bounds.x_min, bounds.x_max)
             } else {
                 (-bounds.x_max, -bounds.x_min)
             };
-            let first_ring = ring_radii.partition_point(|&r| r < x_lo - reach);
-            let end_ring = ring_radii.partition_point(|&r| r <= x_hi + reach);
-            for (ring_index, ring) in grid.rings[first_ring..end_ring].iter().enumerate() {
-                let dx = (x_lo - ring.radius_mm).max(ring.radius_mm - x_hi).max(0.0);
+            let first_ring = laterals.partition_point(|&q| q < x_lo - reach);
+            let end_ring = laterals.partition_point(|&q| q <= x_hi + reach);
+            for index in first_ring..end_ring {
+                let ring = &grid.rings[index];
+                if !reached(ring) {
+                    continue;
+                }
+                let q = laterals[index];
+                let dx = (x_lo - q).max(q - x_hi).max(0.0);
                 let dz = (bounds.z_min - ring.height_mm)
                     .max(ring.height_mm - bounds.z_max)
                     .max(0.0);
                 if dx.hypot(dz) <= reach {
-                    ranges[first_ring + ring_index][branch as usize].include(rev);
+                    rings[index].revs[branch as usize].include(rev);
+                }
+            }
+        }
+        // The flank touches the pip where the edge spans the axis (|x| < R).
+        if flank_active && bounds.x_min < reach && bounds.x_max > -reach {
+            for (index, ring) in grid
+                .rings
+                .iter()
+                .enumerate()
+                .take_while(|(_, r)| !reached(r))
+            {
+                let dz = (bounds.z_min - ring.height_mm)
+                    .max(ring.height_mm - bounds.z_max)
+                    .max(0.0);
+                if dz <= reach {
+                    rings[index].revs[Branch::Flank as usize].include(rev);
                 }
             }
         }
     }
-    ranges
+    rings
 }
 
 struct Bounds {

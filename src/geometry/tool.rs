@@ -1,8 +1,15 @@
-//! The arc-nosed turning tool: a circular cutting edge of nose radius R spanning
-//! ±(included angle)/2 about the tool's tip direction, lying in the meridional plane.
+//! The arc-nosed turning tool: a cutting edge of nose radius R spanning ±(included
+//! angle)/2 about the tool's tip direction, lying in its rake plane, with a flank below
+//! it that recedes at the clearance angle.
 //!
-//! `edge_entry` is the f64 twin of `edge_entry` in `shaders/turning.wgsl`; keep the two
-//! in step (the GPU-vs-CPU tests compare them on whole jobs).
+//! The real edge may depart from the nominal arc by a radius error e and a radial
+//! deviation w(ψ) (waviness, or a measured profile), ψ being the angle from the tip.
+//! The machine knows where the tip is (tools are set by touching off their tip), so the
+//! real arc's centre sits δ₀ = e + w(0) behind the nominal one along the tool axis and
+//! the tip point stays where the path puts it.
+//!
+//! `EdgeModel::entry` is the f64 twin of `edge_entry` in `shaders/turning.wgsl`; keep the
+//! two in step (the GPU-vs-CPU tests compare them on whole jobs).
 
 use glam::DVec2;
 
@@ -11,6 +18,8 @@ pub struct ArcNoseTool {
     pub nose_radius_mm: f64,
     /// Angle subtended by the edge arc; the edge spans ±half of it about the tip direction.
     pub included_angle_deg: f64,
+    /// Angle by which the flank under the edge recedes behind the rake face.
+    pub clearance_angle_deg: f64,
 }
 
 impl ArcNoseTool {
@@ -32,49 +41,183 @@ pub fn tip_direction(b_rad: f64) -> DVec2 {
     DVec2::new(-b_rad.sin(), -b_rad.cos())
 }
 
-/// Where the dexel ray `P + d·n` enters the tool's edge circle, as the distance `d`
-/// along the normal (mm), or `None` if the ray misses the edge arc.
-///
-/// `to_sample` is `P − centre` (sample point relative to the nose centre), `normal` the
-/// unit ray direction, `tip` the unit tip direction, `cos_half_span` the cosine of the
-/// edge arc's half span. Solves `|w + d n|² = R²` for the lower root in the form
-/// `d = c / (√(b² − c) − b)` when `b < 0`, which avoids the cancellation of `−b − √(b² − c)`
-/// when the entry is nanometres from the sample.
-pub fn edge_entry(
-    to_sample: DVec2,
-    normal: DVec2,
-    tip: DVec2,
-    nose_radius_mm: f64,
-    cos_half_span: f64,
-) -> Option<f64> {
-    let b = to_sample.dot(normal);
-    let c = to_sample.length_squared() - nose_radius_mm * nose_radius_mm;
-    let discriminant = b * b - c;
+/// A function of the edge angle ψ sampled on an even grid, linear in between and held
+/// at its end values outside.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct AngleTable {
+    pub start_rad: f64,
+    pub step_rad: f64,
+    pub values_mm: Vec<f64>,
+}
+
+impl AngleTable {
+    pub fn at(&self, psi_rad: f64) -> f64 {
+        match self.values_mm.len() {
+            0 => 0.0,
+            1 => self.values_mm[0],
+            n => {
+                let u = ((psi_rad - self.start_rad) / self.step_rad).clamp(0.0, (n - 1) as f64);
+                let i = (u.floor() as usize).min(n - 2);
+                let t = u - i as f64;
+                self.values_mm[i] + t * (self.values_mm[i + 1] - self.values_mm[i])
+            }
+        }
+    }
+
+    pub fn is_zero(&self) -> bool {
+        self.values_mm.iter().all(|&v| v == 0.0)
+    }
+
+    pub fn max_abs_mm(&self) -> f64 {
+        self.values_mm.iter().fold(0.0, |m, v| m.max(v.abs()))
+    }
+
+    /// Σ A cos(n ψ + φ) over [−π/2, π/2] at `samples` points: roundness-style harmonics,
+    /// order n being the number of undulations a full circle would carry.
+    pub fn from_harmonics(harmonics: &[(f64, f64, f64)], samples: usize) -> Self {
+        let start = -std::f64::consts::FRAC_PI_2;
+        let step = std::f64::consts::PI / (samples - 1) as f64;
+        let values_mm = (0..samples)
+            .map(|i| {
+                let psi = start + step * i as f64;
+                harmonics
+                    .iter()
+                    .map(|&(order, amplitude_mm, phase_rad)| {
+                        amplitude_mm * (order * psi + phase_rad).cos()
+                    })
+                    .sum()
+            })
+            .collect();
+        Self {
+            start_rad: start,
+            step_rad: step,
+            values_mm,
+        }
+    }
+}
+
+/// The edge as the removal engines see it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EdgeModel {
+    pub nominal_radius_mm: f64,
+    pub half_span_rad: f64,
+    /// Actual minus nominal radius (mm).
+    pub radius_error_mm: f64,
+    /// Radial deviation w(ψ) of the edge from its own circle (mm, + = outward).
+    pub deviation: AngleTable,
+}
+
+/// Solver passes for an edge that is not a circle: the local radius ρ(ψ) moves the hit
+/// angle by ~(dw/dψ)/R per pass, so two corrections leave sub-picometre changes.
+pub const EDGE_REFINEMENTS: usize = 2;
+
+impl EdgeModel {
+    pub fn ideal(tool: &ArcNoseTool) -> Self {
+        Self {
+            nominal_radius_mm: tool.nose_radius_mm,
+            half_span_rad: tool.half_span_rad(),
+            radius_error_mm: 0.0,
+            deviation: AngleTable::default(),
+        }
+    }
+
+    pub fn cos_half_span(&self) -> f64 {
+        self.half_span_rad.min(std::f64::consts::PI).cos()
+    }
+
+    /// How far the real arc's centre sits behind the nominal one (tip-set tool).
+    pub fn tip_offset_mm(&self) -> f64 {
+        self.radius_error_mm + self.deviation.at(0.0)
+    }
+
+    pub fn radius_at(&self, psi_rad: f64) -> f64 {
+        self.nominal_radius_mm + self.radius_error_mm + self.deviation.at(psi_rad)
+    }
+
+    /// Largest distance the real edge reaches beyond the nominal arc (for reach tests).
+    pub fn max_excess_mm(&self) -> f64 {
+        2.0 * (self.radius_error_mm.abs() + self.deviation.max_abs_mm())
+    }
+
+    /// Where the line `origin + d·direction` enters the edge, as `d`, or `None` when it
+    /// misses the edge arc. `from_pivot` is `origin − nominal nose centre`, `tip` the
+    /// unit tip direction and `psi_sign` ±1 maps the frame's clockwise angle to the
+    /// tool's ψ (−1 in the mirrored branch, where the frame is the machine's mirror).
+    pub fn entry(
+        &self,
+        from_pivot: DVec2,
+        direction: DVec2,
+        tip: DVec2,
+        psi_sign: f64,
+    ) -> Option<f64> {
+        // Origin relative to the real arc centre, which is tip_offset behind the pivot.
+        let w = from_pivot + self.tip_offset_mm() * tip;
+        let cos_half_span = self.cos_half_span();
+        let mut radius = self.nominal_radius_mm + self.radius_error_mm;
+        let passes = if self.deviation.is_zero() {
+            0
+        } else {
+            EDGE_REFINEMENTS
+        };
+        let mut d = circle_entry(w, direction, radius)?;
+        for pass in 0..=passes {
+            let hit = w + d * direction;
+            if hit.dot(tip) < hit.length() * cos_half_span {
+                return None;
+            }
+            if pass == passes {
+                break;
+            }
+            // ψ: the clockwise angle from the tip to the hit point.
+            let psi = psi_sign * (hit.x * tip.y - hit.y * tip.x).atan2(hit.dot(tip));
+            radius = self.radius_at(psi);
+            d = circle_entry(w, direction, radius)?;
+        }
+        Some(d)
+    }
+}
+
+/// Lower root of `|w + d m|² = ρ²` (the entry of the line into the circle), written as
+/// `d = c / (√(b² − a c) − b)` when `b < 0`, which avoids cancelling two ρ-sized numbers
+/// when the entry is nanometres from the origin.
+pub fn circle_entry(w: DVec2, m: DVec2, radius: f64) -> Option<f64> {
+    let a = m.length_squared();
+    let b = w.dot(m);
+    let c = w.length_squared() - radius * radius;
+    let discriminant = b * b - a * c;
     if discriminant < 0.0 {
         return None;
     }
     let root = discriminant.sqrt();
-    let d = if b < 0.0 { c / (root - b) } else { -b - root };
-    let hit = to_sample + d * normal;
-    if hit.dot(tip) < nose_radius_mm * cos_half_span {
-        return None;
-    }
-    Some(d)
+    Some(if b < 0.0 {
+        c / (root - b)
+    } else {
+        (-b - root) / a
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn ideal(radius: f64, included_deg: f64) -> EdgeModel {
+        EdgeModel::ideal(&ArcNoseTool {
+            nose_radius_mm: radius,
+            included_angle_deg: included_deg,
+            clearance_angle_deg: 10.0,
+        })
+    }
+
     #[test]
     fn vertical_ray_under_the_nose_meets_the_circle_where_the_closed_form_says() {
         // Nose centre at the origin, sample at lateral offset u, height z0 below the
         // centre: the lower arc is at z = −√(R² − u²), so d = −√(R² − u²) − z0.
-        let radius = 0.5;
+        let edge = ideal(0.5, 180.0);
         for &(u, z0) in &[(0.0, -0.6), (0.1, -0.49), (0.3, -0.45), (-0.2, -0.3)] {
-            let d =
-                edge_entry(DVec2::new(u, z0), DVec2::Y, tip_direction(0.0), radius, 0.0).unwrap();
-            let expected = -(radius * radius - u * u).sqrt() - z0;
+            let d = edge
+                .entry(DVec2::new(u, z0), DVec2::Y, tip_direction(0.0), 1.0)
+                .unwrap();
+            let expected = -(0.25 - u * u).sqrt() - z0;
             assert!((d - expected).abs() < 1e-15, "u={u}: {d} vs {expected}");
         }
     }
@@ -82,15 +225,14 @@ mod tests {
     #[test]
     fn nanometre_entries_keep_full_precision() {
         // Sample 1 nm below the arc's lowest point: d = +1e-6 mm exactly.
-        let radius = 0.5;
-        let d = edge_entry(
-            DVec2::new(0.0, -radius - 1e-6),
-            DVec2::Y,
-            tip_direction(0.0),
-            radius,
-            0.0,
-        )
-        .unwrap();
+        let d = ideal(0.5, 180.0)
+            .entry(
+                DVec2::new(0.0, -0.5 - 1e-6),
+                DVec2::Y,
+                tip_direction(0.0),
+                1.0,
+            )
+            .unwrap();
         assert!((d - 1e-6).abs() < 1e-16, "{d:e}");
     }
 
@@ -98,23 +240,20 @@ mod tests {
     fn hits_outside_the_edge_arc_are_misses() {
         // Included angle 60°: the edge spans ±30° about the tip. A sample straight
         // sideways of the centre would be hit at 90° from the tip: a miss.
-        let d = edge_entry(
-            DVec2::new(-0.6, 0.0),
-            DVec2::X,
-            tip_direction(0.0),
-            0.5,
-            30f64.to_radians().cos(),
+        let edge = ideal(0.5, 60.0);
+        assert!(
+            edge.entry(DVec2::new(-0.6, 0.0), DVec2::X, tip_direction(0.0), 1.0)
+                .is_none()
         );
-        assert!(d.is_none());
         // Tilting the tool by B = 90° turns the tip toward −r, to face that sample.
-        let d = edge_entry(
-            DVec2::new(-0.6, 0.0),
-            DVec2::X,
-            tip_direction(std::f64::consts::FRAC_PI_2),
-            0.5,
-            30f64.to_radians().cos(),
-        )
-        .unwrap();
+        let d = edge
+            .entry(
+                DVec2::new(-0.6, 0.0),
+                DVec2::X,
+                tip_direction(std::f64::consts::FRAC_PI_2),
+                1.0,
+            )
+            .unwrap();
         assert!((d - 0.1).abs() < 1e-15);
     }
 
@@ -123,6 +262,7 @@ mod tests {
         let tool = ArcNoseTool {
             nose_radius_mm: 0.5,
             included_angle_deg: 60.0,
+            clearance_angle_deg: 10.0,
         };
         assert!((tool.coverable_feed_mm() - 0.5).abs() < 1e-15);
         let wide = ArcNoseTool {
@@ -130,5 +270,76 @@ mod tests {
             ..tool
         };
         assert!((wide.coverable_feed_mm() - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_tip_set_tool_with_a_radius_error_cuts_the_tip_point_unchanged_and_flanks_deeper() {
+        // e = +1 µm, tip set: at ψ = 0 nothing moves; at ψ = θ the edge point moves by
+        // e(u − t̂), whose normal part is −e(1 − cos θ) (derived in the module doc).
+        let mut edge = ideal(0.5, 180.0);
+        edge.radius_error_mm = 1e-3;
+        let tip = tip_direction(0.0);
+        let at_tip = edge
+            .entry(DVec2::new(0.0, -0.5), DVec2::Y, tip, 1.0)
+            .unwrap();
+        assert!(at_tip.abs() < 1e-15);
+        for theta_deg in [10.0f64, 40.0, 70.0] {
+            let theta = theta_deg.to_radians();
+            // Sample on the nominal arc at angle θ from the tip (toward −x), ray along the
+            // surface normal there, which points back at the nominal centre.
+            let normal = DVec2::new(theta.sin(), theta.cos());
+            let sample = -0.5 * normal;
+            let d = edge.entry(sample, normal, tip, 1.0).unwrap();
+            // Exact: the real centre is e above the pivot, off the ray by e·sin θ.
+            let (e, r) = (1e-3, 0.5);
+            let exact =
+                (e * theta.cos() + r) - ((r + e).powi(2) - (e * theta.sin()).powi(2)).sqrt();
+            assert!((d - exact).abs() < 1e-15, "θ = {theta_deg}: {d} vs {exact}");
+            // The signature −e(1 − cos θ) holds to O(e²/R).
+            assert!((d + e * (1.0 - theta.cos())).abs() < e * e / r);
+        }
+    }
+
+    #[test]
+    fn waviness_moves_the_cut_to_the_local_edge_radius() {
+        // w(ψ) = A cos(6ψ), tip set. Oracle: bisection on d of |P + d n − c′| − ρ(ψ(d)),
+        // with the analytic w and ψ the clockwise angle of the point from the tip.
+        let (amplitude, radius) = (50e-6, 0.5);
+        let mut edge = ideal(radius, 180.0);
+        edge.deviation = AngleTable::from_harmonics(&[(6.0, amplitude, 0.0)], 4001);
+        let tip = tip_direction(0.0);
+        let centre = -amplitude * tip; // the real centre, w(0) behind the pivot
+        for theta_deg in [0.0f64, 12.0, 33.0, -25.0] {
+            let theta = theta_deg.to_radians();
+            let normal = DVec2::new(theta.sin(), theta.cos());
+            let sample = -radius * normal;
+            let d = edge.entry(sample, normal, tip, 1.0).unwrap();
+            let gap = |d: f64| {
+                let v = sample + d * normal - centre;
+                let psi = (v.x * tip.y - v.y * tip.x).atan2(v.dot(tip));
+                v.length() - (radius + amplitude * (6.0 * psi).cos())
+            };
+            let (mut lo, mut hi) = (-1e-3, 1e-3);
+            for _ in 0..200 {
+                let mid = 0.5 * (lo + hi);
+                if gap(mid) > 0.0 { lo = mid } else { hi = mid }
+            }
+            let oracle = 0.5 * (lo + hi);
+            // Linear interpolation of a 4001-point table (Δψ = π/4000): error
+            // ≤ A·(6Δψ)²/8 = 1.4e-10 mm, against the analytic w of the oracle.
+            assert!(
+                (d - oracle).abs() < 1.5e-10,
+                "θ = {theta_deg}: {d} vs {oracle}"
+            );
+            // To first order the cut moves by −(w(θ) − w(0)·cos θ): the tip-set arc is
+            // shifted by w(0) along the tool axis, cos θ of it along this normal. The hit
+            // sits ~A·sin θ/R off θ, so w′ = 6A leaves a remainder below 6A²/R.
+            let first_order = -(amplitude * (6.0 * theta).cos() - amplitude * theta.cos());
+            let bound = 6.0 * amplitude * amplitude / radius;
+            assert!(
+                (d - first_order).abs() < bound,
+                "θ = {theta_deg}: {d} vs {first_order}"
+            );
+        }
     }
 }

@@ -6,6 +6,8 @@
 //! curvature, edge that reaches the slope in XZ) and names the field in its error.
 //! Lengths are in mm unless the name says otherwise.
 
+use super::job_effects::{EffectSpec, turning_effects};
+use crate::effects::TurningEffects;
 use crate::geometry::surface::EVEN_TERMS;
 use crate::geometry::{ArcNoseTool, Form, MeridianArcLength, SurfaceOfRevolution};
 use crate::process::{FeedAlong, TurningMode, TurningSpiral};
@@ -31,6 +33,9 @@ pub struct JobFile {
     pub grid: GridSpec,
     #[serde(default)]
     pub output: OutputSpec,
+    /// Departures from the nominal process (see `io::job_effects`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<EffectSpec>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -110,6 +115,9 @@ pub struct ToolSpec {
     pub nose_radius_mm: f64,
     /// Angle subtended by the edge arc (the edge spans ±half about the tip), (0, 180].
     pub included_angle_deg: f64,
+    /// Flank clearance angle (default 10°), (0, 45].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearance_angle_deg: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -225,6 +233,7 @@ pub struct Job {
     pub aperture: Aperture,
     pub tool: ArcNoseTool,
     pub spiral: TurningSpiral,
+    pub effects: TurningEffects,
     pub spindle_rpm: Option<f64>,
     pub pitch_mm: f64,
     pub azimuths: u32,
@@ -337,12 +346,15 @@ impl Job {
         }
         resolved.output.map_pixels = Some(map_pixels);
 
+        let effects = turning_effects(&file.effects, tool.nose_radius_mm)?;
+        resolved.tool.clearance_angle_deg = Some(tool.clearance_angle_deg);
         Ok(Job {
             name,
             surface,
             aperture,
             tool,
             spiral,
+            effects,
             spindle_rpm,
             pitch_mm,
             azimuths,
@@ -526,6 +538,13 @@ fn validate_tool(spec: &ToolSpec) -> Result<ArcNoseTool, JobError> {
             spec.included_angle_deg,
             0.0,
             180.0,
+            false,
+        )?,
+        clearance_angle_deg: check(
+            "tool.clearance_angle_deg",
+            spec.clearance_angle_deg.unwrap_or(10.0),
+            0.0,
+            45.0,
             false,
         )?,
     })

@@ -6,5 +6,8 @@ pub mod colour;
 pub mod exr_io;
 pub mod font;
 pub mod job;
+pub mod job_effects;
+pub mod measured;
+pub mod nc;
 pub mod outputs;
 pub mod png_out;

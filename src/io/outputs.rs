@@ -36,6 +36,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     // Per-sample quantities in report units, then their top views.
     let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
     let scallop_nm: Vec<f64> = result.scallops.map_mm.iter().map(|d| d * 1e6).collect();
+    let protrusion_nm: Vec<f64> = result.protrusion.map_mm.iter().map(|d| d * 1e6).collect();
     // The machined height: nominal z plus the normal offset seen along Z.
     let rings = grid.ring_count();
     let height_mm: Vec<f64> = result
@@ -51,6 +52,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let deviation_map = top_view(grid, &deviation_nm, pixels);
     let scallop_map = top_view(grid, &scallop_nm, pixels);
     let height_map = top_view(grid, &height_mm, pixels);
+    let protrusion_map = top_view(grid, &protrusion_nm, pixels);
 
     let attributes = common_attributes(result, &deviation_map);
     let mut written = Vec::new();
@@ -74,6 +76,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
                 ("deviation_nm".into(), deviation_map.values.clone()),
                 ("height_mm".into(), height_map.values.clone()),
                 ("scallop_nm".into(), scallop_map.values.clone()),
+                ("protrusion_nm".into(), protrusion_map.values.clone()),
                 ("valid".into(), valid_channel),
             ],
             attributes: attributes.clone(),
@@ -91,7 +94,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     polar_attributes.remove("pixel_pitch_mm");
     polar_attributes.insert(
         "units".into(),
-        "deviation_nm: nm along the outward normal, + = material left; scallop_nm: nm; pass: revolution·2 + branch (−1 = uncut)".into(),
+        "deviation_nm: nm along the outward normal, + = material left; scallop_nm: nm; protrusion_nm: nm above the surround inside the central feature; pass: revolution·4 + branch (0 direct, 1 mirrored past the axis, 2 flank; −1 = uncut)".into(),
     );
     write_exr(
         &file("polar.exr"),
@@ -106,6 +109,10 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
                 (
                     "scallop_nm".into(),
                     scallop_nm.iter().map(|&v| v as f32).collect(),
+                ),
+                (
+                    "protrusion_nm".into(),
+                    protrusion_nm.iter().map(|&v| v as f32).collect(),
                 ),
                 ("pass".into(), result.field.pass_channel()),
             ],
@@ -202,7 +209,7 @@ fn common_attributes(result: &RunResult, map: &Raster) -> BTreeMap<String, Strin
         ),
         (
             "units".into(),
-            "deviation_nm: nm along the outward surface normal, + = material left; height_mm: machined surface height along +Z in mm; scallop_nm: cusp height above the local cut bottoms in nm; valid: 1 inside the simulated aperture".into(),
+            "deviation_nm: nm along the outward surface normal, + = material left; height_mm: machined surface height along +Z in mm; scallop_nm: cusp height above the local cut bottoms in nm; protrusion_nm: height above the surround inside the central feature in nm; valid: 1 inside the simulated aperture".into(),
         ),
     ])
 }
@@ -366,6 +373,7 @@ fn summary_json(
         },
         "deviation": result.deviation,
         "scallop": scallop,
+        "protrusion": result.protrusion,
         "maps": {
             "pixels": map.pixels,
             "pixel_pitch_mm": map.pitch_mm,

@@ -196,6 +196,7 @@ mod tests {
         let tool = ArcNoseTool {
             nose_radius_mm: 0.5,
             included_angle_deg: 120.0,
+            clearance_angle_deg: 10.0,
         };
         let table = spiral(FeedAlong::Radial).pose_table(&surface, &meridian, &tool);
         // Convex sphere of radius 20 centred at (0, −20): nose centres lie on the
@@ -220,6 +221,7 @@ mod tests {
         let tool = ArcNoseTool {
             nose_radius_mm: 0.5,
             included_angle_deg: 120.0,
+            clearance_angle_deg: 10.0,
         };
         let table = spiral(FeedAlong::ArcLength).pose_table(&surface, &meridian, &tool);
         // Concave sphere centred at (0, 20): nose centres at distance 19.5 from it,
@@ -241,6 +243,7 @@ mod tests {
         let tool = ArcNoseTool {
             nose_radius_mm: 0.5,
             included_angle_deg: 40.0,
+            clearance_angle_deg: 10.0,
         };
         let table = TurningSpiral {
             mode: TurningMode::Xzb,
