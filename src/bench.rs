@@ -8,7 +8,7 @@ use crate::engine::RemovalEngine;
 use crate::engine::cpu::CpuEngine;
 use crate::engine::gpu::GpuEngine;
 use crate::io::job::Job;
-use crate::run::{prepare_scene, simulate};
+use crate::run::{prepare_scenes, remove_all, simulate};
 use std::time::Instant;
 
 /// A flat facing job of the given aperture radius (mm) used for scaling and tiling.
@@ -44,15 +44,13 @@ struct Measurement {
 
 /// Times the removal stage alone (scene prepared beforehand, outputs not written).
 fn time_removal(engine: &mut dyn RemovalEngine, job: &Job) -> Result<Measurement, String> {
-    let scene = prepare_scene(job);
+    let scenes = prepare_scenes(job);
     let started = Instant::now();
-    engine
-        .remove(&scene, &|_, _| {})
-        .map_err(|e| e.to_string())?;
+    remove_all(&scenes, engine, &|_, _| {}).map_err(|e| e.to_string())?;
     Ok(Measurement {
         seconds: started.elapsed().as_secs_f64(),
-        samples: scene.grid.sample_count() as u64,
-        pairs: scene.pair_count(),
+        samples: scenes[0].grid.sample_count() as u64,
+        pairs: scenes.iter().map(|s| s.pair_count()).sum(),
     })
 }
 
@@ -97,7 +95,7 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
         let result =
             simulate(Job::default_job(), engine.as_mut(), &|_, _| {}).map_err(|e| e.to_string())?;
         let wall = started.elapsed().as_secs_f64();
-        let pairs = result.scene.pair_count();
+        let pairs = result.pair_count();
         println!(
             "| {} | {} | {:.3e} | {:.3} | {:.3e} | {:.3} |",
             result.engine.kind,
@@ -139,10 +137,10 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
         // 50 001 rings × 400 azimuths × 8 bytes = 160 MB of results: more than lavapipe's
         // 128 MiB storage binding, so the GPU engine must tile.
         let job = facing_job(5.0, 0.2, 0.1, 400);
+        let samples = prepare_scenes(&job)[0].grid.sample_count();
         println!(
-            "\n## large grid: {} samples, {:.0} MiB of dexels",
-            prepare_scene(&job).grid.sample_count(),
-            prepare_scene(&job).grid.sample_count() as f64 * 8.0 / 1048576.0
+            "\n## large grid: {samples} samples, {:.0} MiB of dexels",
+            samples as f64 * 8.0 / 1048576.0
         );
         for engine in engines.iter_mut().filter(|e| e.info().kind == "gpu") {
             let m = time_removal(engine.as_mut(), &job)?;

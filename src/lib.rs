@@ -14,11 +14,13 @@
 
 pub mod analysis;
 pub mod bench;
+pub mod compensate;
 pub mod effects;
 pub mod engine;
 pub mod field;
 pub mod formulas;
 pub mod geometry;
 pub mod io;
+pub mod numeric;
 pub mod process;
 pub mod run;

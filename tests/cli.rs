@@ -187,3 +187,68 @@ fn without_an_adapter_auto_falls_back_to_cpu_and_gpu_fails() {
     assert_eq!(output.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&output.stderr).contains("--engine gpu"));
 }
+
+#[test]
+fn compensate_writes_a_correction_a_job_and_a_program_that_run() {
+    let dir = out_dir("compensate");
+    let output = toolmark(
+        &[
+            "compensate",
+            "examples/asphere_xz_with_errors.toml",
+            "--cycles",
+            "1",
+            "--engine",
+            "cpu",
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    for file in [
+        "correction.csv",
+        "compensated.toml",
+        "compensation.json",
+        "form_error.png",
+        "compensated.nc",
+    ] {
+        assert!(dir.join(file).is_file(), "{file} missing");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("compensation.json")).unwrap())
+            .unwrap();
+    let cycles = report["cycles"].as_array().unwrap();
+    assert_eq!(cycles.len(), 2);
+    let (first, second) = (
+        cycles[0]["form_pv_nm"].as_f64().unwrap(),
+        cycles[1]["form_pv_nm"].as_f64().unwrap(),
+    );
+    assert!(second < first / 5.0, "{first} → {second}");
+    // The compensated job runs (its effects still play the machine) and lands on cycle 1's form.
+    let rerun = dir.join("rerun");
+    let output = toolmark(
+        &[
+            "run",
+            dir.join("compensated.toml").to_str().unwrap(),
+            "--engine",
+            "cpu",
+            "--out",
+            rerun.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    // The written program parses as the C-X-Z form the reader accepts.
+    let program = std::fs::read_to_string(dir.join("compensated.nc")).unwrap();
+    let parsed = toolmark::io::nc::parse_nc(&program).expect("compensated.nc parses");
+    assert_eq!(parsed.passes.len(), 1);
+}

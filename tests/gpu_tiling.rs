@@ -4,12 +4,12 @@
 mod common;
 use common::*;
 use toolmark::engine::RemovalEngine;
-use toolmark::run::prepare_scene;
+use toolmark::run::prepare_scenes;
 
 #[test]
 fn tiled_gpu_removal_equals_untiled() {
     let job = example("convex_sphere.toml");
-    let scene = prepare_scene(&job);
+    let scene = prepare_scenes(&job).remove(0);
     let samples = scene.grid.sample_count() as u64;
     let mut engine = gpu_engine();
     let whole = engine.remove(&scene, &|_, _| {}).expect("one tile");

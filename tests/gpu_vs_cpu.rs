@@ -124,3 +124,11 @@ harmonics = [{ order = 20, amplitude_mm = 0.00005 }, { order = 7, amplitude_mm =
         ),
     );
 }
+
+#[test]
+fn nc_program_with_a_measured_edge_gpu_matches_cpu() {
+    compare(
+        "UPM cut 1021 with measured edge D906-3",
+        example("upm_1021_measured_edge.toml"),
+    );
+}

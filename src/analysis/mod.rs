@@ -2,12 +2,17 @@
 //! profiles and top-view rasters.
 
 pub mod deviation;
+pub mod form;
 pub mod maps;
+pub mod profile_compare;
+pub mod profile_stats;
 pub mod protrusion;
 pub mod scallop;
 
 pub use deviation::{DeviationStats, deviation_stats};
+pub use form::{FormProfile, form_error};
 pub use maps::{Raster, top_view};
+pub use profile_stats::{ProfileStats, profile_stats, remove_form};
 pub use protrusion::{Protrusion, ProtrusionShape, analyse_protrusion};
 pub use scallop::{ScallopAnalysis, ScallopStats, analyse_scallops};
 

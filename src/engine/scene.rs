@@ -109,8 +109,9 @@ pub struct TurningScene {
 }
 
 impl TurningScene {
-    /// `extra_reach_mm` widens the reach test for anything that can push the cut beyond
-    /// the nominal band (effects; 0 for a nominal job).
+    /// `cut_band_mm` is how far from nominal the path's nominal cuts lie; `extra_reach_mm`
+    /// widens the reach test for anything that can push the cut beyond that band
+    /// (effects; 0 for a nominal job).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         grid: PolarGrid,
@@ -119,7 +120,7 @@ impl TurningScene {
         edge: EdgeModel,
         edge_plane_y_mm: f64,
         stock_allowance_mm: f64,
-        target_offset_mm: f64,
+        cut_band_mm: f64,
         extra_reach_mm: f64,
     ) -> Self {
         let steps = poses.steps_per_rev as i64;
@@ -133,7 +134,7 @@ impl TurningScene {
 
         // A pass farther than R + margin from a sample cannot enter its dexel within
         // ±margin of the nominal surface, where every cut of this job lies.
-        let margin = stock_allowance_mm + target_offset_mm.abs() + extra_reach_mm + 1e-6;
+        let margin = stock_allowance_mm + cut_band_mm + extra_reach_mm + 1e-6;
         let reach = edge.nominal_radius_mm + margin;
         let rings =
             reachable_revolutions(&grid, &poses, first_rev, rev_count, reach, edge_plane_y_mm);

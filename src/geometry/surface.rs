@@ -175,6 +175,50 @@ impl SurfaceOfRevolution {
         let slope = self.slope(r);
         (1.0 + slope * slope).sqrt()
     }
+
+    /// Signed distance from a point of the (r, z) half-plane to the meridian (+ on the
+    /// tool side) and the radius of its foot point. The foot lies within the distance to
+    /// the surface point at the same radius, so that interval is sampled for the nearest
+    /// point (robust on steep flanks, where a plain Newton from the point's own radius
+    /// wanders off), then bisection on (p − P(r))·(1, z′) = 0 polishes it.
+    pub fn distance_to(&self, point: DVec2) -> (f64, f64) {
+        let limit = self.sag_limit_radius_mm() * (1.0 - 1e-12);
+        let r0 = point.x.clamp(0.0, limit);
+        let reach = (point - self.point(r0)).length();
+        let (lo, hi) = ((r0 - reach).max(0.0), (r0 + reach).min(limit));
+        const SAMPLES: usize = 256;
+        let at = |i: usize| lo + (hi - lo) * i as f64 / SAMPLES as f64;
+        let nearest = (0..=SAMPLES)
+            .min_by(|&a, &b| {
+                let da = (point - self.point(at(a))).length_squared();
+                let db = (point - self.point(at(b))).length_squared();
+                da.total_cmp(&db)
+            })
+            .unwrap_or(0);
+        // f(r) = (p − P(r))·(1, z′) changes sign across the foot.
+        let f = |r: f64| (point.x - r) + (point.y - self.height(r)) * self.slope(r);
+        let (mut a, mut b) = (
+            at(nearest.saturating_sub(1)),
+            at((nearest + 1).min(SAMPLES)),
+        );
+        let foot = if f(a) * f(b) <= 0.0 {
+            for _ in 0..100 {
+                let mid = 0.5 * (a + b);
+                if f(a) * f(mid) <= 0.0 {
+                    b = mid
+                } else {
+                    a = mid
+                }
+                if b - a < 1e-15 {
+                    break;
+                }
+            }
+            0.5 * (a + b)
+        } else {
+            at(nearest) // at an end of the interval (the axis): the nearest sample
+        };
+        ((point - self.point(foot)).dot(self.normal(foot)), foot)
+    }
 }
 
 /// Meridian arc length s(r) from the axis and its inverse r(s), accurate to f64
@@ -380,6 +424,33 @@ mod tests {
         // Sanity: the meridian is longer than the chord from vertex to rim.
         let chord = surface.point(10.0).length();
         assert!(table.total_mm() > chord);
+    }
+
+    #[test]
+    fn distance_to_a_sphere_is_the_radial_gap() {
+        // Convex R10 sphere centred at (0, −10): distance = |p − c| − 10.
+        let surface = SurfaceOfRevolution::sphere(10.0, Form::Convex);
+        for &(x, z) in &[(0.0, 0.3), (2.0, -0.1), (5.0, -1.2), (7.0, -2.0)] {
+            let point = DVec2::new(x, z);
+            let expected = (point - DVec2::new(0.0, -10.0)).length() - 10.0;
+            assert!(
+                (surface.distance_to(point).0 - expected).abs() < 1e-12,
+                "{point}"
+            );
+        }
+    }
+
+    #[test]
+    fn distance_to_the_steep_asphere_flank_finds_the_true_foot() {
+        // A nose centre 0.5 mm off the seed-002 asphere along its normal at r = 9.7 mm
+        // (slope ≈ 80°): the distance is 0.5 and the foot is 9.7.
+        let surface = seed_002_asphere();
+        for r in [2.0, 7.0, 9.7, 9.99] {
+            let centre = surface.point(r) + 0.5 * surface.normal(r);
+            let (distance, foot) = surface.distance_to(centre);
+            assert!((distance - 0.5).abs() < 1e-9, "r = {r}: {distance}");
+            assert!((foot - r).abs() < 1e-9, "r = {r}: foot {foot}");
+        }
     }
 
     #[test]

@@ -323,10 +323,9 @@ fn summary_json(
 ) -> serde_json::Value {
     let grid = result.grid();
     let job = &result.job;
-    let scene = &result.scene;
-    let pairs = scene.pair_count();
+    let pairs = result.pair_count();
     let t = &result.timings;
-    let revolutions = scene.poses.end_angle_rad() / std::f64::consts::TAU;
+    let revolutions = result.revolutions();
     let scallop = match &result.scallops.stats {
         Some(s) => json!({
             "max_nm": s.max_nm, "mean_nm": s.mean_nm, "min_nm": s.min_nm, "count": s.count, "note": null
@@ -354,10 +353,11 @@ fn summary_json(
             "meridian_length_mm": grid.rings[grid.ring_count() - 1].arc_length_mm - grid.rings[0].arc_length_mm,
         },
         "path": {
+            "passes": result.scenes.len(),
             "revolutions": revolutions,
-            "pose_nodes": scene.poses.poses.len(),
-            "steps_per_rev": scene.poses.steps_per_rev,
-            "feed_per_rev_um": job.spiral.feed_per_rev_mm * 1e3,
+            "pose_nodes": result.pose_nodes(),
+            "steps_per_rev": result.scenes[0].poses.steps_per_rev,
+            "pass_spacing_um": job.path.pass_spacing_mm() * 1e3,
             "machining_time_s": job.spindle_rpm.map(|rpm| revolutions / rpm * 60.0),
         },
         "work": {

@@ -85,7 +85,7 @@ fn check_len(what: &str, len: usize, width: u32, height: u32) -> io::Result<()> 
 
 /// Encodes the whole PNG in memory (so a failed encode touches no file), then
 /// writes it crash-safely.
-fn write_png(
+pub(crate) fn write_png(
     path: &Path,
     (width, height): (u32, u32),
     (colour, depth): (png::ColorType, png::BitDepth),
@@ -224,7 +224,7 @@ fn draw_frame(canvas: &mut RgbImage, x: u32, y: u32, width: u32, height: u32) {
 
 /// The range actually displayed: `range` itself when it is finite and non-empty,
 /// otherwise one unit either side of its centre (never dividing by zero).
-fn display_range((lo, hi): (f32, f32)) -> (f64, f64) {
+pub(crate) fn display_range((lo, hi): (f32, f32)) -> (f64, f64) {
     let (lo, hi) = (f64::from(lo), f64::from(hi));
     let centre = match (lo.is_finite(), hi.is_finite()) {
         (true, true) if lo < hi => return (lo, hi),
@@ -241,7 +241,7 @@ fn display_range((lo, hi): (f32, f32)) -> (f64, f64) {
 /// Tick values at multiples of a 1/2/5×10^n step inside [lo, hi]: the largest
 /// such step that still gives at least five ticks (so at most 13). Returns the
 /// ticks and the step.
-fn nice_ticks(lo: f64, hi: f64) -> (Vec<f64>, f64) {
+pub(crate) fn nice_ticks(lo: f64, hi: f64) -> (Vec<f64>, f64) {
     let top_exponent = (hi - lo).log10().floor() as i32;
     for exponent in (top_exponent.saturating_sub(2)..=top_exponent).rev() {
         for mantissa in [5.0, 2.0, 1.0] {
@@ -260,7 +260,7 @@ fn nice_ticks(lo: f64, hi: f64) -> (Vec<f64>, f64) {
 }
 
 /// Formats a tick with just the decimals its step needs, e.g. `-12.5`, `0`, `250`.
-fn format_tick(value: f64, step: f64) -> String {
+pub(crate) fn format_tick(value: f64, step: f64) -> String {
     // Snap float noise such as -1e-17 to a clean zero (avoids "-0").
     if value.abs() < step * 1e-6 {
         return "0".to_string();

@@ -19,10 +19,14 @@
 //! harmonics = [{ order = 40, amplitude_mm = 0.00005, phase_deg = 0.0 }]
 //! ```
 
-use super::job::JobError;
+use super::{JobError, ToolSpec};
 use crate::effects::{TurningEffects, WAVINESS_SAMPLES};
+use crate::geometry::ArcNoseTool;
 use crate::geometry::tool::AngleTable;
+use crate::io::measured::read_edge_csv;
+use crate::process::TurningMode;
 use serde::{Deserialize, Serialize};
+use std::path::Path;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -31,6 +35,18 @@ pub enum EffectKind {
     XDecentre,
     NoseRadiusError,
     EdgeWaviness,
+}
+
+impl EffectKind {
+    /// The name used in job files.
+    pub fn name(self) -> &'static str {
+        match self {
+            EffectKind::CentreHeight => "centre_height",
+            EffectKind::XDecentre => "x_decentre",
+            EffectKind::NoseRadiusError => "nose_radius_error",
+            EffectKind::EdgeWaviness => "edge_waviness",
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -158,4 +174,71 @@ pub fn turning_effects(
         effects.edge_deviation = AngleTable::from_harmonics(&harmonics, WAVINESS_SAMPLES);
     }
     Ok(effects)
+}
+
+/// Samples of a measured edge's deviation table.
+const EDGE_PROFILE_SAMPLES: usize = 2001;
+
+/// Makes the tool cut with a measured edge: its fitted radius (against the nominal the
+/// path assumes) and its radial deviation from that circle, ψ measured from the middle
+/// of the measured arc (taken as the tip).
+pub fn apply_edge_profile(
+    effects: &mut TurningEffects,
+    spec: &ToolSpec,
+    profile: &Path,
+    tool: &ArcNoseTool,
+    mode: TurningMode,
+    warnings: &mut Vec<String>,
+) -> Result<(), JobError> {
+    if !effects.edge_deviation.is_zero() {
+        return Err(error(
+            "tool.edge_profile".into(),
+            "cannot be combined with an edge_waviness effect: the measured edge already holds its waviness",
+        ));
+    }
+    let edge =
+        read_edge_csv(profile).map_err(|err| error("tool.edge_profile".into(), err.to_string()))?;
+    let smoothing = spec.edge_profile_smoothing_points.unwrap_or(51);
+    if !(1..=1001).contains(&smoothing) {
+        return Err(error(
+            "tool.edge_profile_smoothing_points".into(),
+            format!("{smoothing} is out of range; allowed: 1 to 1001"),
+        ));
+    }
+    let (start, step, mut values) =
+        edge.radial_deviation_table(EDGE_PROFILE_SAMPLES, smoothing as usize);
+    let mirror = spec.edge_profile_mirror.unwrap_or(false);
+    let start = if mirror {
+        values.reverse();
+        -(start + step * (values.len() - 1) as f64)
+    } else {
+        start
+    };
+    effects.radius_error_mm += edge.radius_mm - tool.nose_radius_mm;
+    effects.edge_deviation = AngleTable {
+        start_rad: start,
+        step_rad: step,
+        values_mm: values,
+    };
+    let covered = (-start).min(start + step * (EDGE_PROFILE_SAMPLES - 1) as f64);
+    let needed = match mode {
+        TurningMode::Xz => tool.half_span_rad(),
+        TurningMode::Xzb => tool.half_span_rad().min(0.35),
+    };
+    if covered < needed {
+        warnings.push(format!(
+            "the measured edge {} covers ±{:.1}° about its tip, less than the ±{:.1}° the tool may cut with; beyond it the deviation is held at its end values",
+            profile.display(),
+            covered.to_degrees(),
+            needed.to_degrees()
+        ));
+    }
+    warnings.push(format!(
+        "measured edge {}: fitted radius {:.3} µm (nominal {:.3} µm), residual RMS {:.3} µm, deviation smoothed over {smoothing} points",
+        profile.display(),
+        edge.radius_mm * 1e3,
+        tool.nose_radius_mm * 1e3,
+        edge.rms_residual_um
+    ));
+    Ok(())
 }

@@ -1,0 +1,533 @@
+//! Job files (TOML, `version = 1`): parsing, defaults and validation.
+//!
+//! Parsing rejects unknown fields and wrong types (serde, with the file position);
+//! validation then checks every value against its allowed range and the physics
+//! (sag defined over the aperture, feed the nose can cover, tool that fits the
+//! curvature, edge that reaches the slope in XZ) and names the field in its error.
+//! Lengths are in mm unless the name says otherwise; files named in a job are read
+//! relative to the job file's folder.
+
+mod effects;
+mod process;
+mod surface;
+
+pub use effects::{EffectKind, EffectSpec, HarmonicSpec, turning_effects};
+pub use surface::MAX_SLOPE_DEG;
+
+use crate::effects::TurningEffects;
+use crate::geometry::surface::EVEN_TERMS;
+use crate::geometry::{ArcNoseTool, Form, MeridianArcLength, SurfaceOfRevolution};
+use crate::process::{FeedAlong, NcReference, NormalCorrection, TurningMode, TurningPath};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// The built-in default job: the seed-002 asphere turned XZ (`toolmark run` with no file).
+pub const DEFAULT_JOB_TOML: &str = include_str!("../../../examples/asphere_xz.toml");
+
+pub const JOB_VERSION: u32 = 1;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JobFile {
+    pub version: u32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    pub surface: SurfaceSpec,
+    pub tool: ToolSpec,
+    pub process: ProcessSpec,
+    #[serde(default)]
+    pub grid: GridSpec,
+    #[serde(default)]
+    pub output: OutputSpec,
+    /// Departures from the nominal process (see `effects`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<EffectSpec>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SurfaceKind {
+    Plane,
+    Sphere,
+    Asphere,
+    /// The surface an ideal tool cuts along the job's NC program (when no design is known).
+    FromPath,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurfaceSpec {
+    pub kind: SurfaceKind,
+    /// Sphere and asphere: which side faces the tool.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub form: Option<Form>,
+    /// Sphere radius.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius_mm: Option<f64>,
+    /// Asphere base (paraxial) radius R0 = 1/c.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_radius_mm: Option<f64>,
+    /// Asphere conic constant k.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub conic: Option<f64>,
+    /// Even asphere coefficients: sag += a4·r⁴ + a6·r⁶ + … + a20·r²⁰ (r in mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a4: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a6: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a8: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a10: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a12: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a14: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a16: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a18: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub a20: Option<f64>,
+    /// Required, except for `from_path` (default: the part the path finishes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aperture_diameter_mm: Option<f64>,
+    #[serde(default)]
+    pub inner_diameter_mm: f64,
+}
+
+impl SurfaceSpec {
+    fn even_coefficients(&self) -> [(&'static str, Option<f64>); EVEN_TERMS] {
+        [
+            ("a4", self.a4),
+            ("a6", self.a6),
+            ("a8", self.a8),
+            ("a10", self.a10),
+            ("a12", self.a12),
+            ("a14", self.a14),
+            ("a16", self.a16),
+            ("a18", self.a18),
+            ("a20", self.a20),
+        ]
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ToolKind {
+    ArcNose,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ToolSpec {
+    pub kind: ToolKind,
+    /// The nose radius the path assumes.
+    pub nose_radius_mm: f64,
+    /// Angle subtended by the edge arc (the edge spans ±half about the tip), (0, 180].
+    pub included_angle_deg: f64,
+    /// Flank clearance angle (default 10°), (0, 45].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clearance_angle_deg: Option<f64>,
+    /// A measured edge (`X,Y,Z` rows in mm, the D906 form): the real radius and radial
+    /// deviation the tool cuts with, set at its tip.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge_profile: Option<PathBuf>,
+    /// Moving-average width over the measured edge points (default 51, odd).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge_profile_smoothing_points: Option<u32>,
+    /// Whether the measured edge's counter-clockwise direction runs toward the part's
+    /// axis (true) or its rim (false, default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge_profile_mirror: Option<bool>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ProcessKind {
+    Turning,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProcessSpec {
+    pub kind: ProcessKind,
+    pub mode: TurningMode,
+    /// Feed per spindle revolution; or give spindle_rpm and feed_mm_per_min.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feed_per_rev_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spindle_rpm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feed_mm_per_min: Option<f64>,
+    /// What the feed is measured along: "radial" (X, default) or "arc_length".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feed_along: Option<FeedAlong>,
+    /// Material above the nominal surface before the pass (default 0.002 mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stock_allowance_mm: Option<f64>,
+    /// Depth the pass cuts into the stock (default: the stock allowance).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_of_cut_mm: Option<f64>,
+    /// Radius of the cutting point where the spiral starts (default: the aperture rim).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_radius_mm: Option<f64>,
+    /// Radius where it ends (default 0, the centre).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end_radius_mm: Option<f64>,
+    /// An NC program (C-X-Z blocks) to run instead of a generated spiral.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nc_program: Option<PathBuf>,
+    /// What the program's X/Z locate: "nose_centre" (default) or "tip".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nc_reference: Option<NcReference>,
+    /// A normal correction (`radius_mm,normal_offset_nm` CSV, as `toolmark compensate`
+    /// writes): the path cuts that much deeper along the surface normal.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compensation: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridSpec {
+    /// Sample spacing along the meridian in µm (default: feed / 8).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pitch_um: Option<f64>,
+    /// Azimuth rows (default 64).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub azimuths: Option<u32>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Side of the top-view maps in pixels (default 512).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub map_pixels: Option<u32>,
+}
+
+/// A job error: the field (dotted path) and what is wrong with it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JobError {
+    pub field: String,
+    pub message: String,
+}
+
+impl fmt::Display for JobError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.field, self.message)
+    }
+}
+
+impl std::error::Error for JobError {}
+
+fn error(field: &str, message: impl Into<String>) -> JobError {
+    JobError {
+        field: field.to_string(),
+        message: message.into(),
+    }
+}
+
+/// A finite number in an allowed range, or an error naming the field and range.
+fn check(
+    field: &str,
+    value: f64,
+    min: f64,
+    max: f64,
+    min_inclusive: bool,
+) -> Result<f64, JobError> {
+    let low = if min_inclusive {
+        value >= min
+    } else {
+        value > min
+    };
+    if !value.is_finite() || !low || value > max {
+        let bracket = if min_inclusive { "[" } else { "(" };
+        return Err(error(
+            field,
+            format!("{value} is out of range; allowed: a finite number in {bracket}{min}, {max}]"),
+        ));
+    }
+    Ok(value)
+}
+
+/// A file named in the job, resolved against the job's folder and made absolute.
+fn resolve_file(field: &str, base_dir: &Path, file: &Path) -> Result<PathBuf, JobError> {
+    let path = base_dir.join(file);
+    std::fs::canonicalize(&path)
+        .map_err(|err| error(field, format!("cannot open {}: {err}", path.display())))
+}
+
+/// The spatial extent of the part that is simulated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aperture {
+    pub inner_radius_mm: f64,
+    pub outer_radius_mm: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Job {
+    pub name: String,
+    pub surface: SurfaceOfRevolution,
+    pub aperture: Aperture,
+    pub tool: ArcNoseTool,
+    pub path: TurningPath,
+    /// Normal offsets applied to the path (empty: none).
+    pub correction: NormalCorrection,
+    pub effects: TurningEffects,
+    pub spindle_rpm: Option<f64>,
+    pub pitch_mm: f64,
+    pub azimuths: u32,
+    pub map_pixels: u32,
+    /// The job as given with every default filled in (written to the outputs).
+    pub resolved: JobFile,
+    /// Things that are allowed but worth knowing (e.g. a grid too coarse for scallops).
+    pub warnings: Vec<String>,
+}
+
+/// Largest number of samples a job may ask for (host memory: ~12 bytes each, plus maps).
+pub const MAX_SAMPLES: f64 = 4.0e8;
+
+impl Job {
+    /// Parses a job whose relative file names resolve against the current folder.
+    pub fn from_toml_str(text: &str, default_name: &str) -> Result<Job, JobError> {
+        Job::from_toml_in(text, default_name, Path::new("."))
+    }
+
+    /// Parses a job whose relative file names resolve against `base_dir`.
+    pub fn from_toml_in(text: &str, default_name: &str, base_dir: &Path) -> Result<Job, JobError> {
+        let file: JobFile = toml::from_str(text).map_err(|err| error("job", err.to_string()))?;
+        Job::from_file(file, default_name, base_dir)
+    }
+
+    pub fn load(path: &Path) -> Result<Job, JobError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|err| error("job", format!("cannot read {}: {err}", path.display())))?;
+        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+        let base_dir = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        Job::from_toml_in(&text, stem.as_deref().unwrap_or("job"), base_dir)
+    }
+
+    pub fn default_job() -> Job {
+        Job::from_toml_str(DEFAULT_JOB_TOML, "default").expect("the built-in default job is valid")
+    }
+
+    pub fn from_file(file: JobFile, default_name: &str, base_dir: &Path) -> Result<Job, JobError> {
+        if file.version != JOB_VERSION {
+            return Err(error(
+                "version",
+                format!("{} is not supported; allowed: {JOB_VERSION}", file.version),
+            ));
+        }
+        let mut resolved = file.clone();
+        let name = file
+            .name
+            .clone()
+            .unwrap_or_else(|| default_name.to_string());
+        resolved.name = Some(name.clone());
+        let mut warnings = Vec::new();
+
+        let tool = validate_tool(&file.tool)?;
+        let (surface, aperture, path, spindle_rpm) = match &file.process.nc_program {
+            None => {
+                let (surface, aperture) = surface::validate(&file.surface)?;
+                let (spiral, rpm) = process::validate_spiral(
+                    &file.process,
+                    &surface,
+                    &aperture,
+                    &tool,
+                    &mut warnings,
+                )?;
+                process::resolve_spiral(&mut resolved.process, &spiral);
+                (surface, aperture, TurningPath::Spiral(spiral), rpm)
+            }
+            Some(program) => {
+                let program = resolve_file("process.nc_program", base_dir, program)?;
+                let nc = process::validate_nc(
+                    &file.process,
+                    &file.surface,
+                    &program,
+                    &tool,
+                    &mut warnings,
+                )?;
+                resolved.process.nc_program = Some(program);
+                resolved.process.nc_reference = Some(nc.path.reference);
+                resolved.process.stock_allowance_mm = Some(nc.path.stock_allowance_mm);
+                (
+                    nc.surface,
+                    nc.aperture,
+                    TurningPath::Nc(nc.path),
+                    nc.spindle_rpm,
+                )
+            }
+        };
+        if file.surface.kind == SurfaceKind::FromPath {
+            resolved.surface.aperture_diameter_mm = Some(2.0 * aperture.outer_radius_mm);
+        }
+        let meridian = MeridianArcLength::new(
+            &surface,
+            aperture.outer_radius_mm.max(path.outer_radius_mm()),
+        );
+        process::check_tool_against_surface(&surface, &path, &tool)?;
+        process::check_revolutions(&path, &meridian)?;
+
+        let pass_spacing = path.pass_spacing_mm();
+        let pitch_mm = match file.grid.pitch_um {
+            Some(pitch) => check("grid.pitch_um", pitch, 0.0, 1e4, false)? * 1e-3,
+            None => pass_spacing / 8.0,
+        };
+        let azimuths = file.grid.azimuths.unwrap_or(64);
+        if !(1..=65_536).contains(&azimuths) {
+            return Err(error(
+                "grid.azimuths",
+                format!("{azimuths} is out of range; allowed: 1 to 65536"),
+            ));
+        }
+        let meridian_span = meridian.arc_length_at(aperture.outer_radius_mm)
+            - meridian.arc_length_at(aperture.inner_radius_mm);
+        let samples = (meridian_span / pitch_mm + 1.0).floor() * azimuths as f64;
+        if samples > MAX_SAMPLES {
+            return Err(error(
+                "grid.pitch_um",
+                format!(
+                    "{pitch} µm with {azimuths} azimuths gives {samples:.3e} samples, more than the {MAX_SAMPLES:.0e} allowed; raise grid.pitch_um or lower grid.azimuths",
+                    pitch = pitch_mm * 1e3
+                ),
+            ));
+        }
+        if pitch_mm * 4.0 > pass_spacing {
+            warnings.push(format!(
+                "grid.pitch_um = {:.3} is coarser than a quarter of the pass spacing ({:.3} µm): scallops will not be resolved",
+                pitch_mm * 1e3,
+                pass_spacing * 1e3
+            ));
+        }
+        resolved.grid = GridSpec {
+            pitch_um: Some(pitch_mm * 1e3),
+            azimuths: Some(azimuths),
+        };
+        let map_pixels = file.output.map_pixels.unwrap_or(512);
+        if !(16..=8192).contains(&map_pixels) {
+            return Err(error(
+                "output.map_pixels",
+                format!("{map_pixels} is out of range; allowed: 16 to 8192"),
+            ));
+        }
+        resolved.output.map_pixels = Some(map_pixels);
+
+        let mut effects = turning_effects(&file.effects, tool.nose_radius_mm)?;
+        if let Some(profile) = &file.tool.edge_profile {
+            let profile = resolve_file("tool.edge_profile", base_dir, profile)?;
+            effects::apply_edge_profile(
+                &mut effects,
+                &file.tool,
+                &profile,
+                &tool,
+                path.mode(),
+                &mut warnings,
+            )?;
+            resolved.tool.edge_profile = Some(profile);
+        }
+        resolved.tool.clearance_angle_deg = Some(tool.clearance_angle_deg);
+        let correction = match &file.process.compensation {
+            None => NormalCorrection::default(),
+            Some(file_name) => {
+                let table = resolve_file("process.compensation", base_dir, file_name)?;
+                let text = std::fs::read_to_string(&table).map_err(|err| {
+                    error(
+                        "process.compensation",
+                        format!("{}: {err}", table.display()),
+                    )
+                })?;
+                let correction = NormalCorrection::from_csv(&text).map_err(|err| {
+                    error(
+                        "process.compensation",
+                        format!("{}: {err}", table.display()),
+                    )
+                })?;
+                if correction.max_abs_mm() > 0.5 * tool.nose_radius_mm {
+                    return Err(error(
+                        "process.compensation",
+                        format!(
+                            "{}: offsets reach {:.3} mm; allowed: at most half the nose radius",
+                            table.display(),
+                            correction.max_abs_mm()
+                        ),
+                    ));
+                }
+                resolved.process.compensation = Some(table);
+                correction
+            }
+        };
+        Ok(Job {
+            name,
+            surface,
+            aperture,
+            tool,
+            path,
+            correction,
+            effects,
+            spindle_rpm,
+            pitch_mm,
+            azimuths,
+            map_pixels,
+            resolved,
+            warnings,
+        })
+    }
+
+    /// The meridian arc-length table over the aperture and the path (shared by both).
+    pub fn meridian(&self) -> MeridianArcLength {
+        MeridianArcLength::new(
+            &self.surface,
+            self.aperture
+                .outer_radius_mm
+                .max(self.path.outer_radius_mm()),
+        )
+    }
+
+    /// Canonical JSON of the resolved job.
+    pub fn canonical_json(&self) -> String {
+        serde_json::to_string(&self.resolved).unwrap_or_default()
+    }
+
+    /// FNV-1a 64-bit hash of the canonical resolved job, as 16 hex digits.
+    pub fn hash(&self) -> String {
+        let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+        for byte in self.canonical_json().bytes() {
+            hash ^= byte as u64;
+            hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        format!("{hash:016x}")
+    }
+}
+
+fn validate_tool(spec: &ToolSpec) -> Result<ArcNoseTool, JobError> {
+    Ok(ArcNoseTool {
+        nose_radius_mm: check(
+            "tool.nose_radius_mm",
+            spec.nose_radius_mm,
+            0.0,
+            100.0,
+            false,
+        )?,
+        included_angle_deg: check(
+            "tool.included_angle_deg",
+            spec.included_angle_deg,
+            0.0,
+            180.0,
+            false,
+        )?,
+        clearance_angle_deg: check(
+            "tool.clearance_angle_deg",
+            spec.clearance_angle_deg.unwrap_or(10.0),
+            0.0,
+            45.0,
+            false,
+        )?,
+    })
+}
