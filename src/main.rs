@@ -479,7 +479,7 @@ fn compensate(args: CompensateArgs) -> Result<(), Failure> {
     println!("| --- | --- | --- | --- | --- |");
     let run = compensation_loop(&job, engine.as_mut(), args.cycles, cutoff_mm, &|r| {
         println!(
-            "| {} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            "| {} | {:.1} | {:.2} | {:.1} | {:.1} |",
             r.cycle, r.form_pv_nm, r.form_rms_nm, r.deviation_pv_nm, r.correction_max_nm
         )
     })
