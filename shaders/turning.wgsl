@@ -83,6 +83,9 @@ const PI: f32 = 3.141592653589793;
 @group(0) @binding(4) var<storage, read_write> dexels: array<Dexel>;
 
 fn tip_direction(b_rad: f32) -> vec2<f32> {
+    if b_rad == 0.0 {
+        return vec2<f32>(0.0, -1.0); // XZ: skip the trigonometry
+    }
     return vec2<f32>(-sin(b_rad), -cos(b_rad));
 }
 
@@ -132,8 +135,10 @@ fn edge_entry(from_pivot: vec2<f32>, m: vec2<f32>, tip: vec2<f32>, psi_sign: f32
         return MISS;
     }
     for (var refinement = 0u; refinement <= passes; refinement = refinement + 1u) {
+        // The hit lies on the circle of `radius`: within the edge arc when
+        // hit·tip ≥ radius·cos(half span).
         let hit = w + d * m;
-        if dot(hit, tip) < length(hit) * params.cos_half_span {
+        if dot(hit, tip) < radius * params.cos_half_span {
             return MISS;
         }
         if refinement == passes {

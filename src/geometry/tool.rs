@@ -38,6 +38,9 @@ impl ArcNoseTool {
 /// (B = 0: straight down, −Z; positive B leans the tip toward −r, following a
 /// normal that leans toward +r).
 pub fn tip_direction(b_rad: f64) -> DVec2 {
+    if b_rad == 0.0 {
+        return DVec2::NEG_Y; // XZ: skip the trigonometry
+    }
     DVec2::new(-b_rad.sin(), -b_rad.cos())
 }
 
@@ -161,8 +164,10 @@ impl EdgeModel {
         };
         let mut d = circle_entry(w, direction, radius)?;
         for pass in 0..=passes {
+            // The hit lies on the circle of `radius`: its angle from the tip is within the
+            // edge arc when hit·tip ≥ radius·cos(half span).
             let hit = w + d * direction;
-            if hit.dot(tip) < hit.length() * cos_half_span {
+            if hit.dot(tip) < radius * cos_half_span {
                 return None;
             }
             if pass == passes {
