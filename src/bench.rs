@@ -49,7 +49,7 @@ fn time_removal(engine: &mut dyn RemovalEngine, job: &Job) -> Result<Measurement
     remove_all(&scenes, engine, &|_, _| {}).map_err(|e| e.to_string())?;
     Ok(Measurement {
         seconds: started.elapsed().as_secs_f64(),
-        samples: scenes[0].grid.sample_count() as u64,
+        samples: scenes[0].grid().sample_count() as u64,
         pairs: scenes.iter().map(|s| s.pair_count()).sum(),
     })
 }
@@ -137,7 +137,7 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
         // 50 001 rings × 400 azimuths × 8 bytes = 160 MB of results: more than lavapipe's
         // 128 MiB storage binding, so the GPU engine must tile.
         let job = facing_job(5.0, 0.2, 0.1, 400);
-        let samples = prepare_scenes(&job)[0].grid.sample_count();
+        let samples = prepare_scenes(&job)[0].grid().sample_count();
         println!(
             "\n## large grid: {samples} samples, {:.0} MiB of dexels",
             samples as f64 * 8.0 / 1048576.0

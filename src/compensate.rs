@@ -7,7 +7,7 @@
 use crate::analysis::{FormProfile, form_error};
 use crate::engine::{EngineError, RemovalEngine};
 use crate::io::job::Job;
-use crate::process::NormalCorrection;
+use crate::process::{NormalCorrection, Process};
 use crate::run::{RunResult, simulate};
 
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -41,7 +41,9 @@ fn machine(
     cutoff_mm: f64,
 ) -> Result<(RunResult, FormProfile, CycleReport), EngineError> {
     let mut part = job.clone();
-    part.correction = correction.clone();
+    if let Process::Turning(turning) = &mut part.process {
+        turning.correction = correction.clone();
+    }
     let result = simulate(part, engine, &|_, _| {})?;
     let form = form_error(result.grid(), &result.field, cutoff_mm);
     let report = CycleReport {
@@ -63,7 +65,12 @@ pub fn compensation_loop(
     cutoff_mm: f64,
     progress: &dyn Fn(&CycleReport),
 ) -> Result<CompensationRun, EngineError> {
-    let mut correction = job.correction.clone();
+    let Some(turning) = job.process.turning() else {
+        return Err(EngineError(
+            "compensation corrects a turning path; this job is not a turning job".into(),
+        ));
+    };
+    let mut correction = turning.correction.clone();
     let (mut reports, mut forms) = (Vec::new(), Vec::new());
     let mut cycle = 0;
     loop {

@@ -448,6 +448,12 @@ fn compare_profile(args: CompareArgs) -> Result<(), Failure> {
 
 fn compensate(args: CompensateArgs) -> Result<(), Failure> {
     let job = load_job(Some(&args.job))?;
+    let Some(turning) = job.process.turning().cloned() else {
+        return Err(Failure::Input(format!(
+            "{}: compensate corrects a turning path along the normal; for a generating job use `toolmark correct`",
+            args.job.display()
+        )));
+    };
     if !(1..=20).contains(&args.cycles) {
         return Err(Failure::Input(format!(
             "--cycles {}: allowed 1 to 20",
@@ -461,7 +467,7 @@ fn compensate(args: CompensateArgs) -> Result<(), Failure> {
                 "--cutoff-um {c}: allowed a finite number > 0"
             )));
         }
-        None => 20.0 * job.path.pass_spacing_mm(),
+        None => 20.0 * turning.path.pass_spacing_mm(),
     };
     let out = args.out.unwrap_or_else(|| {
         PathBuf::from("toolmark-out").join(format!("{}-compensation", slug(&job.name)))
@@ -510,13 +516,13 @@ fn compensate(args: CompensateArgs) -> Result<(), Failure> {
         "compensation.json",
         "form_error.png",
     ];
-    if job.path.mode() == toolmark::process::TurningMode::Xz {
+    if turning.path.mode() == toolmark::process::TurningMode::Xz {
         // The program the machine would run next: the nominal path plus the correction.
         // (The job's effects are the machine's errors, not part of the program.)
         let meridian = job.meridian();
-        let tables: Vec<_> = job
+        let tables: Vec<_> = turning
             .path
-            .pose_tables(&job.surface, &meridian, &job.tool)
+            .pose_tables(&job.surface, &meridian, &turning.tool)
             .into_iter()
             .map(|mut table| {
                 run.next_correction

@@ -1,10 +1,16 @@
 //! The pipeline, one way: job → process → scene → engine → field → analysis.
 
-use crate::analysis::{self, DeviationStats, ProfilePoint, Protrusion, ScallopAnalysis};
-use crate::engine::scene::PASS_ID_STRIDE;
-use crate::engine::{EngineError, EngineInfo, Progress, RemovalEngine, TurningScene};
+use crate::analysis::{
+    self, DeviationStats, ProfilePoint, Protrusion, ScallopAnalysis, ScallopDirection, Surround,
+    default_zone_radius_mm,
+};
+use crate::engine::generating_scene::ToothMotion;
+use crate::engine::{
+    EngineError, EngineInfo, GeneratingScene, Progress, RemovalEngine, Scene, TurningScene,
+};
 use crate::field::{DexelField, PolarGrid};
 use crate::io::job::Job;
+use crate::process::{GeneratingProcess, Process, TurningProcess};
 use std::time::Instant;
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
@@ -21,7 +27,7 @@ pub struct Timings {
 pub struct RunResult {
     pub job: Job,
     /// One scene per cutting pass (a spiral has one), all on the same grid.
-    pub scenes: Vec<TurningScene>,
+    pub scenes: Vec<Scene>,
     pub field: DexelField,
     pub engine: EngineInfo,
     pub deviation: DeviationStats,
@@ -33,29 +39,36 @@ pub struct RunResult {
 
 impl RunResult {
     pub fn grid(&self) -> &PolarGrid {
-        &self.scenes[0].grid
+        self.scenes[0].grid()
     }
 
     /// Dexel–pass pairs evaluated over all passes.
     pub fn pair_count(&self) -> u64 {
-        self.scenes.iter().map(TurningScene::pair_count).sum()
+        self.scenes.iter().map(Scene::pair_count).sum()
     }
 
-    /// Spindle revolutions over all passes.
+    /// The turning scenes (none for other processes).
+    pub fn turning_scenes(&self) -> impl Iterator<Item = &TurningScene> {
+        self.scenes.iter().filter_map(|scene| match scene {
+            Scene::Turning(scene) => Some(scene),
+            Scene::Generating(_) => None,
+        })
+    }
+
+    /// Spindle revolutions over all turning passes.
     pub fn revolutions(&self) -> f64 {
-        self.scenes
-            .iter()
+        self.turning_scenes()
             .map(|s| (s.poses.end_angle_rad() - s.poses.start_angle_rad) / std::f64::consts::TAU)
             .sum()
     }
 
     pub fn pose_nodes(&self) -> usize {
-        self.scenes.iter().map(|s| s.poses.poses.len()).sum()
+        self.turning_scenes().map(|s| s.poses.poses.len()).sum()
     }
 }
 
 /// Builds the engine-ready scenes (one per cutting pass) for a validated job.
-pub fn prepare_scenes(job: &Job) -> Vec<TurningScene> {
+pub fn prepare_scenes(job: &Job) -> Vec<Scene> {
     let meridian = job.meridian();
     let grid = PolarGrid::new(
         &job.surface,
@@ -65,31 +78,64 @@ pub fn prepare_scenes(job: &Job) -> Vec<TurningScene> {
         job.pitch_mm,
         job.azimuths,
     );
-    let edge = job.effects.edge_model(&job.tool);
-    let extra_reach = job.effects.extra_reach_mm(&edge);
-    job.path
-        .pose_tables(&job.surface, &meridian, &job.tool)
+    match &job.process {
+        Process::Turning(turning) => turning_scenes(job, turning, grid)
+            .into_iter()
+            .map(Scene::Turning)
+            .collect(),
+        Process::Generating(generating) => {
+            vec![Scene::Generating(generating_scene(generating, grid))]
+        }
+    }
+}
+
+fn turning_scenes(job: &Job, turning: &TurningProcess, grid: PolarGrid) -> Vec<TurningScene> {
+    let meridian = job.meridian();
+    let edge = turning.effects.edge_model(&turning.tool);
+    let extra_reach = turning.effects.extra_reach_mm(&edge);
+    turning
+        .path
+        .pose_tables(&job.surface, &meridian, &turning.tool)
         .into_iter()
         .map(|mut poses| {
-            job.correction.apply(&mut poses, &job.surface, &meridian);
-            job.effects.apply_to_poses(&mut poses);
+            turning
+                .correction
+                .apply(&mut poses, &job.surface, &meridian);
+            turning.effects.apply_to_poses(&mut poses);
             TurningScene::new(
                 grid.clone(),
                 poses,
-                &job.tool,
+                &turning.tool,
                 edge.clone(),
-                job.effects.edge_plane_y_mm(),
-                job.path.stock_allowance_mm(),
-                job.path.cut_band_mm() + job.correction.max_abs_mm(),
+                turning.effects.edge_plane_y_mm(),
+                turning.path.stock_allowance_mm(),
+                turning.path.cut_band_mm() + turning.correction.max_abs_mm(),
                 extra_reach,
             )
         })
         .collect()
 }
 
+fn generating_scene(generating: &GeneratingProcess, grid: PolarGrid) -> GeneratingScene {
+    let setup = &generating.setup;
+    let teeth = (setup.wheel.teeth > 0).then(|| ToothMotion {
+        count: setup.wheel.teeth,
+        speed_ratio: setup.speed_ratio(),
+        phase_rad: setup.tooth_phase_rad,
+        spark_out_rad: setup.spark_out_rad(),
+    });
+    GeneratingScene::new(
+        grid,
+        setup.cutting_circle(&generating.effects),
+        setup.wheel.edge_radius_mm,
+        setup.stock_allowance_mm,
+        teeth,
+    )
+}
+
 /// Runs every pass on `engine`; each leaves the lower of its cut and what was there.
 pub fn remove_all(
-    scenes: &[TurningScene],
+    scenes: &[Scene],
     engine: &mut dyn RemovalEngine,
     progress: Progress<'_>,
 ) -> Result<DexelField, EngineError> {
@@ -109,7 +155,7 @@ pub fn remove_all(
                 so_far
             }
         });
-        pass_offset += scene.rev_count * PASS_ID_STRIDE;
+        pass_offset += scene.pass_id_span();
     }
     combined.ok_or_else(|| EngineError("the job has no cutting pass".into()))
 }
@@ -129,10 +175,24 @@ pub fn simulate(
     let removal_s = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
-    let grid = &scenes[0].grid;
+    let grid = scenes[0].grid();
     let deviation = analysis::deviation_stats(grid, &field);
-    let scallops = analysis::analyse_scallops(grid, &field);
-    let protrusion = analysis::analyse_protrusion(grid, &field, job.path.pass_spacing_mm(), None);
+    let scallops = match &job.process {
+        Process::Turning(_) => analysis::analyse_scallops(grid, &field, ScallopDirection::Meridian),
+        Process::Generating(g) if g.setup.wheel.teeth > 0 => {
+            analysis::analyse_scallops(grid, &field, ScallopDirection::Ring)
+        }
+        Process::Generating(_) => {
+            ScallopAnalysis::none(grid, "a continuous edge leaves no tool marks")
+        }
+    };
+    let pass_spacing = job.process.pass_spacing_mm();
+    let zone = default_zone_radius_mm(job.aperture.outer_radius_mm, pass_spacing);
+    let surround = match job.process {
+        Process::Turning(_) => Surround::Line,
+        Process::Generating(_) => Surround::Even,
+    };
+    let protrusion = analysis::analyse_protrusion(grid, &field, zone, surround);
     let profile = analysis::radial_profile(grid, &field, &scallops);
     let analysis_s = started.elapsed().as_secs_f64();
 

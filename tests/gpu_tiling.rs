@@ -10,7 +10,7 @@ use toolmark::run::prepare_scenes;
 fn tiled_gpu_removal_equals_untiled() {
     let job = example("convex_sphere.toml");
     let scene = prepare_scenes(&job).remove(0);
-    let samples = scene.grid.sample_count() as u64;
+    let samples = scene.grid().sample_count() as u64;
     let mut engine = gpu_engine();
     let whole = engine.remove(&scene, &|_, _| {}).expect("one tile");
     // 7 919 samples per tile: not a multiple of the 64-thread workgroup or of a row.

@@ -42,7 +42,8 @@ fn cut_1021_simulated_with_ideal_and_measured_edges_against_the_wli_profile() {
 
     // Independent estimate of the scallop period: the spacing of the cutting points of
     // consecutive revolutions at azimuth 0 (foot of each nose centre on the nominal).
-    let toolmark::process::TurningPath::Nc(nc) = &ideal_job.path else {
+    let Some(toolmark::process::TurningPath::Nc(nc)) = ideal_job.process.turning().map(|t| &t.path)
+    else {
         panic!("an NC job")
     };
     let table = &nc.tables[0];

@@ -27,9 +27,9 @@ fn worst_relative_error(
         .scallops
         .cusps
         .iter()
-        .filter(|c| (low..high).contains(&c.arc_length_mm))
+        .filter(|c| (low..high).contains(&c.position_mm))
     {
-        let expected = expected(cusp.arc_length_mm);
+        let expected = expected(cusp.position_mm);
         worst = worst.max((cusp.scallop_mm - expected).abs() / expected);
         count += 1;
     }

@@ -13,8 +13,10 @@ pub use deviation::{DeviationStats, deviation_stats};
 pub use form::{FormProfile, form_error};
 pub use maps::{Raster, top_view};
 pub use profile_stats::{ProfileStats, profile_stats, remove_form};
-pub use protrusion::{Protrusion, ProtrusionShape, analyse_protrusion};
-pub use scallop::{ScallopAnalysis, ScallopStats, analyse_scallops};
+pub use protrusion::{
+    Protrusion, ProtrusionShape, Surround, analyse_protrusion, default_zone_radius_mm,
+};
+pub use scallop::{ScallopAnalysis, ScallopDirection, ScallopStats, analyse_scallops};
 
 use crate::field::{DexelField, PolarGrid};
 

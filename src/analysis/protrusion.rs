@@ -2,16 +2,19 @@
 //! cone, cap or dimple): detection, height, radius, volume and shape, from the field
 //! alone (so it serves measured maps too).
 //!
-//! 1. The surround is modelled as a straight line in r fitted to the azimuth-mean
-//!    deviation D(r) over the annulus [Z, 2Z] outside the central zone Z; the residual
+//! 1. The surround is modelled over the annulus [Z, 2Z] outside the central zone Z by a
+//!    fit to the azimuth-mean deviation D(r): a straight line in r for turning (a
+//!    decentre's V), a + c·r² for generating (a sphere-radius error); the residual
 //!    against it, extended to the axis, is the feature.
 //! 2. The feature is the run of rings from the axis whose residual keeps the sign of the
 //!    central one and stands out of the surround: beyond 4× its residual RMS, the
 //!    peak-to-valley of its texture (the scallops, per sample) and 0.5 nm.
-//! 3. Its shape is the closest of three profiles over r/r_f: cylinder (1), cone (1 − x),
-//!    cap (1 − x²); a negative feature is a dimple. Its radius is refined per shape: the
-//!    half-height crossing of a cylinder's wall, the zero of a line fitted to a cone's
-//!    flank, the root of a parabola fitted to a cap; the height comes from the same fit.
+//! 3. Its shape is the closest of four profiles over r/r_f: cylinder (1), cone (1 − x),
+//!    cap (1 − x²) and pip ((1 − x)², the hollow-flanked point a generator's edge leaves
+//!    when its circle misses the axis); a negative feature is a dimple. Its radius is
+//!    refined per shape: the half-height crossing of a cylinder's wall, the zero of a line
+//!    fitted to a cone's flank (to the square root of a pip's), the root of a parabola
+//!    fitted to a cap; the height comes from the same fit.
 
 use crate::field::{DexelField, PolarGrid};
 
@@ -22,7 +25,25 @@ pub enum ProtrusionShape {
     Cylinder,
     Cone,
     Cap,
+    Pip,
     Dimple,
+}
+
+/// How the deviation around the central zone is modelled (and removed from the feature).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Surround {
+    /// a + b·r: tilt-like form in r (turning: a decentre's V profile).
+    Line,
+    /// a + c·r²: a change of sphere radius (generating).
+    Even,
+}
+
+/// The central zone's radius when none is given: a tenth of the part, at least 50 pass
+/// spacings (when there are passes), at most a quarter.
+pub fn default_zone_radius_mm(outer_radius_mm: f64, pass_spacing_mm: Option<f64>) -> f64 {
+    (0.1 * outer_radius_mm)
+        .max(50.0 * pass_spacing_mm.unwrap_or(0.0))
+        .min(0.25 * outer_radius_mm)
 }
 
 #[derive(Clone, PartialEq, serde::Serialize)]
@@ -50,21 +71,18 @@ impl std::fmt::Debug for Protrusion {
     }
 }
 
-/// Detects the central feature. `pass_spacing_mm` (the scallop period near the axis)
-/// sizes the default central zone; `zone_radius_mm` bounds the feature (None: a tenth of
-/// the part, at least 50 pass spacings, at most a quarter).
+/// Detects the central feature within `zone_radius_mm` of the axis (see
+/// [`default_zone_radius_mm`]), against a surround of the given model.
 pub fn analyse_protrusion(
     grid: &PolarGrid,
     field: &DexelField,
-    pass_spacing_mm: f64,
-    zone_radius_mm: Option<f64>,
+    zone_radius_mm: f64,
+    surround_model: Surround,
 ) -> Protrusion {
     let rings = grid.ring_count();
     let radii: Vec<f64> = grid.rings.iter().map(|r| r.radius_mm).collect();
     let outer = radii[rings - 1];
-    let zone = zone_radius_mm
-        .unwrap_or_else(|| (0.1 * outer).max(50.0 * pass_spacing_mm).min(0.25 * outer))
-        .min(0.5 * outer);
+    let zone = zone_radius_mm.min(0.5 * outer);
     let none = |surround_rms_nm| Protrusion {
         shape: ProtrusionShape::None,
         height_nm: 0.0,
@@ -85,15 +103,19 @@ pub fn analyse_protrusion(
                 / grid.azimuths as f64
         })
         .collect();
-    // Surround line over [Z, 2Z].
+    // Surround over [Z, 2Z].
     let surround: Vec<usize> = (0..rings)
         .filter(|&i| radii[i] >= zone && radii[i] <= 2.0 * zone)
         .collect();
     if surround.len() < 4 {
         return none(0.0);
     }
-    let (b0, b1) = fit_line(surround.iter().map(|&i| (radii[i], mean[i])));
-    let line = |r: f64| b0 + b1 * r;
+    let power = match surround_model {
+        Surround::Line => 1,
+        Surround::Even => 2,
+    };
+    let (b0, b1) = fit_line(surround.iter().map(|&i| (radii[i].powi(power), mean[i])));
+    let line = |r: f64| b0 + b1 * r.powi(power);
     let surround_rms = (surround
         .iter()
         .map(|&i| (mean[i] - line(radii[i])).powi(2))
@@ -133,10 +155,11 @@ pub fn analyse_protrusion(
     } else {
         inner.iter().map(|&i| raw[i]).sum::<f64>() / inner.len() as f64
     };
-    let templates: [(ProtrusionShape, Template); 3] = [
+    let templates: [(ProtrusionShape, Template); 4] = [
         (ProtrusionShape::Cylinder, |_| 1.0),
         (ProtrusionShape::Cone, |x| 1.0 - x),
         (ProtrusionShape::Cap, |x| 1.0 - x * x),
+        (ProtrusionShape::Pip, |x| (1.0 - x.min(1.0)).powi(2)),
     ];
     let misfit = |template: Template| {
         (0..foot)
@@ -165,6 +188,7 @@ pub fn analyse_protrusion(
     let (height, radius) = match shape {
         ProtrusionShape::Cylinder => Some(cylinder()),
         ProtrusionShape::Cone => fit_profile(&radii, &raw, height, foot + 1, 1, 0.2..0.8),
+        ProtrusionShape::Pip => fit_pip(&radii, &raw, height, foot + 1),
         _ => fit_profile(&radii, &raw, height, foot + 1, 2, 0.2..1.5),
     }
     .unwrap_or((height, foot_radius));
@@ -255,6 +279,21 @@ fn fit_profile(
     (b * a < 0.0).then(|| (a, (-a / b).powf(1.0 / power as f64)))
 }
 
+/// A pip h·(1 − r/r_f)²: its square root is a line in r. Fits it where the value is
+/// 5–80 % of the height; returns (h, r_f).
+fn fit_pip(radii: &[f64], values: &[f64], height: f64, end: usize) -> Option<(f64, f64)> {
+    let end = end.min(radii.len());
+    let points: Vec<(f64, f64)> = (0..end)
+        .filter(|&i| (0.05..0.8).contains(&(values[i] / height)))
+        .map(|i| (radii[i], values[i].sqrt()))
+        .collect();
+    if points.len() < 2 {
+        return None;
+    }
+    let (a, b) = fit_line(points.into_iter());
+    (b < 0.0 && a > 0.0).then(|| (a * a, -a / b))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -281,7 +320,7 @@ mod tests {
         // Volumes: cylinder πr²h, cone πr²h/3, paraboloid cap πr²h/2 (µm³).
         let cylinder_volume = std::f64::consts::PI * (rf * 1e3).powi(2) * h * 1e3;
         type Profile = Box<dyn Fn(f64) -> f64>;
-        let cases: [(ProtrusionShape, f64, Profile); 4] = [
+        let cases: [(ProtrusionShape, f64, Profile); 5] = [
             (
                 ProtrusionShape::Cylinder,
                 cylinder_volume,
@@ -298,6 +337,11 @@ mod tests {
                 Box::new(move |r| (h * (1.0 - (r / rf).powi(2))).max(0.0)),
             ),
             (
+                ProtrusionShape::Pip,
+                cylinder_volume / 6.0,
+                Box::new(move |r| (h * (1.0 - r / rf).powi(2)).max(0.0) * (r < rf) as u8 as f64),
+            ),
+            (
                 ProtrusionShape::Dimple,
                 -cylinder_volume,
                 Box::new(move |r| if r < rf { -h } else { 0.0 }),
@@ -305,7 +349,12 @@ mod tests {
         ];
         for (expected, volume, profile) in cases {
             let (grid, field) = field_with(profile);
-            let found = analyse_protrusion(&grid, &field, 0.005, None);
+            let found = analyse_protrusion(
+                &grid,
+                &field,
+                default_zone_radius_mm(0.5, Some(0.005)),
+                Surround::Line,
+            );
             println!("{expected:?}: {found:?}");
             assert_eq!(found.shape, expected);
             // Radius within one pitch (0.5 µm); height within the ripple's mean (5 nm) + 1 %.
@@ -336,7 +385,12 @@ mod tests {
     #[test]
     fn a_clean_cut_has_no_feature() {
         let (grid, field) = field_with(|_| 0.0);
-        let found = analyse_protrusion(&grid, &field, 0.005, None);
+        let found = analyse_protrusion(
+            &grid,
+            &field,
+            default_zone_radius_mm(0.5, Some(0.005)),
+            Surround::Line,
+        );
         assert_eq!(found.shape, ProtrusionShape::None);
         assert_eq!(found.height_nm, 0.0);
     }

@@ -1,8 +1,11 @@
 //! Scallops: the cusps left between neighbouring tool passes and their height above
 //! the local cut bottoms.
 //!
-//! Along each azimuth row the field records which pass left every sample, so the
-//! row splits into segments cut by one pass each. A cusp is where two neighbouring
+//! Marks are crossed along lines of samples: azimuth rows (along the meridian) for
+//! turning, whose passes lie side by side along the radius; rings for a generator's
+//! teeth, whose marks run across the rings and lie side by side in azimuth.
+//! Along each line the field records which pass left every sample, so the
+//! line splits into segments cut by one pass each. A cusp is where two neighbouring
 //! segments meet; it is a kink that sampling alone would clip (by up to slope × pitch),
 //! so its position and height come from intersecting quadratics fitted to the last
 //! samples on either side (each side is a smooth arc). A segment's bottom is its lowest
@@ -12,11 +15,22 @@
 
 use crate::field::{DexelField, NO_PASS, PolarGrid};
 
+/// The lines along which marks are crossed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScallopDirection {
+    /// Azimuth rows, along the meridian.
+    Meridian,
+    /// Rings, along the azimuth.
+    Ring,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Cusp {
-    pub azimuth: u32,
-    /// Position along the meridian (mm).
-    pub arc_length_mm: f64,
+    /// The azimuth row (meridian lines) or ring (ring lines) it lies on.
+    pub line: u32,
+    /// Position along the line (mm): meridian arc length from the axis, or arc
+    /// length along the ring from azimuth 0.
+    pub position_mm: f64,
     /// Deviation at the cusp (mm, + = above nominal).
     pub depth_mm: f64,
     /// Height above the line joining the neighbouring bottoms (mm).
@@ -43,25 +57,81 @@ pub struct ScallopAnalysis {
     pub resolution_note: Option<String>,
 }
 
+impl ScallopAnalysis {
+    /// No scallops to measure, and why.
+    pub fn none(grid: &PolarGrid, note: &str) -> Self {
+        Self {
+            cusps: Vec::new(),
+            map_mm: vec![0.0; grid.sample_count()],
+            stats: None,
+            resolution_note: Some(note.to_string()),
+        }
+    }
+}
+
 /// Fewest samples a pass's segment needs, on median, for cusp fits to be trusted.
 const MIN_SAMPLES_PER_SEGMENT: f64 = 3.0;
 
-pub fn analyse_scallops(grid: &PolarGrid, field: &DexelField) -> ScallopAnalysis {
+/// Samples along one line: their indices in the field, the first's position and the
+/// (even) spacing.
+struct Line {
+    number: u32,
+    samples: Vec<usize>,
+    origin_mm: f64,
+    pitch_mm: f64,
+}
+
+impl Line {
+    fn position(&self, i: usize) -> f64 {
+        self.origin_mm + i as f64 * self.pitch_mm
+    }
+}
+
+fn lines(grid: &PolarGrid, direction: ScallopDirection) -> Vec<Line> {
+    match direction {
+        ScallopDirection::Meridian => (0..grid.azimuths)
+            .map(|azimuth| Line {
+                number: azimuth,
+                samples: (0..grid.ring_count())
+                    .map(|ring| grid.sample_index(ring, azimuth))
+                    .collect(),
+                origin_mm: grid.rings[0].arc_length_mm,
+                pitch_mm: grid.pitch_mm,
+            })
+            .collect(),
+        ScallopDirection::Ring => grid
+            .rings
+            .iter()
+            .enumerate()
+            .filter(|(_, ring)| ring.radius_mm > 0.0)
+            .map(|(index, ring)| Line {
+                number: index as u32,
+                samples: (0..grid.azimuths)
+                    .map(|azimuth| grid.sample_index(index, azimuth))
+                    .collect(),
+                origin_mm: 0.0,
+                pitch_mm: ring.radius_mm * std::f64::consts::TAU / grid.azimuths as f64,
+            })
+            .collect(),
+    }
+}
+
+pub fn analyse_scallops(
+    grid: &PolarGrid,
+    field: &DexelField,
+    direction: ScallopDirection,
+) -> ScallopAnalysis {
     let mut cusps = Vec::new();
     let mut map_mm = vec![0.0; grid.sample_count()];
     let mut segment_lengths = Vec::new();
-    for azimuth in 0..grid.azimuths {
-        let (depths, passes) = field.row(grid, azimuth);
-        let segments = segments(passes);
+    for line in lines(grid, direction) {
+        let depths: Vec<f64> = line.samples.iter().map(|&s| field.depth_mm[s]).collect();
+        let passes: Vec<u32> = line.samples.iter().map(|&s| field.pass[s]).collect();
+        let segments = segments(&passes);
         segment_lengths.extend(segments.iter().map(|s| s.end - s.start));
-        let row_cusps = row_cusps(grid, azimuth, depths, passes, &segments);
-        let start = grid.sample_index(0, azimuth);
-        fill_row_map(
-            grid,
-            &row_cusps,
-            &mut map_mm[start..start + grid.ring_count()],
-        );
-        cusps.extend(row_cusps);
+        let line_cusps = line_cusps(&line, &depths, &passes, &segments);
+        fill_line_map(&line, &line_cusps, &mut map_mm);
+        cusps.extend(line_cusps);
     }
 
     segment_lengths.sort_unstable();
@@ -70,7 +140,10 @@ pub fn analyse_scallops(grid: &PolarGrid, field: &DexelField) -> ScallopAnalysis
         .copied()
         .unwrap_or(0) as f64;
     let resolution_note = if cusps.is_empty() {
-        Some("no interior cusps: the cut has fewer than three passes across any row".to_string())
+        Some(
+            "no interior cusps: the cut has fewer than three passes across any line of samples"
+                .to_string(),
+        )
     } else if median < MIN_SAMPLES_PER_SEGMENT {
         Some(format!(
             "the grid does not resolve the scallops: a pass spans {median} samples (median), at least {MIN_SAMPLES_PER_SEGMENT} are needed; reduce grid.pitch_um"
@@ -118,18 +191,12 @@ fn segments(passes: &[u32]) -> Vec<Segment> {
     out
 }
 
-/// Cusps between interior neighbouring segments of one row.
-fn row_cusps(
-    grid: &PolarGrid,
-    azimuth: u32,
-    depths: &[f64],
-    passes: &[u32],
-    segments: &[Segment],
-) -> Vec<Cusp> {
-    let s = |i: usize| grid.rings[i].arc_length_mm;
+/// Cusps between interior neighbouring segments of one line.
+fn line_cusps(line: &Line, depths: &[f64], passes: &[u32], segments: &[Segment]) -> Vec<Cusp> {
+    let s = |i: usize| line.position(i);
     let bottoms: Vec<(f64, f64)> = segments
         .iter()
-        .map(|seg| bottom(grid, depths, *seg))
+        .map(|seg| bottom(line, depths, *seg))
         .collect();
     let mut cusps = Vec::new();
     // Interior: both neighbours and their own outer neighbours are cut segments, so
@@ -142,12 +209,12 @@ fn row_cusps(
         let (left, right) = (segments[i], segments[i + 1]);
         debug_assert_ne!(passes[left.start], passes[right.start]);
         let left_fit = Quadratic::through(
-            grid,
+            line,
             depths,
             left.end.saturating_sub(FIT_POINTS).max(left.start)..left.end,
         );
         let right_fit = Quadratic::through(
-            grid,
+            line,
             depths,
             right.start..(right.start + FIT_POINTS).min(right.end),
         );
@@ -156,8 +223,8 @@ fn row_cusps(
         let ((s_left, bottom_left), (s_right, bottom_right)) = (bottoms[i], bottoms[i + 1]);
         let base = bottom_left + (bottom_right - bottom_left) * (at - s_left) / (s_right - s_left);
         cusps.push(Cusp {
-            azimuth,
-            arc_length_mm: at,
+            line: line.number,
+            position_mm: at,
             depth_mm: depth,
             scallop_mm: depth - base,
         });
@@ -165,12 +232,12 @@ fn row_cusps(
     cusps
 }
 
-/// (arc length, depth) of a segment's lowest point.
-fn bottom(grid: &PolarGrid, depths: &[f64], segment: Segment) -> (f64, f64) {
+/// (position, depth) of a segment's lowest point.
+fn bottom(line: &Line, depths: &[f64], segment: Segment) -> (f64, f64) {
     let lowest = (segment.start..segment.end)
         .min_by(|&a, &b| depths[a].total_cmp(&depths[b]))
         .unwrap_or(segment.start);
-    let s = grid.rings[lowest].arc_length_mm;
+    let s = line.position(lowest);
     if lowest == segment.start || lowest + 1 == segment.end {
         return (s, depths[lowest]);
     }
@@ -182,7 +249,7 @@ fn bottom(grid: &PolarGrid, depths: &[f64], segment: Segment) -> (f64, f64) {
     }
     let shift = 0.5 * (left - right) / curvature;
     (
-        s + shift * grid.pitch_mm,
+        s + shift * line.pitch_mm,
         mid - 0.125 * (left - right) * (left - right) / curvature,
     )
 }
@@ -201,11 +268,11 @@ struct Quadratic {
 const FIT_POINTS: usize = 5;
 
 impl Quadratic {
-    fn through(grid: &PolarGrid, depths: &[f64], range: std::ops::Range<usize>) -> Self {
-        let origin = grid.rings[range.start].arc_length_mm;
-        let scale = grid.pitch_mm;
+    fn through(line: &Line, depths: &[f64], range: std::ops::Range<usize>) -> Self {
+        let origin = line.position(range.start);
+        let scale = line.pitch_mm;
         let points: Vec<(f64, f64)> = range
-            .map(|i| ((grid.rings[i].arc_length_mm - origin) / scale, depths[i]))
+            .map(|i| ((line.position(i) - origin) / scale, depths[i]))
             .collect();
         let order = points.len().min(3);
         // Normal equations Σ x^(i+j) c_j = Σ x^i y for the first `order` powers.
@@ -284,24 +351,24 @@ fn cusp_between(left: &Quadratic, right: &Quadratic, a: f64, b: f64) -> (f64, f6
     (at, envelope(at))
 }
 
-/// Scallop height along a row: linear between cusps, held flat beyond the first/last.
-fn fill_row_map(grid: &PolarGrid, cusps: &[Cusp], row: &mut [f64]) {
+/// Scallop height along a line: linear between cusps, held flat beyond the first/last.
+fn fill_line_map(line: &Line, cusps: &[Cusp], map_mm: &mut [f64]) {
     if cusps.is_empty() {
         return;
     }
     let mut next = 0;
-    for (i, value) in row.iter_mut().enumerate() {
-        let s = grid.rings[i].arc_length_mm;
-        while next < cusps.len() && cusps[next].arc_length_mm < s {
+    for (i, &sample) in line.samples.iter().enumerate() {
+        let s = line.position(i);
+        while next < cusps.len() && cusps[next].position_mm < s {
             next += 1;
         }
-        *value = if next == 0 {
+        map_mm[sample] = if next == 0 {
             cusps[0].scallop_mm
         } else if next == cusps.len() {
             cusps[cusps.len() - 1].scallop_mm
         } else {
             let (a, b) = (cusps[next - 1], cusps[next]);
-            let t = (s - a.arc_length_mm) / (b.arc_length_mm - a.arc_length_mm);
+            let t = (s - a.position_mm) / (b.position_mm - a.position_mm);
             a.scallop_mm + t * (b.scallop_mm - a.scallop_mm)
         };
     }

@@ -1,6 +1,8 @@
 //! Effects: the named, parameterised departures from the nominal process that make a
 //! real part differ from its design (DESIGN §3). Each can be injected into a job and
-//! (later) fitted as a diagnosis candidate. Turning effects so far:
+//! (later) fitted as a diagnosis candidate.
+//!
+//! Turning:
 //!
 //! | effect | parameter | what it does in the model |
 //! | --- | --- | --- |
@@ -8,6 +10,14 @@
 //! | X decentre | δ (+ = stops short of the axis) | every nose-centre X is δ larger than programmed |
 //! | nose-radius error | e | the real edge radius is R + e, the tool set at its tip |
 //! | edge waviness | w(ψ) harmonics or a measured edge | the edge radius varies along the edge, ψ from the tip |
+//!
+//! Generating (cup wheel, seed 000):
+//!
+//! | effect | parameter | what it does in the model |
+//! | --- | --- | --- |
+//! | cutter displacement | e (+ = the circle stops short of the axis) | the cutting circle shifts by e along X: it misses the axis by \|e\| either way, leaving an uncut pip of radius \|e\|, and changes the generated radius (first order in e) |
+//! | inclination error | Δα | the wheel pivots about the point where its circle crosses the axis: the generated radius becomes R_t / sin(α + Δα) ± r, no pip |
+//! | plunge error | Δp (+ = stopped short) | the wheel stops Δp short along the plunge axis: along Z a piston; along the tool axis also a displacement of −Δp·sin α (a pip) |
 //!
 //! The engines never see effect names, only their consequences: a shifted pose table,
 //! an edge plane offset and an `EdgeModel`.
@@ -66,5 +76,21 @@ impl TurningEffects {
     /// How much further than nominal any part of the tool can reach (for reach tests).
     pub fn extra_reach_mm(&self, edge: &EdgeModel) -> f64 {
         self.x_decentre_mm.abs() + self.centre_height_mm.abs() + edge.max_excess_mm()
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GeneratingEffects {
+    /// Shift of the cutting circle along X (mm), + = away from the axis (short of it).
+    pub cutter_displacement_mm: f64,
+    /// Actual minus set inclination (rad), pivoting about the circle's axis crossing.
+    pub inclination_error_rad: f64,
+    /// Distance the wheel stops short of its final depth along the plunge axis (mm).
+    pub plunge_error_mm: f64,
+}
+
+impl GeneratingEffects {
+    pub fn is_none(&self) -> bool {
+        *self == GeneratingEffects::default()
     }
 }

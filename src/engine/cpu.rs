@@ -1,8 +1,9 @@
 //! The f64 reference engine: the same pass loop as `shaders/turning.wgsl`, with
 //! absolute coordinates in f64 (no local-frame tricks needed), parallel over samples.
 
+use super::cpu_generating::generating_dexel;
 use super::scene::{Branch, PASS_ID_STRIDE, TurningScene};
-use super::{EngineError, EngineInfo, Progress, RemovalEngine};
+use super::{EngineError, EngineInfo, Progress, RemovalEngine, Scene};
 use crate::field::{DexelField, NO_PASS, Ring};
 use crate::geometry::tool::tip_direction;
 use crate::process::ToolPose;
@@ -34,16 +35,22 @@ impl RemovalEngine for CpuEngine {
         }
     }
 
-    fn remove(
-        &mut self,
-        scene: &TurningScene,
-        progress: Progress<'_>,
-    ) -> Result<DexelField, EngineError> {
-        let samples = scene.grid.sample_count();
+    fn remove(&mut self, scene: &Scene, progress: Progress<'_>) -> Result<DexelField, EngineError> {
+        let grid = scene.grid();
+        let samples = grid.sample_count();
         let mut depth_mm = vec![0.0; samples];
         let mut pass = vec![NO_PASS; samples];
         let done = AtomicU64::new(0);
-        let rings = scene.grid.ring_count();
+        let rings = grid.ring_count();
+        let dexel = |sample: usize| {
+            let (ring, azimuth) = (sample % rings, (sample / rings) as u32);
+            match scene {
+                Scene::Turning(scene) => sample_dexel(scene, ring, azimuth),
+                Scene::Generating(scene) => {
+                    generating_dexel(scene, ring, scene.grid.azimuth_rad(azimuth))
+                }
+            }
+        };
         depth_mm
             .par_chunks_mut(CHUNK)
             .zip(pass.par_chunks_mut(CHUNK))
@@ -51,8 +58,7 @@ impl RemovalEngine for CpuEngine {
             .for_each(|(chunk, (depths, passes))| {
                 for (offset, (depth, pass)) in depths.iter_mut().zip(passes.iter_mut()).enumerate()
                 {
-                    let sample = chunk * CHUNK + offset;
-                    (*depth, *pass) = sample_dexel(scene, sample % rings, (sample / rings) as u32);
+                    (*depth, *pass) = dexel(chunk * CHUNK + offset);
                 }
                 let finished = done.fetch_add(depths.len() as u64, Ordering::Relaxed);
                 progress(finished + depths.len() as u64, samples as u64);

@@ -5,7 +5,7 @@
 
 use super::cpu::RAY_REFINEMENTS;
 use super::scene::TurningScene;
-use super::{EngineError, EngineInfo, Progress, RemovalEngine};
+use super::{EngineError, EngineInfo, Progress, RemovalEngine, Scene};
 use crate::field::DexelField;
 use crate::geometry::tool::EDGE_REFINEMENTS;
 use bytemuck::{Pod, Zeroable};
@@ -381,7 +381,18 @@ impl RemovalEngine for GpuEngine {
         self.info.clone()
     }
 
-    fn remove(
+    fn remove(&mut self, scene: &Scene, progress: Progress<'_>) -> Result<DexelField, EngineError> {
+        match scene {
+            Scene::Turning(scene) => self.remove_turning(scene, progress),
+            Scene::Generating(_) => Err(EngineError(
+                "the GPU engine does not run generating jobs yet; use --engine cpu".into(),
+            )),
+        }
+    }
+}
+
+impl GpuEngine {
+    fn remove_turning(
         &mut self,
         scene: &TurningScene,
         progress: Progress<'_>,

@@ -2,12 +2,47 @@
 //! the reference) and `gpu` (WGSL compute through wgpu, f32 in local frames).
 
 pub mod cpu;
+pub mod cpu_generating;
+pub mod generating_scene;
 pub mod gpu;
 pub mod scene;
 
+pub use generating_scene::GeneratingScene;
 pub use scene::TurningScene;
 
-use crate::field::DexelField;
+use crate::field::{DexelField, PolarGrid};
+
+/// One cutting pass's worth of removal work, prepared for the engines.
+#[derive(Debug, Clone)]
+pub enum Scene {
+    Turning(TurningScene),
+    Generating(GeneratingScene),
+}
+
+impl Scene {
+    pub fn grid(&self) -> &PolarGrid {
+        match self {
+            Scene::Turning(scene) => &scene.grid,
+            Scene::Generating(scene) => &scene.grid,
+        }
+    }
+
+    /// Dexel–pass evaluations: the work measure for throughput.
+    pub fn pair_count(&self) -> u64 {
+        match self {
+            Scene::Turning(scene) => scene.pair_count(),
+            Scene::Generating(scene) => scene.pair_count(),
+        }
+    }
+
+    /// How far apart the pass ids of consecutive scenes must start so they stay distinct.
+    pub fn pass_id_span(&self) -> u32 {
+        match self {
+            Scene::Turning(scene) => scene.rev_count * scene::PASS_ID_STRIDE,
+            Scene::Generating(_) => 0,
+        }
+    }
+}
 
 /// What ran a removal: recorded in every output.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -39,9 +74,5 @@ impl std::error::Error for EngineError {}
 pub trait RemovalEngine {
     fn info(&self) -> EngineInfo;
     /// Removes material for every sample of the scene's grid.
-    fn remove(
-        &mut self,
-        scene: &TurningScene,
-        progress: Progress<'_>,
-    ) -> Result<DexelField, EngineError>;
+    fn remove(&mut self, scene: &Scene, progress: Progress<'_>) -> Result<DexelField, EngineError>;
 }

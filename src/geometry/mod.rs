@@ -1,5 +1,6 @@
 //! Nominal surfaces and tools: pure f64 geometry, no knowledge of processes or GPUs.
 
+pub mod cup_wheel;
 pub mod cutter;
 pub mod surface;
 pub mod tool;

@@ -16,6 +16,7 @@ use super::colour::ColourMap;
 use super::exr_io::{ExrImage, write_exr};
 use super::png_out::{FalseColourPlot, write_false_colour_png, write_png16_gray};
 use crate::analysis::{Raster, top_view};
+use crate::process::Process;
 use crate::run::RunResult;
 use serde_json::json;
 use std::collections::BTreeMap;
@@ -325,7 +326,6 @@ fn summary_json(
     let job = &result.job;
     let pairs = result.pair_count();
     let t = &result.timings;
-    let revolutions = result.revolutions();
     let scallop = match &result.scallops.stats {
         Some(s) => json!({
             "max_nm": s.max_nm, "mean_nm": s.mean_nm, "min_nm": s.min_nm, "count": s.count, "note": null
@@ -352,14 +352,7 @@ fn summary_json(
             "outer_radius_mm": grid.rings[grid.ring_count() - 1].radius_mm,
             "meridian_length_mm": grid.rings[grid.ring_count() - 1].arc_length_mm - grid.rings[0].arc_length_mm,
         },
-        "path": {
-            "passes": result.scenes.len(),
-            "revolutions": revolutions,
-            "pose_nodes": result.pose_nodes(),
-            "steps_per_rev": result.scenes[0].poses.steps_per_rev,
-            "pass_spacing_um": job.path.pass_spacing_mm() * 1e3,
-            "machining_time_s": job.spindle_rpm.map(|rpm| revolutions / rpm * 60.0),
-        },
+        "path": process_json(result),
         "work": {
             "dexel_pass_pairs": pairs,
             "pairs_per_second": pairs as f64 / t.removal_s.max(1e-12),
@@ -382,4 +375,52 @@ fn summary_json(
         },
         "warnings": job.warnings,
     })
+}
+
+/// The `path` section: what the machine did, per process.
+fn process_json(result: &RunResult) -> serde_json::Value {
+    match &result.job.process {
+        Process::Turning(turning) => {
+            let revolutions = result.revolutions();
+            json!({
+                "process": "turning",
+                "passes": result.scenes.len(),
+                "revolutions": revolutions,
+                "pose_nodes": result.pose_nodes(),
+                "steps_per_rev": result.turning_scenes().next().map(|s| s.poses.steps_per_rev),
+                "pass_spacing_um": turning.path.pass_spacing_mm() * 1e3,
+                "machining_time_s": turning.spindle_rpm.map(|rpm| revolutions / rpm * 60.0),
+            })
+        }
+        Process::Generating(generating) => {
+            let setup = &generating.setup;
+            let effects = &generating.effects;
+            let circle = setup.cutting_circle(effects);
+            let marks_per_rev = setup.wheel.teeth as f64 * setup.speed_ratio().abs();
+            json!({
+                "process": "generating",
+                "inclination_deg": setup.inclination_rad.to_degrees(),
+                "generated_radius_mm": setup.generated_radius_mm(),
+                "actual_inclination_deg": (setup.inclination_rad + effects.inclination_error_rad).to_degrees(),
+                "cutting_circle_centre_mm": [circle.centre.x, circle.centre.y, circle.centre.z],
+                "cutting_circle_axis": [circle.axis.x, circle.axis.y, circle.axis.z],
+                "circle_miss_of_axis_um": circle_miss_of_axis_mm(&circle) * 1e3,
+                "reach_radius_mm": setup.reach_radius_mm(),
+                "speed_ratio": setup.speed_ratio(),
+                "tooth_marks_per_workpiece_rev": (setup.wheel.teeth > 0).then_some(marks_per_rev),
+                "spark_out_revolutions": setup.spark_out_revolutions,
+                "spark_out_s": setup.spark_out_s(),
+            })
+        }
+    }
+}
+
+/// How far the cutting circle passes from the workpiece axis (0 when it crosses it).
+fn circle_miss_of_axis_mm(circle: &crate::geometry::cup_wheel::CuttingCircle) -> f64 {
+    (0..3600)
+        .map(|i| {
+            let p = circle.point(i as f64 * std::f64::consts::TAU / 3600.0);
+            p.x.hypot(p.y)
+        })
+        .fold(f64::INFINITY, f64::min)
 }

@@ -1,16 +1,74 @@
 //! Kinematics: each process maps the machine's motion to tool poses in the workpiece frame.
 
 pub mod compensation;
+pub mod generating;
 pub mod nc_path;
 pub mod pose_table;
 pub mod turning;
 
 pub use compensation::NormalCorrection;
+pub use generating::{GeneratingSetup, PlungeAxis};
 pub use nc_path::{NcPath, NcReference};
 pub use pose_table::{PoseTable, ToolPose};
 pub use turning::{FeedAlong, TurningMode, TurningSpiral};
 
+use crate::effects::{GeneratingEffects, TurningEffects};
 use crate::geometry::{ArcNoseTool, MeridianArcLength, SurfaceOfRevolution};
+
+/// A job's machining process.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Process {
+    Turning(TurningProcess),
+    Generating(GeneratingProcess),
+}
+
+/// Single-point turning (XZ or XZB) with an arc-nosed tool.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TurningProcess {
+    pub tool: ArcNoseTool,
+    pub path: TurningPath,
+    /// Normal offsets applied to the path (empty: none).
+    pub correction: NormalCorrection,
+    pub effects: TurningEffects,
+    pub spindle_rpm: Option<f64>,
+}
+
+/// Lens generating with a cup wheel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GeneratingProcess {
+    pub setup: GeneratingSetup,
+    pub effects: GeneratingEffects,
+}
+
+impl Process {
+    pub fn turning(&self) -> Option<&TurningProcess> {
+        match self {
+            Process::Turning(turning) => Some(turning),
+            Process::Generating(_) => None,
+        }
+    }
+
+    pub fn generating(&self) -> Option<&GeneratingProcess> {
+        match self {
+            Process::Generating(generating) => Some(generating),
+            Process::Turning(_) => None,
+        }
+    }
+
+    /// Largest radius the process's cuts reach (for tables over the surface).
+    pub fn outer_radius_mm(&self) -> f64 {
+        match self {
+            Process::Turning(turning) => turning.path.outer_radius_mm(),
+            Process::Generating(generating) => generating.setup.reach_radius_mm(),
+        }
+    }
+
+    /// Spacing of the turning passes near the axis; `None` for generating, whose
+    /// marks run across the rings rather than along the meridian.
+    pub fn pass_spacing_mm(&self) -> Option<f64> {
+        self.turning().map(|turning| turning.path.pass_spacing_mm())
+    }
+}
 
 /// Where a turning job's tool path comes from.
 #[derive(Debug, Clone, PartialEq)]

@@ -18,12 +18,29 @@
 //! kind = "edge_waviness"
 //! harmonics = [{ order = 40, amplitude_mm = 0.00005, phase_deg = 0.0 }]
 //! ```
+//!
+//! Generating jobs (cup wheel) take their own effects:
+//!
+//! ```toml
+//! [[effects]]
+//! kind = "cutter_displacement"
+//! offset_mm = 0.02           # + = the cutting circle stops short of the axis
+//!
+//! [[effects]]
+//! kind = "inclination_error"
+//! error_deg = 0.01           # actual − set inclination
+//!
+//! [[effects]]
+//! kind = "plunge_error"
+//! error_mm = 0.001           # + = the wheel stops short along the plunge axis
+//! ```
 
 use super::{JobError, ToolSpec};
-use crate::effects::{TurningEffects, WAVINESS_SAMPLES};
+use crate::effects::{GeneratingEffects, TurningEffects, WAVINESS_SAMPLES};
 use crate::geometry::ArcNoseTool;
 use crate::geometry::tool::AngleTable;
 use crate::io::measured::read_edge_csv;
+use crate::process::GeneratingSetup;
 use crate::process::TurningMode;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -35,6 +52,9 @@ pub enum EffectKind {
     XDecentre,
     NoseRadiusError,
     EdgeWaviness,
+    CutterDisplacement,
+    InclinationError,
+    PlungeError,
 }
 
 impl EffectKind {
@@ -45,6 +65,30 @@ impl EffectKind {
             EffectKind::XDecentre => "x_decentre",
             EffectKind::NoseRadiusError => "nose_radius_error",
             EffectKind::EdgeWaviness => "edge_waviness",
+            EffectKind::CutterDisplacement => "cutter_displacement",
+            EffectKind::InclinationError => "inclination_error",
+            EffectKind::PlungeError => "plunge_error",
+        }
+    }
+
+    fn is_turning(self) -> bool {
+        matches!(
+            self,
+            EffectKind::CentreHeight
+                | EffectKind::XDecentre
+                | EffectKind::NoseRadiusError
+                | EffectKind::EdgeWaviness
+        )
+    }
+
+    /// The parameter field each kind takes.
+    fn parameter(self) -> &'static str {
+        match self {
+            EffectKind::CentreHeight => "height_mm",
+            EffectKind::XDecentre | EffectKind::CutterDisplacement => "offset_mm",
+            EffectKind::NoseRadiusError | EffectKind::PlungeError => "error_mm",
+            EffectKind::EdgeWaviness => "harmonics",
+            EffectKind::InclinationError => "error_deg",
         }
     }
 }
@@ -71,6 +115,58 @@ pub struct EffectSpec {
     pub error_mm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub harmonics: Option<Vec<HarmonicSpec>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error_deg: Option<f64>,
+}
+
+impl EffectSpec {
+    /// Each parameter field and whether it is given.
+    fn given(&self) -> [(&'static str, bool); 5] {
+        [
+            ("height_mm", self.height_mm.is_some()),
+            ("offset_mm", self.offset_mm.is_some()),
+            ("error_mm", self.error_mm.is_some()),
+            ("harmonics", self.harmonics.is_some()),
+            ("error_deg", self.error_deg.is_some()),
+        ]
+    }
+
+    /// Checks the table gives only its kind's parameter, and that the kind belongs to
+    /// the job's process.
+    fn check_fields(&self, index: usize, turning: bool) -> Result<(), JobError> {
+        let field = |name: &str| format!("effects[{index}].{name}");
+        if self.kind.is_turning() != turning {
+            let (this, other, allowed) = if turning {
+                (
+                    "generating",
+                    "turning",
+                    "centre_height, x_decentre, nose_radius_error, edge_waviness",
+                )
+            } else {
+                (
+                    "turning",
+                    "generating",
+                    "cutter_displacement, inclination_error, plunge_error",
+                )
+            };
+            return Err(error(
+                field("kind"),
+                format!(
+                    "\"{}\" is a {this} effect and this is a {other} job; allowed: {allowed}",
+                    self.kind.name()
+                ),
+            ));
+        }
+        for (name, given) in self.given() {
+            if given && name != self.kind.parameter() {
+                return Err(error(
+                    field(name),
+                    format!("is not a parameter of kind = \"{}\"", self.kind.name()),
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 fn error(field: String, message: impl Into<String>) -> JobError {
@@ -105,32 +201,7 @@ pub fn turning_effects(
     let mut harmonics = Vec::new();
     for (index, spec) in specs.iter().enumerate() {
         let field = |name: &str| format!("effects[{index}].{name}");
-        let present = [
-            (
-                "height_mm",
-                spec.height_mm.is_some(),
-                EffectKind::CentreHeight,
-            ),
-            ("offset_mm", spec.offset_mm.is_some(), EffectKind::XDecentre),
-            (
-                "error_mm",
-                spec.error_mm.is_some(),
-                EffectKind::NoseRadiusError,
-            ),
-            (
-                "harmonics",
-                spec.harmonics.is_some(),
-                EffectKind::EdgeWaviness,
-            ),
-        ];
-        for (name, given, owner) in present {
-            if given && owner != spec.kind {
-                return Err(error(
-                    field(name),
-                    format!("is not a parameter of kind = {:?}", spec.kind),
-                ));
-            }
-        }
+        spec.check_fields(index, true)?;
         match spec.kind {
             EffectKind::CentreHeight => {
                 effects.centre_height_mm +=
@@ -168,10 +239,43 @@ pub fn turning_effects(
                     harmonics.push((harmonic.order, amplitude, phase.to_radians()));
                 }
             }
+            _ => unreachable!("check_fields admits turning kinds only"),
         }
     }
     if !harmonics.is_empty() {
         effects.edge_deviation = AngleTable::from_harmonics(&harmonics, WAVINESS_SAMPLES);
+    }
+    Ok(effects)
+}
+
+/// Combines the effect tables of a generating job (values of a kind add up). Bounds:
+/// a displacement or plunge error below the edge radius (beyond it the edge no longer
+/// reaches the axis at all), an inclination error below a tenth of the inclination.
+pub fn generating_effects(
+    specs: &[EffectSpec],
+    setup: &GeneratingSetup,
+) -> Result<GeneratingEffects, JobError> {
+    let mut effects = GeneratingEffects::default();
+    let edge_radius = setup.wheel.edge_radius_mm;
+    let max_tilt_deg = 0.1 * setup.inclination_rad.to_degrees();
+    for (index, spec) in specs.iter().enumerate() {
+        spec.check_fields(index, false)?;
+        let field = |name: &str| format!("effects[{index}].{name}");
+        match spec.kind {
+            EffectKind::CutterDisplacement => {
+                effects.cutter_displacement_mm +=
+                    bounded(field("offset_mm"), spec.offset_mm, 0.5 * edge_radius)?;
+            }
+            EffectKind::InclinationError => {
+                effects.inclination_error_rad +=
+                    bounded(field("error_deg"), spec.error_deg, max_tilt_deg)?.to_radians();
+            }
+            EffectKind::PlungeError => {
+                effects.plunge_error_mm +=
+                    bounded(field("error_mm"), spec.error_mm, 0.5 * edge_radius)?;
+            }
+            _ => unreachable!("check_fields admits generating kinds only"),
+        }
     }
     Ok(effects)
 }

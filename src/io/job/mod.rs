@@ -8,16 +8,16 @@
 //! relative to the job file's folder.
 
 mod effects;
+mod generating;
 mod process;
 mod surface;
 
-pub use effects::{EffectKind, EffectSpec, HarmonicSpec, turning_effects};
+pub use effects::{EffectKind, EffectSpec, HarmonicSpec, generating_effects, turning_effects};
 pub use surface::MAX_SLOPE_DEG;
 
-use crate::effects::TurningEffects;
 use crate::geometry::surface::EVEN_TERMS;
-use crate::geometry::{ArcNoseTool, Form, MeridianArcLength, SurfaceOfRevolution};
-use crate::process::{FeedAlong, NcReference, NormalCorrection, TurningMode, TurningPath};
+use crate::geometry::{Form, MeridianArcLength, SurfaceOfRevolution};
+use crate::process::{FeedAlong, NcReference, PlungeAxis, Process, TurningMode};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -116,17 +116,25 @@ impl SurfaceSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ToolKind {
+    /// A single-point turning tool with a circular-arc nose.
     ArcNose,
+    /// A lens generator's cup (ring) wheel.
+    CupWheel,
 }
 
+/// The `[tool]` table. Arc-nose fields: nose_radius_mm, included_angle_deg,
+/// clearance_angle_deg, edge_profile*; cup-wheel fields: cutting_radius_mm,
+/// edge_radius_mm, teeth.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ToolSpec {
     pub kind: ToolKind,
     /// The nose radius the path assumes.
-    pub nose_radius_mm: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nose_radius_mm: Option<f64>,
     /// Angle subtended by the edge arc (the edge spans ±half about the tip), (0, 180].
-    pub included_angle_deg: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub included_angle_deg: Option<f64>,
     /// Flank clearance angle (default 10°), (0, 45].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clearance_angle_deg: Option<f64>,
@@ -141,19 +149,35 @@ pub struct ToolSpec {
     /// axis (true) or its rim (false, default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub edge_profile_mirror: Option<bool>,
+    /// Cup wheel: radius of the cutting circle (R_t).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cutting_radius_mm: Option<f64>,
+    /// Cup wheel: radius of the edge's profile about the cutting circle (r).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge_radius_mm: Option<f64>,
+    /// Cup wheel: number of discrete cutting edges; 0 (default) = a continuous edge.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub teeth: Option<u32>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ProcessKind {
     Turning,
+    Generating,
 }
 
+/// The `[process]` table. Turning fields: mode, feeds, spindle_rpm, depth_of_cut_mm,
+/// start/end_radius_mm, nc_program, nc_reference, compensation; generating fields:
+/// inclination_deg, plunge_axis, tool_rpm, workpiece_rpm, spark_out_revolutions,
+/// tooth_phase_deg; both: stock_allowance_mm.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ProcessSpec {
     pub kind: ProcessKind,
-    pub mode: TurningMode,
+    /// Turning: "xz" or "xzb".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mode: Option<TurningMode>,
     /// Feed per spindle revolution; or give spindle_rpm and feed_mm_per_min.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub feed_per_rev_mm: Option<f64>,
@@ -186,6 +210,26 @@ pub struct ProcessSpec {
     /// writes): the path cuts that much deeper along the surface normal.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub compensation: Option<PathBuf>,
+    /// Generating: wheel axis to workpiece axis, (0, 90) (default: the angle that
+    /// generates the surface's radius).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inclination_deg: Option<f64>,
+    /// Generating: the infeed direction, "z" (default) or "tool_axis".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plunge_axis: Option<PlungeAxis>,
+    /// Generating: wheel speed (rev/min; negative turns it the other way), default 3000.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tool_rpm: Option<f64>,
+    /// Generating: workpiece speed (rev/min), default 10.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub workpiece_rpm: Option<f64>,
+    /// Generating: workpiece revolutions at the final depth, [1, 100], default 2.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spark_out_revolutions: Option<f64>,
+    /// Generating: angle of tooth 0 past the circle's vertex point when the spark-out
+    /// starts (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tooth_phase_deg: Option<f64>,
 }
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -271,12 +315,8 @@ pub struct Job {
     pub name: String,
     pub surface: SurfaceOfRevolution,
     pub aperture: Aperture,
-    pub tool: ArcNoseTool,
-    pub path: TurningPath,
-    /// Normal offsets applied to the path (empty: none).
-    pub correction: NormalCorrection,
-    pub effects: TurningEffects,
-    pub spindle_rpm: Option<f64>,
+    /// The process, its tool and effects.
+    pub process: Process,
     pub pitch_mm: f64,
     pub azimuths: u32,
     pub map_pixels: u32,
@@ -331,54 +371,28 @@ impl Job {
         resolved.name = Some(name.clone());
         let mut warnings = Vec::new();
 
-        let tool = validate_tool(&file.tool)?;
-        let (surface, aperture, path, spindle_rpm) = match &file.process.nc_program {
-            None => {
-                let (surface, aperture) = surface::validate(&file.surface)?;
-                let (spiral, rpm) = process::validate_spiral(
-                    &file.process,
-                    &surface,
-                    &aperture,
-                    &tool,
-                    &mut warnings,
-                )?;
-                process::resolve_spiral(&mut resolved.process, &spiral);
-                (surface, aperture, TurningPath::Spiral(spiral), rpm)
+        let (surface, aperture, process) = match file.process.kind {
+            ProcessKind::Turning => {
+                process::validate_turning(&file, base_dir, &mut resolved, &mut warnings)?
             }
-            Some(program) => {
-                let program = resolve_file("process.nc_program", base_dir, program)?;
-                let nc = process::validate_nc(
-                    &file.process,
-                    &file.surface,
-                    &program,
-                    &tool,
-                    &mut warnings,
-                )?;
-                resolved.process.nc_program = Some(program);
-                resolved.process.nc_reference = Some(nc.path.reference);
-                resolved.process.stock_allowance_mm = Some(nc.path.stock_allowance_mm);
-                (
-                    nc.surface,
-                    nc.aperture,
-                    TurningPath::Nc(nc.path),
-                    nc.spindle_rpm,
-                )
+            ProcessKind::Generating => {
+                generating::validate_generating(&file, &mut resolved, &mut warnings)?
             }
         };
-        if file.surface.kind == SurfaceKind::FromPath {
-            resolved.surface.aperture_diameter_mm = Some(2.0 * aperture.outer_radius_mm);
-        }
         let meridian = MeridianArcLength::new(
             &surface,
-            aperture.outer_radius_mm.max(path.outer_radius_mm()),
+            aperture.outer_radius_mm.max(process.outer_radius_mm()),
         );
-        process::check_tool_against_surface(&surface, &path, &tool)?;
-        process::check_revolutions(&path, &meridian)?;
+        if let Process::Turning(turning) = &process {
+            process::check_revolutions(&turning.path, &meridian)?;
+        }
 
-        let pass_spacing = path.pass_spacing_mm();
-        let pitch_mm = match file.grid.pitch_um {
-            Some(pitch) => check("grid.pitch_um", pitch, 0.0, 1e4, false)? * 1e-3,
-            None => pass_spacing / 8.0,
+        // Default pitch: eight samples per turning pass; for generating, 4000 rings
+        // over the aperture (a pip of radius |e| needs samples well under |e|).
+        let pitch_mm = match (file.grid.pitch_um, process.pass_spacing_mm()) {
+            (Some(pitch), _) => check("grid.pitch_um", pitch, 0.0, 1e4, false)? * 1e-3,
+            (None, Some(pass_spacing)) => pass_spacing / 8.0,
+            (None, None) => aperture.outer_radius_mm / 4000.0,
         };
         let azimuths = file.grid.azimuths.unwrap_or(64);
         if !(1..=65_536).contains(&azimuths) {
@@ -399,12 +413,20 @@ impl Job {
                 ),
             ));
         }
-        if pitch_mm * 4.0 > pass_spacing {
-            warnings.push(format!(
-                "grid.pitch_um = {:.3} is coarser than a quarter of the pass spacing ({:.3} µm): scallops will not be resolved",
-                pitch_mm * 1e3,
-                pass_spacing * 1e3
-            ));
+        match &process {
+            Process::Turning(turning) => {
+                let pass_spacing = turning.path.pass_spacing_mm();
+                if pitch_mm * 4.0 > pass_spacing {
+                    warnings.push(format!(
+                        "grid.pitch_um = {:.3} is coarser than a quarter of the pass spacing ({:.3} µm): scallops will not be resolved",
+                        pitch_mm * 1e3,
+                        pass_spacing * 1e3
+                    ));
+                }
+            }
+            Process::Generating(generating) => {
+                generating::check_tooth_resolution(&generating.setup, azimuths, &mut warnings)
+            }
         }
         resolved.grid = GridSpec {
             pitch_um: Some(pitch_mm * 1e3),
@@ -419,59 +441,11 @@ impl Job {
         }
         resolved.output.map_pixels = Some(map_pixels);
 
-        let mut effects = turning_effects(&file.effects, tool.nose_radius_mm)?;
-        if let Some(profile) = &file.tool.edge_profile {
-            let profile = resolve_file("tool.edge_profile", base_dir, profile)?;
-            effects::apply_edge_profile(
-                &mut effects,
-                &file.tool,
-                &profile,
-                &tool,
-                path.mode(),
-                &mut warnings,
-            )?;
-            resolved.tool.edge_profile = Some(profile);
-        }
-        resolved.tool.clearance_angle_deg = Some(tool.clearance_angle_deg);
-        let correction = match &file.process.compensation {
-            None => NormalCorrection::default(),
-            Some(file_name) => {
-                let table = resolve_file("process.compensation", base_dir, file_name)?;
-                let text = std::fs::read_to_string(&table).map_err(|err| {
-                    error(
-                        "process.compensation",
-                        format!("{}: {err}", table.display()),
-                    )
-                })?;
-                let correction = NormalCorrection::from_csv(&text).map_err(|err| {
-                    error(
-                        "process.compensation",
-                        format!("{}: {err}", table.display()),
-                    )
-                })?;
-                if correction.max_abs_mm() > 0.5 * tool.nose_radius_mm {
-                    return Err(error(
-                        "process.compensation",
-                        format!(
-                            "{}: offsets reach {:.3} mm; allowed: at most half the nose radius",
-                            table.display(),
-                            correction.max_abs_mm()
-                        ),
-                    ));
-                }
-                resolved.process.compensation = Some(table);
-                correction
-            }
-        };
         Ok(Job {
             name,
             surface,
             aperture,
-            tool,
-            path,
-            correction,
-            effects,
-            spindle_rpm,
+            process,
             pitch_mm,
             azimuths,
             map_pixels,
@@ -486,7 +460,7 @@ impl Job {
             &self.surface,
             self.aperture
                 .outer_radius_mm
-                .max(self.path.outer_radius_mm()),
+                .max(self.process.outer_radius_mm()),
         )
     }
 
@@ -506,28 +480,18 @@ impl Job {
     }
 }
 
-fn validate_tool(spec: &ToolSpec) -> Result<ArcNoseTool, JobError> {
-    Ok(ArcNoseTool {
-        nose_radius_mm: check(
-            "tool.nose_radius_mm",
-            spec.nose_radius_mm,
-            0.0,
-            100.0,
-            false,
-        )?,
-        included_angle_deg: check(
-            "tool.included_angle_deg",
-            spec.included_angle_deg,
-            0.0,
-            180.0,
-            false,
-        )?,
-        clearance_angle_deg: check(
-            "tool.clearance_angle_deg",
-            spec.clearance_angle_deg.unwrap_or(10.0),
-            0.0,
-            45.0,
-            false,
-        )?,
-    })
+/// Rejects fields given in a table that the chosen kind does not use.
+fn reject_unused(table: &str, kind: &str, fields: &[(&str, bool)]) -> Result<(), JobError> {
+    match fields.iter().find(|(_, given)| *given) {
+        Some((name, _)) => Err(error(
+            &format!("{table}.{name}"),
+            format!("is not used by {table}.kind = \"{kind}\"; remove it"),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// A required field, or an error naming it and what is allowed.
+fn required<T: Copy>(field: &str, value: Option<T>, allowed: &str) -> Result<T, JobError> {
+    value.ok_or_else(|| error(field, format!("missing; allowed: {allowed}")))
 }

@@ -1,14 +1,162 @@
 //! The `[process]` table: a generated spiral or an NC program, and the checks of the
 //! tool against the surface along the path.
 
+use super::effects::{apply_edge_profile, turning_effects};
 use super::surface::{self, MAX_SLOPE_DEG, usable_at, usable_over};
-use super::{Aperture, JobError, ProcessSpec, SurfaceKind, SurfaceSpec, check, error};
+use super::{
+    Aperture, JobError, JobFile, ProcessSpec, SurfaceKind, SurfaceSpec, ToolKind, ToolSpec, check,
+    error, reject_unused, required, resolve_file,
+};
 use crate::geometry::{ArcNoseTool, MeridianArcLength, SurfaceOfRevolution};
 use crate::io::nc::parse_nc;
 use crate::process::nc_path::{pass_pose_table, path_envelope};
-use crate::process::{FeedAlong, NcPath, NcReference, TurningMode, TurningPath, TurningSpiral};
+use crate::process::{
+    FeedAlong, NcPath, NcReference, NormalCorrection, Process, TurningMode, TurningPath,
+    TurningProcess, TurningSpiral,
+};
 use glam::DVec2;
 use std::path::Path;
+
+/// A turning job's process: tool, path (spiral or NC program), effects, measured edge
+/// and normal correction; returns the surface and aperture it is judged against.
+pub fn validate_turning(
+    file: &JobFile,
+    base_dir: &Path,
+    resolved: &mut JobFile,
+    warnings: &mut Vec<String>,
+) -> Result<(SurfaceOfRevolution, Aperture, Process), JobError> {
+    let spec = &file.process;
+    reject_unused(
+        "process",
+        "turning",
+        &[
+            ("inclination_deg", spec.inclination_deg.is_some()),
+            ("plunge_axis", spec.plunge_axis.is_some()),
+            ("tool_rpm", spec.tool_rpm.is_some()),
+            ("workpiece_rpm", spec.workpiece_rpm.is_some()),
+            (
+                "spark_out_revolutions",
+                spec.spark_out_revolutions.is_some(),
+            ),
+            ("tooth_phase_deg", spec.tooth_phase_deg.is_some()),
+        ],
+    )?;
+    let tool = validate_tool(&file.tool)?;
+    let (surface, aperture, path, spindle_rpm) = match &spec.nc_program {
+        None => {
+            let mode = required("process.mode", spec.mode, "\"xz\" or \"xzb\"")?;
+            let (surface, aperture) = surface::validate(&file.surface)?;
+            let (spiral, rpm) = validate_spiral(spec, mode, &surface, &aperture, &tool, warnings)?;
+            resolve_spiral(&mut resolved.process, &spiral);
+            (surface, aperture, TurningPath::Spiral(spiral), rpm)
+        }
+        Some(program) => {
+            let program = resolve_file("process.nc_program", base_dir, program)?;
+            let nc = validate_nc(spec, &file.surface, &program, &tool, warnings)?;
+            resolved.process.mode = Some(TurningMode::Xz);
+            resolved.process.nc_program = Some(program);
+            resolved.process.nc_reference = Some(nc.path.reference);
+            resolved.process.stock_allowance_mm = Some(nc.path.stock_allowance_mm);
+            (
+                nc.surface,
+                nc.aperture,
+                TurningPath::Nc(nc.path),
+                nc.spindle_rpm,
+            )
+        }
+    };
+    if file.surface.kind == SurfaceKind::FromPath {
+        resolved.surface.aperture_diameter_mm = Some(2.0 * aperture.outer_radius_mm);
+    }
+    check_tool_against_surface(&surface, &path, &tool)?;
+
+    let mut effects = turning_effects(&file.effects, tool.nose_radius_mm)?;
+    if let Some(profile) = &file.tool.edge_profile {
+        let profile = resolve_file("tool.edge_profile", base_dir, profile)?;
+        apply_edge_profile(
+            &mut effects,
+            &file.tool,
+            &profile,
+            &tool,
+            path.mode(),
+            warnings,
+        )?;
+        resolved.tool.edge_profile = Some(profile);
+    }
+    resolved.tool.clearance_angle_deg = Some(tool.clearance_angle_deg);
+    let correction = match &spec.compensation {
+        None => NormalCorrection::default(),
+        Some(file_name) => {
+            let table = resolve_file("process.compensation", base_dir, file_name)?;
+            let in_table = |message: String| {
+                error(
+                    "process.compensation",
+                    format!("{}: {message}", table.display()),
+                )
+            };
+            let text = std::fs::read_to_string(&table).map_err(|err| in_table(err.to_string()))?;
+            let correction = NormalCorrection::from_csv(&text).map_err(in_table)?;
+            if correction.max_abs_mm() > 0.5 * tool.nose_radius_mm {
+                return Err(in_table(format!(
+                    "offsets reach {:.3} mm; allowed: at most half the nose radius",
+                    correction.max_abs_mm()
+                )));
+            }
+            resolved.process.compensation = Some(table);
+            correction
+        }
+    };
+    Ok((
+        surface,
+        aperture,
+        Process::Turning(TurningProcess {
+            tool,
+            path,
+            correction,
+            effects,
+            spindle_rpm,
+        }),
+    ))
+}
+
+fn validate_tool(spec: &ToolSpec) -> Result<ArcNoseTool, JobError> {
+    if spec.kind != ToolKind::ArcNose {
+        return Err(error(
+            "tool.kind",
+            "a turning job needs kind = \"arc_nose\" (a cup wheel is for process.kind = \"generating\")",
+        ));
+    }
+    reject_unused(
+        "tool",
+        "arc_nose",
+        &[
+            ("cutting_radius_mm", spec.cutting_radius_mm.is_some()),
+            ("edge_radius_mm", spec.edge_radius_mm.is_some()),
+            ("teeth", spec.teeth.is_some()),
+        ],
+    )?;
+    let nose = required(
+        "tool.nose_radius_mm",
+        spec.nose_radius_mm,
+        "a finite number in (0, 100]",
+    )?;
+    let included = required(
+        "tool.included_angle_deg",
+        spec.included_angle_deg,
+        "a finite number in (0, 180]",
+    )?;
+    Ok(ArcNoseTool {
+        nose_radius_mm: check("tool.nose_radius_mm", nose, 0.0, 100.0, false)?,
+        included_angle_deg: check("tool.included_angle_deg", included, 0.0, 180.0, false)?,
+        clearance_angle_deg: check(
+            "tool.clearance_angle_deg",
+            spec.clearance_angle_deg.unwrap_or(10.0),
+            0.0,
+            45.0,
+            false,
+        )?,
+    })
+}
 
 /// The feed per revolution, from `feed_per_rev_mm` or `feed_mm_per_min / spindle_rpm`,
 /// and the spindle speed if given.
@@ -56,8 +204,9 @@ fn stock_allowance(spec: &ProcessSpec) -> Result<f64, JobError> {
     )
 }
 
-pub fn validate_spiral(
+fn validate_spiral(
     spec: &ProcessSpec,
+    mode: TurningMode,
     surface: &SurfaceOfRevolution,
     aperture: &Aperture,
     tool: &ArcNoseTool,
@@ -135,7 +284,7 @@ pub fn validate_spiral(
     }
     Ok((
         TurningSpiral {
-            mode: spec.mode,
+            mode,
             feed_per_rev_mm: feed,
             feed_along,
             start_radius_mm: start,
@@ -148,7 +297,7 @@ pub fn validate_spiral(
 }
 
 /// Records the spiral's resolved values in the written job.
-pub fn resolve_spiral(resolved: &mut ProcessSpec, spiral: &TurningSpiral) {
+fn resolve_spiral(resolved: &mut ProcessSpec, spiral: &TurningSpiral) {
     resolved.feed_per_rev_mm = Some(spiral.feed_per_rev_mm);
     resolved.feed_along = Some(spiral.feed_along);
     resolved.stock_allowance_mm = Some(spiral.stock_allowance_mm);
@@ -158,14 +307,14 @@ pub fn resolve_spiral(resolved: &mut ProcessSpec, spiral: &TurningSpiral) {
 }
 
 /// An NC job's path, with the surface and aperture it is judged against.
-pub struct NcJob {
+struct NcJob {
     pub surface: SurfaceOfRevolution,
     pub aperture: Aperture,
     pub path: NcPath,
     pub spindle_rpm: Option<f64>,
 }
 
-pub fn validate_nc(
+fn validate_nc(
     spec: &ProcessSpec,
     surface_spec: &SurfaceSpec,
     program: &Path,
@@ -186,7 +335,7 @@ pub fn validate_nc(
             "is not used with nc_program (the program is the path); remove it",
         ));
     }
-    if spec.mode == TurningMode::Xzb {
+    if spec.mode == Some(TurningMode::Xzb) {
         return Err(error(
             "process.mode",
             "\"xzb\" needs B-axis blocks, and NC programs are read as C-X-Z; allowed with nc_program: \"xz\"",
@@ -278,7 +427,7 @@ fn pass_spacing(surface: &SurfaceOfRevolution, path: &TurningPath, r: f64) -> f6
 
 /// The tool must fit concave curvature, and in XZ its edge must reach the slope
 /// (plus the angle to the neighbouring pass's cusp).
-pub fn check_tool_against_surface(
+fn check_tool_against_surface(
     surface: &SurfaceOfRevolution,
     path: &TurningPath,
     tool: &ArcNoseTool,

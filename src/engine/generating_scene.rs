@@ -1,0 +1,241 @@
+//! Everything a removal engine needs for a generating job, prepared once in f64.
+//!
+//! Continuous edge (a grit ring). The wheel sweeps the tube of radius r about its
+//! cutting circle Γ; the part turning about Z sweeps that tube into a solid of
+//! revolution. A point lies in it when some rotation about Z brings it within r of Γ,
+//! and since rotating a point about Z to the azimuth of a circle point Q brings it as
+//! close to Q as any rotation can, that is when, in the meridional half-plane, it lies
+//! within r of the *meridional image* γ(θ) = (√(Γx² + Γy²), Γz) of some circle point.
+//! So a sample's dexel ray (in its meridional plane) enters the swept solid at
+//! min over θ of the ray's entry into the disc of radius r about γ(θ): a 1-D
+//! minimisation per ring (the result is the same at every azimuth). Each local
+//! minimum is a *contact*: the circle angle θᵢ that cuts the ring, its depth, and the
+//! machine azimuth of that circle point (where the sample is when it is cut).
+//!
+//! Teeth. With N teeth only the points of Γ occupied by a tooth cut at any instant; a
+//! tooth cuts a sample when the sample crosses the tooth's plane (the plane through the
+//! wheel axis and the tooth), and then only if it lies within r of Γ. Between
+//! consecutive teeth the part turns by 2π / (N·|K|) (K the wheel/part speed ratio), so
+//! each contact is visited by discrete passes and tooth marks remain. The passes that
+//! decide a sample are the few nearest each contact, in each spark-out revolution.
+
+use crate::field::{PolarGrid, Ring};
+use crate::geometry::cup_wheel::CuttingCircle;
+use glam::DVec2;
+use std::f64::consts::TAU;
+
+/// Contacts kept per ring (one per half of the circle).
+pub const MAX_CONTACTS: usize = 2;
+/// Tooth passes evaluated around each contact per revolution: two on each side.
+pub const PASSES_PER_CONTACT: i64 = 4;
+
+/// Where a ring is cut by a continuous edge.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// Angle on the cutting circle (from its reference point) of the cutting point.
+    pub theta_rad: f64,
+    /// Entry of the ring's dexel ray into the swept solid (mm along the normal).
+    pub depth_mm: f64,
+    /// Machine azimuth of the cutting point (where a sample is when it is cut).
+    pub azimuth_rad: f64,
+}
+
+/// The discrete teeth's motion during the spark-out.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ToothMotion {
+    pub count: u32,
+    /// Wheel revolutions per workpiece revolution (signed).
+    pub speed_ratio: f64,
+    /// Angle of tooth 0 on the circle when the spark-out starts.
+    pub phase_rad: f64,
+    /// Workpiece rotation during the spark-out (rad).
+    pub spark_out_rad: f64,
+}
+
+impl ToothMotion {
+    /// Tool angle between consecutive teeth.
+    pub fn pitch_rad(&self) -> f64 {
+        TAU / self.count as f64
+    }
+
+    /// Spark-out revolutions in which a contact at workpiece time ψ₀ ∈ [0, 2π) recurs.
+    pub fn revolutions(&self) -> u32 {
+        (self.spark_out_rad / TAU).ceil() as u32
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct GeneratingScene {
+    pub grid: PolarGrid,
+    /// The cutting circle where the machine puts it (effects applied).
+    pub circle: CuttingCircle,
+    pub edge_radius_mm: f64,
+    /// Normal distance of the stock's top above nominal: the value of uncut samples.
+    pub stock_top_mm: f64,
+    /// `None` for a continuous edge.
+    pub teeth: Option<ToothMotion>,
+    /// Per ring, its contacts, lowest first.
+    pub rings: Vec<Vec<Contact>>,
+    /// Circle angles sampled per ring before refining.
+    pub coarse_samples: usize,
+}
+
+impl GeneratingScene {
+    pub fn new(
+        grid: PolarGrid,
+        circle: CuttingCircle,
+        edge_radius_mm: f64,
+        stock_top_mm: f64,
+        teeth: Option<ToothMotion>,
+    ) -> Self {
+        // Eight samples per edge radius of circle length, so every contact window
+        // (about 2r of arc wide) holds several.
+        let coarse_samples =
+            ((8.0 * TAU * circle.radius_mm / edge_radius_mm).ceil() as usize).clamp(512, 1 << 16);
+        let rings = {
+            use rayon::prelude::*;
+            grid.rings
+                .par_iter()
+                .map(|ring| {
+                    ring_contacts(&circle, edge_radius_mm, ring, coarse_samples, stock_top_mm)
+                })
+                .collect()
+        };
+        Self {
+            grid,
+            circle,
+            edge_radius_mm,
+            stock_top_mm,
+            teeth,
+            rings,
+            coarse_samples,
+        }
+    }
+
+    /// Dexel–pass evaluations an engine makes: per ring the circle samples of the
+    /// contact search; with teeth, per sample the passes tried around each contact.
+    pub fn pair_count(&self) -> u64 {
+        let search = self.grid.ring_count() as u64 * self.coarse_samples as u64;
+        match &self.teeth {
+            None => search,
+            Some(teeth) => {
+                let contacts: u64 = self.rings.iter().map(|c| c.len() as u64).sum();
+                search
+                    + contacts
+                        * self.grid.azimuths as u64
+                        * (teeth.revolutions() as u64 + 1)
+                        * PASSES_PER_CONTACT as u64
+            }
+        }
+    }
+
+    /// The continuous edge's cut at a ring: its lowest contact, if it cuts.
+    pub fn continuous_depth(&self, ring: usize) -> Option<f64> {
+        self.rings[ring].first().map(|c| c.depth_mm)
+    }
+}
+
+/// Entry of a ray (from o along unit n) into the disc of radius r centred at o + v, as
+/// (d, true); when the ray misses the disc, (v·n + distance beyond r, false): a
+/// continuous extension that grows away from the disc, so minimisers can cross it.
+pub fn disc_entry(v: DVec2, n: DVec2, r: f64) -> (f64, bool) {
+    let along = v.dot(n);
+    let perp = v.perp_dot(n).abs();
+    if perp <= r {
+        (along - (r - perp).sqrt() * (r + perp).sqrt(), true)
+    } else {
+        (along + (perp - r), false)
+    }
+}
+
+/// The contacts of one ring: local minima over θ of the ray's disc entry, found on
+/// `coarse` samples and refined by golden-section search, kept when the disc really
+/// meets the ray and cuts below the stock top.
+pub fn ring_contacts(
+    circle: &CuttingCircle,
+    edge_radius_mm: f64,
+    ring: &Ring,
+    coarse: usize,
+    stock_top_mm: f64,
+) -> Vec<Contact> {
+    let origin = ring.point();
+    let entry = |theta: f64| {
+        disc_entry(
+            circle.meridional_point(theta) - origin,
+            ring.normal,
+            edge_radius_mm,
+        )
+    };
+    let step = TAU / coarse as f64;
+    let values: Vec<f64> = (0..coarse).map(|k| entry(k as f64 * step).0).collect();
+    let mut contacts = Vec::new();
+    for k in 0..coarse {
+        let before = values[(k + coarse - 1) % coarse];
+        let after = values[(k + 1) % coarse];
+        if !(values[k] < before && values[k] <= after) {
+            continue;
+        }
+        let theta = golden_section_min(
+            &|t| entry(t).0,
+            (k as f64 - 1.0) * step,
+            (k as f64 + 1.0) * step,
+        );
+        let (depth, meets) = entry(theta);
+        if meets && depth < stock_top_mm {
+            let point = circle.point(theta);
+            contacts.push(Contact {
+                theta_rad: theta.rem_euclid(TAU),
+                depth_mm: depth,
+                azimuth_rad: point.y.atan2(point.x),
+            });
+        }
+    }
+    contacts.sort_by(|a, b| a.depth_mm.total_cmp(&b.depth_mm));
+    contacts.truncate(MAX_CONTACTS);
+    contacts
+}
+
+/// Minimiser of a unimodal function on [a, b], to ~1e-13 of the bracket.
+pub fn golden_section_min(f: &dyn Fn(f64) -> f64, mut a: f64, mut b: f64) -> f64 {
+    const INVERSE_PHI: f64 = 0.618_033_988_749_894_9;
+    let mut x1 = b - INVERSE_PHI * (b - a);
+    let mut x2 = a + INVERSE_PHI * (b - a);
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..64 {
+        if f1 <= f2 {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - INVERSE_PHI * (b - a);
+            f1 = f(x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + INVERSE_PHI * (b - a);
+            f2 = f(x2);
+        }
+    }
+    0.5 * (a + b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn disc_entry_is_the_lower_crossing_of_the_circle() {
+        let n = DVec2::new(0.6, 0.8);
+        let v = DVec2::new(1.0, 2.0);
+        let (d, meets) = disc_entry(v, n, 1.5);
+        assert!(meets);
+        assert!(((d * n - v).length() - 1.5).abs() < 1e-14);
+        assert!(d < v.dot(n));
+    }
+
+    #[test]
+    fn golden_section_finds_a_parabola_vertex() {
+        let x = golden_section_min(&|x| (x - 0.3).powi(2) + 1.0, 0.0, 1.0);
+        assert!((x - 0.3).abs() < 1e-7, "{x}");
+    }
+}
