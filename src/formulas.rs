@@ -59,9 +59,66 @@ pub fn sphere_angle_step_for_radial_feed(part_radius: f64, radius: f64, feed: f6
     ((radius + 0.5 * feed) / part_radius).asin() - ((radius - 0.5 * feed) / part_radius).asin()
 }
 
+/// Seed 000 eqs. (1)–(2): the point A of a circle of radius R_S rolling inside one of
+/// radius R_L (a hypocycloid), after the small circle has rolled by β:
+/// x = (R_L − R_S) cos β + R_S cos((R_L − R_S)β / R_S),
+/// y = (R_L − R_S) sin β − R_S sin((R_L − R_S)β / R_S).
+pub fn hypocycloid_point(r_large: f64, r_small: f64, beta: f64) -> (f64, f64) {
+    let arm = r_large - r_small;
+    let spin = arm / r_small * beta;
+    (
+        arm * beta.cos() + r_small * spin.cos(),
+        arm * beta.sin() - r_small * spin.sin(),
+    )
+}
+
+/// Seed 000 eq. (3): AO(β) = √(x_A² + y_A²), the distance of the rolling point from the
+/// large circle's centre. It runs from R_L (A on the large circle, β = 0) down to
+/// R_L − 2R_S (A opposite the contact, β = πR_S/R_L) and back, every 2πR_S/R_L of β.
+/// With R_L = 53.5 mm, R_S = 3.5 mm and the paper's β = 0.1073 rad it is 49.880 mm; the
+/// paper prints 50.871 mm, which neither this nor its eq. (4) as printed gives (see
+/// [`hypocycloid_distance_as_printed`]).
+pub fn hypocycloid_distance(r_large: f64, r_small: f64, beta: f64) -> f64 {
+    let (x, y) = hypocycloid_point(r_large, r_small, beta);
+    x.hypot(y)
+}
+
+/// Seed 000 eq. (4) exactly as printed, whose radicand repeats the y² term:
+/// √(x² + 2y²). At β = 0.1073 rad (R_L = 53.5, R_S = 3.5) it gives 49.914 mm, not the
+/// printed 50.871 mm either.
+pub fn hypocycloid_distance_as_printed(r_large: f64, r_small: f64, beta: f64) -> f64 {
+    let (x, y) = hypocycloid_point(r_large, r_small, beta);
+    (x * x + 2.0 * y * y).sqrt()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn hypocycloid_distance_follows_the_law_of_cosines_and_not_the_printed_value() {
+        // Independent form: A sits R_S from the small circle's centre, which is R_L − R_S
+        // from O; the angle between the two arms at that centre is π − R_L·β/R_S, so
+        // AO² = (R_L − R_S)² + R_S² + 2 R_S (R_L − R_S) cos(R_L β / R_S).
+        let (large, small) = (53.5, 3.5);
+        for beta in [0.0, 0.05, 0.1073, 0.2, 0.3, 0.41] {
+            let arm: f64 = large - small;
+            let cosine_law = (arm * arm
+                + small * small
+                + 2.0 * small * arm * (large * beta / small).cos())
+            .sqrt();
+            assert!((hypocycloid_distance(large, small, beta) - cosine_law).abs() < 1e-12);
+        }
+        let at_paper_beta = hypocycloid_distance(large, small, 0.1073);
+        assert!((at_paper_beta - 49.8798).abs() < 1e-4, "{at_paper_beta}");
+        assert!((at_paper_beta - 50.871).abs() > 0.9);
+        let as_printed = hypocycloid_distance_as_printed(large, small, 0.1073);
+        assert!((as_printed - 49.9144).abs() < 1e-4, "{as_printed}");
+        // Range: R_L at β = 0 and R_L − 2R_S half a cusp later.
+        assert!((hypocycloid_distance(large, small, 0.0) - large).abs() < 1e-12);
+        let half_cusp = std::f64::consts::PI * small / large;
+        assert!((hypocycloid_distance(large, small, half_cusp) - (large - 2.0 * small)).abs() < 1e-12);
+    }
 
     #[test]
     fn flat_scallop_matches_the_textbook_form_and_its_small_feed_limit() {

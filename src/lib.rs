@@ -15,6 +15,7 @@
 pub mod analysis;
 pub mod bench;
 pub mod compensate;
+pub mod correct;
 pub mod effects;
 pub mod engine;
 pub mod field;

@@ -8,6 +8,7 @@ pub mod profile_compare;
 pub mod profile_stats;
 pub mod protrusion;
 pub mod scallop;
+pub mod sphere_fit;
 
 pub use deviation::{DeviationStats, deviation_stats};
 pub use form::{FormProfile, form_error};

@@ -11,6 +11,22 @@
 //! (through C) keeps it there: the tube sweeps the shell between R_t/sin α − r and
 //! R_t/sin α + r, and the part is left with a sphere of radius R_t/sin α + r when it lies
 //! beyond the shell (concave, C on the tool side) or R_t/sin α − r inside it (convex).
+//!
+//! A circle that misses the axis still generates a sphere. Put its point nearest the
+//! axis at (x₀, 0, z₀) with the tangent there along Y and its plane tilted by α (so its
+//! centre is at (x₀ + R_t cos α, 0, z₀ + s R_t sin α), s = +1 concave, −1 convex). With
+//! w = 1 − cos θ its points are (x₀ + R_t w cos α, R_t sin θ, z₀ + s R_t w sin α), and
+//! since sin²θ = w(2 − w), their distance ρ from the axis and height z satisfy
+//! ρ² = x₀² + 2 R_t w (x₀ cos α + R_t) − R_t² w² sin²α with z − z₀ = s R_t w sin α, i.e.
+//! ρ² + (z − z₀ − s k)² = x₀² + k², k = (R_t + x₀ cos α) / sin α.
+//! Seen in the meridional half-plane the circle is an arc of the circle of radius
+//! √(x₀² + k²) about (0, z₀ + s k): turning the part sweeps it into a sphere, and the
+//! edge's tube into the sphere of radius √(x₀² + k²) + s r, but only where the arc
+//! exists, ρ ≥ |x₀|. Inside, the disc about the arc's end (|x₀|, z₀) alone cuts and
+//! leaves a pip of radius ≈ |x₀| topped at z₀ − √(r² − x₀²). The sign of x₀ (short of
+//! the axis or past it) changes only k, so a displaced wheel's part is indistinguishable
+//! from that of the opposite displacement at another inclination: the form tells |x₀|
+//! and the radius, never the side.
 
 use glam::{DVec2, DVec3};
 
@@ -76,14 +92,52 @@ pub struct CupWheel {
     pub teeth: u32,
 }
 
-/// The radius of the sphere a cup wheel generates at inclination α (derivation in the
-/// module doc): R_t / sin α + r for a concave part, − r for a convex one.
+/// The radius of the sphere a cup wheel generates at inclination α with its circle
+/// through the axis (derivation in the module doc): R_t / sin α + r for a concave part,
+/// − r for a convex one.
 pub fn generated_sphere_radius(wheel: &CupWheel, inclination_rad: f64, concave: bool) -> f64 {
-    let shell = wheel.cutting_radius_mm / inclination_rad.sin();
-    if concave {
-        shell + wheel.edge_radius_mm
-    } else {
-        shell - wheel.edge_radius_mm
+    generated_sphere(wheel, inclination_rad, concave, 0.0, wheel.edge_radius_mm).radius_mm
+}
+
+/// What a wheel whose circle passes nearest the axis at (x₀, 0, z₀) generates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GeneratedSphere {
+    pub radius_mm: f64,
+    /// Height of the sphere's centre (on the axis).
+    pub centre_z_mm: f64,
+    /// Height where the sphere, extended inward, would cross the axis.
+    pub vertex_z_mm: f64,
+    /// Radius of the central pip: where the sphere begins, |x₀|·(1 + s r / √(x₀² + k²)).
+    pub pip_radius_mm: f64,
+    /// Height of the pip's top above `vertex_z_mm`.
+    pub pip_height_mm: f64,
+}
+
+/// The generated sphere and pip for a circle placed as in the module doc.
+pub fn generated_sphere(
+    wheel: &CupWheel,
+    inclination_rad: f64,
+    concave: bool,
+    x0_mm: f64,
+    z0_mm: f64,
+) -> GeneratedSphere {
+    let s = if concave { 1.0 } else { -1.0 };
+    let (sin, cos) = inclination_rad.sin_cos();
+    let r = wheel.edge_radius_mm;
+    let k = (wheel.cutting_radius_mm + x0_mm * cos) / sin;
+    let arc_radius = x0_mm.hypot(k);
+    let radius_mm = arc_radius + s * r;
+    let centre_z_mm = z0_mm + s * k;
+    let vertex_z_mm = centre_z_mm - s * radius_mm;
+    // Without cancellation: z₀ − √(r² − x₀²) − vertex = [r − √(r² − x₀²)] + s(√(x₀² + k²) − k).
+    let x2 = x0_mm * x0_mm;
+    let pip_height_mm = x2 / (r + (r * r - x2).sqrt()) + s * x2 / (arc_radius + k);
+    GeneratedSphere {
+        radius_mm,
+        centre_z_mm,
+        vertex_z_mm,
+        pip_radius_mm: x0_mm.abs() * (1.0 + s * r / arc_radius),
+        pip_height_mm,
     }
 }
 
@@ -133,6 +187,33 @@ mod tests {
             let (distance, theta) = c.distance(point);
             assert!((distance - brute).abs() < 1e-9, "{distance} vs {brute}");
             assert!(((c.point(theta) - point).length() - distance).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn a_displaced_circle_lies_in_the_meridional_circle_of_the_closed_form() {
+        let wheel = CupWheel {
+            cutting_radius_mm: 3.5,
+            edge_radius_mm: 0.5,
+            teeth: 0,
+        };
+        for (concave, x0) in [(true, 0.02), (true, -0.03), (false, 0.01), (false, -0.02)] {
+            let s: f64 = if concave { 1.0 } else { -1.0 };
+            let alpha = 4f64.to_radians();
+            let z0 = 0.5;
+            let circle = CuttingCircle {
+                centre: DVec3::new(x0 + 3.5 * alpha.cos(), 0.0, z0 + s * 3.5 * alpha.sin()),
+                axis: DVec3::new(alpha.sin(), 0.0, -s * alpha.cos()),
+                radius_mm: 3.5,
+                reference: DVec3::new(-alpha.cos(), 0.0, -s * alpha.sin()),
+            };
+            let sphere = generated_sphere(&wheel, alpha, concave, x0, z0);
+            let arc_radius = sphere.radius_mm - s * 0.5;
+            for i in 0..20 {
+                let m = circle.meridional_point(i as f64 * 0.3);
+                let distance = m.x.hypot(m.y - sphere.centre_z_mm);
+                assert!((distance - arc_radius).abs() < 1e-12, "{distance} vs {arc_radius}");
+            }
         }
     }
 

@@ -50,6 +50,9 @@ pub struct GeneratingSetup {
     pub tooth_phase_rad: f64,
     /// Material above the nominal surface before the cut.
     pub stock_allowance_mm: f64,
+    /// A deliberate X offset of the wheel from the position that puts its circle
+    /// through the axis (+ = away from the axis): how a correction moves it.
+    pub cutter_offset_mm: f64,
 }
 
 impl GeneratingSetup {
@@ -102,7 +105,7 @@ impl GeneratingSetup {
             PlungeAxis::Z => DVec3::new(0.0, 0.0, -1.0),
             PlungeAxis::ToolAxis => into_part,
         };
-        let shift = DVec3::new(effects.cutter_displacement_mm, 0.0, 0.0)
+        let shift = DVec3::new(self.cutter_offset_mm + effects.cutter_displacement_mm, 0.0, 0.0)
             - effects.plunge_error_mm * plunge_direction;
         CuttingCircle {
             centre: vertex_point + radius * DVec3::new(cos, 0.0, s * sin) + shift,
@@ -140,6 +143,7 @@ mod tests {
             spark_out_revolutions: 1.0,
             tooth_phase_rad: 0.0,
             stock_allowance_mm: 0.002,
+            cutter_offset_mm: 0.0,
         }
     }
 

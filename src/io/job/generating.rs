@@ -106,9 +106,16 @@ pub fn validate_generating(
     )?;
     let stock_allowance_mm = check(
         "process.stock_allowance_mm",
-        spec.stock_allowance_mm.unwrap_or(0.002),
+        spec.stock_allowance_mm.unwrap_or(0.1),
         0.0,
         10.0,
+        true,
+    )?;
+    let cutter_offset_mm = check(
+        "process.cutter_offset_mm",
+        spec.cutter_offset_mm.unwrap_or(0.0),
+        -0.5 * wheel.edge_radius_mm,
+        0.5 * wheel.edge_radius_mm,
         true,
     )?;
     let setup = GeneratingSetup {
@@ -121,6 +128,7 @@ pub fn validate_generating(
         spark_out_revolutions,
         tooth_phase_rad: tooth_phase_deg.to_radians(),
         stock_allowance_mm,
+        cutter_offset_mm,
     };
 
     let reach = setup.reach_radius_mm();
@@ -153,6 +161,7 @@ pub fn validate_generating(
     resolved.process.spark_out_revolutions = Some(spark_out_revolutions);
     resolved.process.tooth_phase_deg = Some(tooth_phase_deg);
     resolved.process.stock_allowance_mm = Some(stock_allowance_mm);
+    resolved.process.cutter_offset_mm = Some(cutter_offset_mm);
     Ok((
         surface,
         aperture,

@@ -170,7 +170,7 @@ pub enum ProcessKind {
 /// The `[process]` table. Turning fields: mode, feeds, spindle_rpm, depth_of_cut_mm,
 /// start/end_radius_mm, nc_program, nc_reference, compensation; generating fields:
 /// inclination_deg, plunge_axis, tool_rpm, workpiece_rpm, spark_out_revolutions,
-/// tooth_phase_deg; both: stock_allowance_mm.
+/// tooth_phase_deg, cutter_offset_mm; both: stock_allowance_mm.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ProcessSpec {
@@ -188,8 +188,7 @@ pub struct ProcessSpec {
     /// What the feed is measured along: "radial" (X, default) or "arc_length".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub feed_along: Option<FeedAlong>,
-    /// Material above the nominal surface before the pass (default 0.002 mm).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// Material above the nominal surface before the pass (default: turning 0.002 mm, generating 0.1 mm).
     pub stock_allowance_mm: Option<f64>,
     /// Depth the pass cuts into the stock (default: the stock allowance).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -230,6 +229,11 @@ pub struct ProcessSpec {
     /// starts (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tooth_phase_deg: Option<f64>,
+    /// Generating: a deliberate X offset of the wheel from the position that puts its
+    /// circle through the axis (+ = away from the axis), default 0; `toolmark correct`
+    /// writes it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cutter_offset_mm: Option<f64>,
 }
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

@@ -39,6 +39,7 @@ pub fn validate_turning(
                 spec.spark_out_revolutions.is_some(),
             ),
             ("tooth_phase_deg", spec.tooth_phase_deg.is_some()),
+            ("cutter_offset_mm", spec.cutter_offset_mm.is_some()),
         ],
     )?;
     let tool = validate_tool(&file.tool)?;
