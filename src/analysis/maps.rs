@@ -92,12 +92,23 @@ impl<'a> RowIntegrals<'a> {
 
 /// Resamples a per-sample quantity (sample order of `grid`) to a `pixels`² top view.
 pub fn top_view(grid: &PolarGrid, values: &[f64], pixels: usize) -> Raster {
+    let outer = grid.rings[grid.ring_count() - 1].radius_mm;
+    top_view_within(grid, values, pixels, outer)
+}
+
+/// A top view of the square [−half_width, half_width]² about the axis (a zoom on the
+/// centre when `half_width_mm` is below the part's radius).
+pub fn top_view_within(
+    grid: &PolarGrid,
+    values: &[f64],
+    pixels: usize,
+    half_width_mm: f64,
+) -> Raster {
     let integrals = RowIntegrals::new(grid, values);
     let (inner, outer) = (
         grid.rings[0].radius_mm,
         grid.rings[grid.ring_count() - 1].radius_mm,
     );
-    let half_width_mm = outer;
     let pitch_mm = 2.0 * half_width_mm / pixels as f64;
     let azimuths = grid.azimuths as f64;
     let mut raster = Raster {

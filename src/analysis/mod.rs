@@ -12,7 +12,7 @@ pub mod sphere_fit;
 
 pub use deviation::{DeviationStats, deviation_stats};
 pub use form::{FormProfile, form_error};
-pub use maps::{Raster, top_view};
+pub use maps::{Raster, top_view, top_view_within};
 pub use profile_stats::{ProfileStats, profile_stats, remove_form};
 pub use protrusion::{
     Protrusion, ProtrusionShape, Surround, analyse_protrusion, default_zone_radius_mm,

@@ -21,7 +21,7 @@
 
 use crate::field::{PolarGrid, Ring};
 use crate::geometry::cup_wheel::CuttingCircle;
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 use std::f64::consts::TAU;
 
 /// Contacts kept per ring (one per half of the circle).
@@ -29,7 +29,8 @@ pub const MAX_CONTACTS: usize = 2;
 /// Tooth passes evaluated around each contact per revolution: two on each side.
 pub const PASSES_PER_CONTACT: i64 = 4;
 
-/// Where a ring is cut by a continuous edge.
+/// Where a ring is cut by a continuous edge, with the local frame the tooth passes
+/// are solved in.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Contact {
     /// Angle on the cutting circle (from its reference point) of the cutting point.
@@ -38,6 +39,25 @@ pub struct Contact {
     pub depth_mm: f64,
     /// Machine azimuth of the cutting point (where a sample is when it is cut).
     pub azimuth_rad: f64,
+    /// The frame: the sample turned to machine azimuth φ_c, axes (e_ρ, e_φ, e_z) there.
+    pub frame: ContactFrame,
+}
+
+/// A contact seen from the sample's own frame at the contact instant (all vectors in
+/// components along e_ρ, e_φ, e_z at machine azimuth φ_c), so the tooth-pass equations
+/// only ever handle small differences (nanometres stay resolved in f32).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ContactFrame {
+    /// Distance from the axis of the ray point at the contact depth.
+    pub radius_mm: f64,
+    /// From the circle point Γ(θ_c) to the ray point at the contact depth.
+    pub offset: [f64; 3],
+    /// Γ's radial unit vector at θ_c (from its centre toward Γ(θ_c)).
+    pub radial: [f64; 3],
+    /// Γ's unit tangent at θ_c (increasing θ).
+    pub tangent: [f64; 3],
+    /// The wheel's unit axis.
+    pub axis: [f64; 3],
 }
 
 /// The discrete teeth's motion during the spark-out.
@@ -58,9 +78,24 @@ impl ToothMotion {
         TAU / self.count as f64
     }
 
-    /// Spark-out revolutions in which a contact at workpiece time ψ₀ ∈ [0, 2π) recurs.
+    /// The part of the spark-out whose passes are distinct: when the teeth per
+    /// workpiece turn, N·K, make a whole number after m turns, every later pass repeats
+    /// one m turns earlier and cuts nothing new (and would only tie with it).
+    pub fn distinct_rad(&self) -> f64 {
+        let per_turn = self.count as f64 * self.speed_ratio.abs();
+        let turns = (self.spark_out_rad / TAU).ceil() as u32;
+        (1..=turns)
+            .find(|&m| {
+                let passes = per_turn * m as f64;
+                (passes - passes.round()).abs() < 1e-9 * passes.max(1.0)
+            })
+            .map_or(self.spark_out_rad, |m| (TAU * m as f64).min(self.spark_out_rad))
+    }
+
+    /// Workpiece revolutions in which a contact at time ψ₀ ∈ [0, 2π) can recur within
+    /// the distinct part of the spark-out.
     pub fn revolutions(&self) -> u32 {
-        (self.spark_out_rad / TAU).ceil() as u32
+        (self.distinct_rad() / TAU).ceil() as u32
     }
 }
 
@@ -182,17 +217,38 @@ pub fn ring_contacts(
         );
         let (depth, meets) = entry(theta);
         if meets && depth < stock_top_mm {
-            let point = circle.point(theta);
-            contacts.push(Contact {
-                theta_rad: theta.rem_euclid(TAU),
-                depth_mm: depth,
-                azimuth_rad: point.y.atan2(point.x),
-            });
+            contacts.push(contact_at(circle, ring, theta, depth));
         }
     }
     contacts.sort_by(|a, b| a.depth_mm.total_cmp(&b.depth_mm));
     contacts.truncate(MAX_CONTACTS);
     contacts
+}
+
+/// The contact at circle angle θ where the ring's ray enters at `depth`.
+fn contact_at(circle: &CuttingCircle, ring: &Ring, theta: f64, depth: f64) -> Contact {
+    let point = circle.point(theta);
+    let azimuth = point.y.atan2(point.x);
+    let (sin, cos) = azimuth.sin_cos();
+    // Machine vector → components along (e_ρ, e_φ, e_z) at the contact azimuth.
+    let local = |v: DVec3| [v.x * cos + v.y * sin, -v.x * sin + v.y * cos, v.z];
+    let ray_point = ring.point() + depth * ring.normal;
+    let side = circle.axis.cross(circle.reference);
+    let radial = theta.cos() * circle.reference + theta.sin() * side;
+    let tangent = circle.axis.cross(radial);
+    let on_ray = DVec3::new(ray_point.x * cos, ray_point.x * sin, ray_point.y);
+    Contact {
+        theta_rad: theta.rem_euclid(TAU),
+        depth_mm: depth,
+        azimuth_rad: azimuth,
+        frame: ContactFrame {
+            radius_mm: ray_point.x,
+            offset: local(on_ray - point),
+            radial: local(radial),
+            tangent: local(tangent),
+            axis: local(circle.axis),
+        },
+    }
 }
 
 /// Minimiser of a unimodal function on [a, b], to ~1e-13 of the bracket.

@@ -252,6 +252,55 @@ pub fn read_wli_profile_str(
     }
 }
 
+/// A radial deviation profile: a CSV whose header names a `radius_mm` and a
+/// `deviation_nm` column (the layout of toolmark's `radial_profile.csv`; other columns
+/// and `#` lines are ignored). Radii must increase from ≥ 0. Returns (radius mm,
+/// deviation mm).
+pub fn read_radial_deviation_csv(path: &Path) -> Result<(Vec<f64>, Vec<f64>), MeasuredError> {
+    let text = read_text(path);
+    in_file(path, text.and_then(|t| read_radial_deviation_str(&t)))
+}
+
+pub fn read_radial_deviation_str(text: &str) -> Result<(Vec<f64>, Vec<f64>), MeasuredError> {
+    let mut columns: Option<(usize, usize)> = None;
+    let (mut radius, mut deviation) = (Vec::new(), Vec::new());
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        let Some((r_col, d_col)) = columns else {
+            let find = |name: &str| cells.iter().position(|c| *c == name);
+            match (find("radius_mm"), find("deviation_nm")) {
+                (Some(r), Some(d)) => columns = Some((r, d)),
+                _ => {
+                    return fail(
+                        Some(i + 1),
+                        "the header must name the columns radius_mm and deviation_nm (units are read from the names)",
+                    );
+                }
+            }
+            continue;
+        };
+        let cell = |c: usize| cells.get(c).copied().unwrap_or("");
+        let r = number(cell(r_col), i + 1)?;
+        let d = number(cell(d_col), i + 1)?;
+        if !r.is_finite() || r < 0.0 || radius.last().is_some_and(|&prev| r <= prev) {
+            return fail(Some(i + 1), format!("radius_mm `{}` is not finite, ≥ 0 and increasing", cell(r_col)));
+        }
+        if !d.is_finite() {
+            return fail(Some(i + 1), format!("deviation_nm `{}` is not finite", cell(d_col)));
+        }
+        radius.push(r);
+        deviation.push(d * 1e-6);
+    }
+    if radius.len() < 8 {
+        return fail(None, format!("{} data rows; at least 8 are needed", radius.len()));
+    }
+    Ok((radius, deviation))
+}
+
 /// UTF-8 (BOM stripped), or UTF-16LE with its BOM as the README says the result files are.
 fn read_text(path: &Path) -> Result<String, MeasuredError> {
     let bytes = std::fs::read(path).or_else(|e| fail(None, e.to_string()))?;

@@ -7,6 +7,8 @@
 //! | `deviation.png` | 16-bit grey top view of the deviation; scale in its text chunks and in `summary.json` |
 //! | `deviation_colour.png` | false-colour deviation with colour bar, for people |
 //! | `scallop_colour.png` | false-colour scallop height with colour bar |
+//! | `deviation_centre.png` | false-colour zoom on the central zone (3× the central feature's radius, or a tenth of the part) |
+//! | `centre_profile.png` | deviation across the central zone: azimuth mean, min and max per ring |
 //! | `radial_profile.csv` | per ring: r, s, z, deviation on azimuth 0, mean/min/max over azimuths, scallop |
 //! | `summary.json` | schema `toolmark.summary/1` (README) |
 //! | `job.resolved.toml` | the job with every default filled in |
@@ -15,7 +17,8 @@ use super::atomic::write_bytes_atomically;
 use super::colour::ColourMap;
 use super::exr_io::{ExrImage, write_exr};
 use super::png_out::{FalseColourPlot, write_false_colour_png, write_png16_gray};
-use crate::analysis::{Raster, top_view};
+use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
+use crate::analysis::{Raster, top_view, top_view_within};
 use crate::process::Process;
 use crate::run::RunResult;
 use serde_json::json;
@@ -167,6 +170,10 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         &png_text(&attributes),
     )?;
 
+    let half_width = centre_half_width_mm(result);
+    write_centre_map(&file("deviation_centre.png"), result, half_width, None)?;
+    write_centre_profile(&file("centre_profile.png"), &[("", result)], half_width)?;
+
     write_bytes_atomically(
         &file("radial_profile.csv"),
         radial_profile_csv(result).as_bytes(),
@@ -187,6 +194,115 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let text = serde_json::to_string_pretty(&summary).map_err(io::Error::other)?;
     write_bytes_atomically(&file("summary.json"), text.as_bytes())?;
     Ok(written)
+}
+
+/// Half-width of the central zoom: three times the central feature's radius, or a
+/// tenth of the part when there is none; at least 20 grid pitches.
+pub fn centre_half_width_mm(result: &RunResult) -> f64 {
+    let grid = result.grid();
+    let outer = grid.rings[grid.ring_count() - 1].radius_mm;
+    let feature = result.protrusion.radius_um * 1e-3;
+    let wanted = if feature > 0.0 { 3.0 * feature } else { 0.1 * outer };
+    wanted.max(20.0 * grid.pitch_mm).min(outer)
+}
+
+/// Writes a false-colour top view of the central zone. `range` fixes the colour scale
+/// (to compare parts); by default it is centred on the zone's mean and spans at least
+/// ±1 nm, so a clean part does not show its numerical dust. Returns the range used.
+pub fn write_centre_map(
+    path: &Path,
+    result: &RunResult,
+    half_width_mm: f64,
+    range: Option<(f32, f32)>,
+) -> io::Result<(f32, f32)> {
+    const PIXELS: usize = 384;
+    let grid = result.grid();
+    let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
+    let map = top_view_within(grid, &deviation_nm, PIXELS, half_width_mm);
+    let (low, high, mean) = valid_range(&map);
+    let range = range.unwrap_or_else(|| {
+        let half = (high - mean).max(mean - low).max(1.0);
+        (mean - half, mean + half)
+    });
+    let p = &result.protrusion;
+    let feature = match p.shape {
+        crate::analysis::ProtrusionShape::None => "no central feature".to_string(),
+        shape => format!(
+            "{shape:?} {:.1} nm high, radius {:.2} µm",
+            p.height_nm, p.radius_um
+        ),
+    };
+    let attributes = common_attributes(result, &map);
+    write_false_colour_png(
+        path,
+        &FalseColourPlot {
+            values: &map.values,
+            valid: &map.valid,
+            width: PIXELS as u32,
+            height: PIXELS as u32,
+            range,
+            colour_map: ColourMap::Diverging,
+            title: &format!(
+                "{}: deviation, central ±{:.3} mm",
+                result.job.name, half_width_mm
+            ),
+            unit_label: "deviation (nm)",
+            footer: &format!(
+                "zone PV {:.1} nm  {feature}  {} engine",
+                high - low,
+                result.engine.kind
+            ),
+        },
+        &png_text(&attributes),
+    )?;
+    Ok(range)
+}
+
+/// Plots the deviation across the central zone (azimuth mean per ring; min and max too
+/// when azimuths differ) for one or more labelled runs on the same axes.
+pub fn write_centre_profile(
+    path: &Path,
+    runs: &[(&str, &RunResult)],
+    half_width_mm: f64,
+) -> io::Result<()> {
+    let mut curves: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
+    for (label, result) in runs {
+        let profile = result
+            .profile
+            .iter()
+            .filter(|p| p.radius_mm <= half_width_mm);
+        let radius: Vec<f64> = profile.clone().map(|p| p.radius_mm).collect();
+        let prefix = if label.is_empty() { String::new() } else { format!("{label}: ") };
+        curves.push((
+            format!("{prefix}azimuth mean"),
+            radius.clone(),
+            profile.clone().map(|p| p.mean_nm).collect(),
+        ));
+        if profile.clone().any(|p| p.max_nm - p.min_nm > 1e-3) {
+            curves.push((format!("{prefix}min"), radius.clone(), profile.clone().map(|p| p.min_nm).collect()));
+            curves.push((format!("{prefix}max"), radius, profile.map(|p| p.max_nm).collect()));
+        }
+    }
+    let series: Vec<Series> = curves
+        .iter()
+        .enumerate()
+        .map(|(i, (label, x, y))| Series {
+            label,
+            x,
+            y,
+            colour: PALETTE[i % PALETTE.len()],
+        })
+        .collect();
+    let name = &runs[0].1.job.name;
+    write_line_plot(
+        path,
+        &LinePlot {
+            title: &format!("{name}: deviation across the central zone"),
+            x_label: "radius (mm)",
+            y_label: "deviation along the normal (nm)",
+            series: &series,
+        },
+    )
 }
 
 /// Metadata stored in every EXR and PNG.

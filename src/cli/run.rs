@@ -1,0 +1,129 @@
+//! `toolmark run` and `toolmark check`.
+
+use super::{EngineChoice, Failure, load_job, open_engine, slug};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::PathBuf;
+use toolmark::io::outputs::write_outputs;
+use toolmark::process::Process;
+use toolmark::run::simulate;
+
+#[derive(clap::Args, Default)]
+pub struct RunArgs {
+    /// Job file (TOML); omit to run the built-in default job.
+    pub job: Option<PathBuf>,
+    /// Which removal engine to use.
+    #[arg(long, value_enum, default_value_t = EngineChoice::Auto)]
+    pub engine: EngineChoice,
+    /// Output folder (default: toolmark-out/<job name>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+pub fn check(path: PathBuf) -> Result<(), Failure> {
+    let job = load_job(Some(&path))?;
+    let resolved =
+        toml::to_string_pretty(&job.resolved).map_err(|e| Failure::Runtime(e.to_string()))?;
+    println!(
+        "{}: valid (hash {})\n\n{resolved}",
+        path.display(),
+        job.hash()
+    );
+    for warning in &job.warnings {
+        println!("warning: {warning}");
+    }
+    Ok(())
+}
+
+pub fn run(args: RunArgs) -> Result<(), Failure> {
+    let job = load_job(args.job.as_ref())?;
+    if args.job.is_none() {
+        println!(
+            "no job file given: running the built-in default job ({})",
+            job.name
+        );
+    }
+    for warning in &job.warnings {
+        eprintln!("warning: {warning}");
+    }
+    let mut engine = open_engine(args.engine)?;
+    let info = engine.info();
+    println!(
+        "engine: {} — {} ({}{}{})",
+        info.kind,
+        info.adapter,
+        info.backend,
+        if info.driver.is_empty() { "" } else { ", " },
+        info.driver
+    );
+    let out = args
+        .out
+        .unwrap_or_else(|| PathBuf::from("toolmark-out").join(slug(&job.name)));
+
+    let bar = ProgressBar::new(0);
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% {elapsed} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_message("removing material");
+    let progress = |done: u64, total: u64| {
+        bar.set_length(total);
+        bar.set_position(done.max(bar.position()));
+    };
+    let result = simulate(job, engine.as_mut(), &progress)
+        .map_err(|err| Failure::Runtime(err.to_string()))?;
+    bar.finish_and_clear();
+
+    let written = write_outputs(&out, &result)
+        .map_err(|err| Failure::Runtime(format!("writing outputs to {}: {err}", out.display())))?;
+    let grid = result.grid();
+    let t = &result.timings;
+    let motion = match &result.job.process {
+        Process::Turning(_) => format!("{:.0} spindle revolutions", result.revolutions()),
+        Process::Generating(g) => format!(
+            "{} workpiece revolutions of spark-out, wheel {} rpm / part {} rpm",
+            g.setup.spark_out_revolutions, g.setup.tool_rpm, g.setup.workpiece_rpm
+        ),
+    };
+    println!(
+        "{}: {} rings × {} azimuths = {} samples, {motion}, {:.3e} dexel–pass pairs",
+        result.job.name,
+        grid.ring_count(),
+        grid.azimuths,
+        grid.sample_count(),
+        result.pair_count() as f64
+    );
+    println!(
+        "time: prepare {:.2} s, removal {:.2} s ({:.3e} pairs/s), analysis {:.2} s",
+        t.prepare_s,
+        t.removal_s,
+        result.pair_count() as f64 / t.removal_s.max(1e-12),
+        t.analysis_s
+    );
+    println!(
+        "deviation: PV {:.2} nm, RMS {:.2} nm (mean {:.2} nm)",
+        result.deviation.pv_nm, result.deviation.rms_nm, result.deviation.mean_nm
+    );
+    match &result.scallops.stats {
+        Some(s) => println!(
+            "scallop: max {:.2} nm, mean {:.2} nm over {} cusps",
+            s.max_nm, s.mean_nm, s.count
+        ),
+        None => println!(
+            "scallop: not measured ({})",
+            result.scallops.resolution_note.as_deref().unwrap_or("")
+        ),
+    }
+    let p = &result.protrusion;
+    match p.shape {
+        toolmark::analysis::ProtrusionShape::None => {
+            println!("central feature: none above the surround's texture")
+        }
+        shape => println!(
+            "central feature: {shape:?}, {:.1} nm high, radius {:.2} µm, volume {:.3} µm³",
+            p.height_nm, p.radius_um, p.volume_um3
+        ),
+    }
+    println!("wrote {} files to {}", written.len(), out.display());
+    Ok(())
+}
+
