@@ -36,6 +36,32 @@ azimuths = {azimuths}
     Job::from_toml_str(&text, "bench").expect("the bench job is valid")
 }
 
+/// The generating benchmark: a toothed wheel, where every sample solves its passes.
+fn generating_teeth_job() -> Job {
+    let text = r#"version = 1
+name = "bench generating teeth"
+[surface]
+kind = "sphere"
+form = "concave"
+radius_mm = 53.5
+aperture_diameter_mm = 6.0
+[tool]
+kind = "cup_wheel"
+cutting_radius_mm = 3.5
+edge_radius_mm = 0.5
+teeth = 6
+[process]
+kind = "generating"
+tool_rpm = 1000.0
+workpiece_rpm = 10.0
+spark_out_revolutions = 1.5
+[grid]
+pitch_um = 5.0
+azimuths = 4096
+"#;
+    Job::from_toml_str(text, "bench").expect("the bench job is valid")
+}
+
 struct Measurement {
     seconds: f64,
     samples: u64,
@@ -131,6 +157,24 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
                 per_dexel
             );
         }
+    }
+
+    println!(
+        "\n## generating with teeth: seed-000 wheel (R_t 3.5 mm, r 0.5 mm, 6 teeth, 1000 rpm on a part at 10 rpm), Ø6 mm, 5 µm × 4096 azimuths"
+    );
+    println!("| engine | samples | pass evaluations | removal s | evaluations/s | ns per sample |");
+    println!("| --- | --- | --- | --- | --- | --- |");
+    for engine in engines.iter_mut() {
+        let m = time_removal(engine.as_mut(), &generating_teeth_job())?;
+        println!(
+            "| {} | {} | {:.3e} | {:.3} | {:.3e} | {:.0} |",
+            engine.info().kind,
+            m.samples,
+            m.pairs as f64,
+            m.seconds,
+            m.pairs as f64 / m.seconds,
+            m.seconds / m.samples as f64 * 1e9
+        );
     }
 
     if large && gpu {

@@ -117,8 +117,11 @@ pub fn estimate_setup(
         ));
     }
     let k = (arc_radius * arc_radius - miss_mm * miss_mm).sqrt();
-    let target_inclination =
-        inclination_for(&setup.wheel, target_radius_mm, setup.form == crate::geometry::Form::Concave);
+    let target_inclination = inclination_for(
+        &setup.wheel,
+        target_radius_mm,
+        setup.form == crate::geometry::Form::Concave,
+    );
     let hypothesis = |side: MissSide| {
         let displacement_mm = side.sign() * miss_mm;
         let inclination =
@@ -147,7 +150,8 @@ pub fn estimate_setup(
 fn miss_from_pip_height(height_mm: f64, r: f64, s: f64, arc_radius: f64) -> f64 {
     let height = |e: f64| {
         let e2 = e * e;
-        e2 / (r + (r * r - e2).sqrt()) + s * e2 / (arc_radius + (arc_radius * arc_radius - e2).sqrt())
+        e2 / (r + (r * r - e2).sqrt())
+            + s * e2 / (arc_radius + (arc_radius * arc_radius - e2).sqrt())
     };
     let (mut lo, mut hi) = (0.0, r);
     for _ in 0..200 {
@@ -162,7 +166,11 @@ fn miss_from_pip_height(height_mm: f64, r: f64, s: f64, arc_radius: f64) -> f64 
 }
 
 /// The sphere fit of a machined field, outside the central feature.
-pub fn part_sphere(grid: &PolarGrid, field: &DexelField, protrusion: &Protrusion) -> Option<SphereFit> {
+pub fn part_sphere(
+    grid: &PolarGrid,
+    field: &DexelField,
+    protrusion: &Protrusion,
+) -> Option<SphereFit> {
     let outer = grid.rings[grid.ring_count() - 1].radius_mm;
     let from = (2.0 * protrusion.radius_um * 1e-3).min(0.5 * outer);
     fit_machined_sphere(grid, field, from)
@@ -276,7 +284,11 @@ pub fn correction_loop(
             index + 1,
             format!(
                 "assume the circle {} the axis: move X by {:+.4} µm, tilt by {:+.6}°",
-                if hypothesis.side == MissSide::Short { "stops short of" } else { "passes" },
+                if hypothesis.side == MissSide::Short {
+                    "stops short of"
+                } else {
+                    "passes"
+                },
                 hypothesis.move_mm * 1e3,
                 hypothesis.tilt_deg
             ),

@@ -103,10 +103,9 @@ mod tests {
         let (large, small) = (53.5, 3.5);
         for beta in [0.0, 0.05, 0.1073, 0.2, 0.3, 0.41] {
             let arm: f64 = large - small;
-            let cosine_law = (arm * arm
-                + small * small
-                + 2.0 * small * arm * (large * beta / small).cos())
-            .sqrt();
+            let cosine_law =
+                (arm * arm + small * small + 2.0 * small * arm * (large * beta / small).cos())
+                    .sqrt();
             assert!((hypocycloid_distance(large, small, beta) - cosine_law).abs() < 1e-12);
         }
         let at_paper_beta = hypocycloid_distance(large, small, 0.1073);
@@ -117,7 +116,9 @@ mod tests {
         // Range: R_L at β = 0 and R_L − 2R_S half a cusp later.
         assert!((hypocycloid_distance(large, small, 0.0) - large).abs() < 1e-12);
         let half_cusp = std::f64::consts::PI * small / large;
-        assert!((hypocycloid_distance(large, small, half_cusp) - (large - 2.0 * small)).abs() < 1e-12);
+        assert!(
+            (hypocycloid_distance(large, small, half_cusp) - (large - 2.0 * small)).abs() < 1e-12
+        );
     }
 
     #[test]

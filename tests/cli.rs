@@ -51,6 +51,8 @@ fn run_writes_every_output_with_the_documented_summary_schema() {
         "radial_profile.csv",
         "summary.json",
         "job.resolved.toml",
+        "deviation_centre.png",
+        "centre_profile.png",
     ] {
         assert!(dir.join(file).is_file(), "{file} missing");
     }
@@ -251,4 +253,170 @@ fn compensate_writes_a_correction_a_job_and_a_program_that_run() {
     let program = std::fs::read_to_string(dir.join("compensated.nc")).unwrap();
     let parsed = toolmark::io::nc::parse_nc(&program).expect("compensated.nc parses");
     assert_eq!(parsed.passes.len(), 1);
+}
+
+/// A small generating job: the seed-000 wheel (R_t 3.5, r 0.5) on a concave R 53.5 mm
+/// part, its circle 15 µm past the axis and its inclination 0.01° off.
+const GENERATING_JOB: &str = r#"version = 1
+name = "cli generating"
+[surface]
+kind = "sphere"
+form = "concave"
+radius_mm = 53.5
+aperture_diameter_mm = 4.0
+[tool]
+kind = "cup_wheel"
+cutting_radius_mm = 3.5
+edge_radius_mm = 0.5
+[process]
+kind = "generating"
+[grid]
+pitch_um = 2.0
+azimuths = 8
+[[effects]]
+kind = "cutter_displacement"
+offset_mm = -0.015
+[[effects]]
+kind = "inclination_error"
+error_deg = 0.01
+"#;
+
+fn json(path: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).expect("JSON")
+}
+
+#[test]
+fn correct_tries_both_sides_and_writes_a_corrected_job_that_runs_clean() {
+    let dir = out_dir("correct");
+    std::fs::create_dir_all(&dir).unwrap();
+    let job = dir.join("generating.toml");
+    std::fs::write(&job, GENERATING_JOB).unwrap();
+    let out = dir.join("correction");
+    let output = toolmark(
+        &[
+            "correct",
+            job.to_str().unwrap(),
+            "--engine",
+            "cpu",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{}\n{stdout}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    println!("{stdout}");
+    for file in [
+        "corrected.toml",
+        "correction.json",
+        "centre_before.png",
+        "centre_after.png",
+        "centre_profiles.png",
+        "before/summary.json",
+        "after/summary.json",
+    ] {
+        assert!(out.join(file).is_file(), "{file} missing");
+    }
+    let report = json(&out.join("correction.json"));
+    assert_eq!(report["schema"], "toolmark.correction/1");
+    let cuts = report["cuts"].as_array().unwrap();
+    // Past the axis: the first (short-side) try doubles the pip, the second removes it.
+    assert_eq!(cuts.len(), 3);
+    let first = cuts[0]["central_pv_nm"].as_f64().unwrap();
+    let last = cuts[2]["central_pv_nm"].as_f64().unwrap();
+    assert!(first / last >= 20.0, "{first} → {last}");
+    let miss = report["estimate"]["miss_mm"].as_f64().unwrap();
+    assert!((miss - 0.015).abs() < 1e-4, "miss {miss}");
+    // The corrected job, run as a user would, leaves no central feature.
+    let rerun = dir.join("rerun");
+    let output = toolmark(
+        &[
+            "run",
+            out.join("corrected.toml").to_str().unwrap(),
+            "--engine",
+            "cpu",
+            "--out",
+            rerun.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let summary = summary(&rerun);
+    assert_eq!(summary["protrusion"]["shape"], "none");
+    let error = summary["path"]["part_sphere"]["radius_error_um"]
+        .as_f64()
+        .unwrap();
+    assert!(error.abs() < 1e-3, "radius error {error} µm");
+}
+
+#[test]
+fn correct_reads_a_measured_profile_and_names_both_sides() {
+    let dir = out_dir("correct-measured");
+    std::fs::create_dir_all(&dir).unwrap();
+    let job = dir.join("generating.toml");
+    std::fs::write(&job, GENERATING_JOB).unwrap();
+    let part = dir.join("part");
+    let output = toolmark(
+        &[
+            "run",
+            job.to_str().unwrap(),
+            "--engine",
+            "cpu",
+            "--out",
+            part.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(output.status.success());
+    let out = dir.join("estimate");
+    let output = toolmark(
+        &[
+            "correct",
+            job.to_str().unwrap(),
+            "--measured",
+            part.join("radial_profile.csv").to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let report = json(&out.join("correction.json"));
+    let estimate = &report["estimate"];
+    let miss = estimate["miss_mm"].as_f64().unwrap();
+    let past = &estimate["hypotheses"][1];
+    assert_eq!(past["side"], "past");
+    println!("{}", serde_json::to_string_pretty(estimate).unwrap());
+    // The truth (past by 15 µm, inclination 0.01° high) is one of the two hypotheses.
+    assert!((miss - 0.015).abs() < 1e-4, "miss {miss}");
+    assert!((past["tilt_deg"].as_f64().unwrap() + 0.01).abs() < 1e-4);
+    assert!((past["move_mm"].as_f64().unwrap() - 0.015).abs() < 1e-4);
+    assert!(
+        out.join("corrected_short.toml").is_file() && out.join("corrected_past.toml").is_file()
+    );
+    // A turning job is refused with a pointer to the right command.
+    let output = toolmark(
+        &[
+            "correct",
+            "examples/flat_facing.toml",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert_eq!(output.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("compensate"));
 }

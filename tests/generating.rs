@@ -144,7 +144,13 @@ fn a_displaced_circle_leaves_a_pip_of_radius_e_on_either_side_of_the_axis() {
         for e in offsets {
             let job = setup.job(2.0, pitch_um, "", &displaced(e));
             let (radius_um, height_nm, fitted_radius, shape) = pip_and_radius(&run_cpu(job));
-            let closed = generated_sphere(&setup.wheel(), alpha, setup.concave, e, setup.edge_radius_mm);
+            let closed = generated_sphere(
+                &setup.wheel(),
+                alpha,
+                setup.concave,
+                e,
+                setup.edge_radius_mm,
+            );
             println!(
                 "R {} {}: e = {:+.0} µm → {shape:?} radius {radius_um:.2} µm (closed {:.2}), height {height_nm:.2} nm (closed {:.2}), sphere R {fitted_radius:.6} mm (closed {:.6})",
                 setup.radius_mm,
@@ -155,10 +161,19 @@ fn a_displaced_circle_leaves_a_pip_of_radius_e_on_either_side_of_the_axis() {
                 closed.radius_mm
             );
             assert_eq!(shape, ProtrusionShape::Pip);
-            assert!((radius_um - closed.pip_radius_mm * 1e3).abs() <= pitch_um, "radius within one sample");
-            assert!((height_nm / (closed.pip_height_mm * 1e6) - 1.0).abs() < 0.05, "height within 5 %");
+            assert!(
+                (radius_um - closed.pip_radius_mm * 1e3).abs() <= pitch_um,
+                "radius within one sample"
+            );
+            assert!(
+                (height_nm / (closed.pip_height_mm * 1e6) - 1.0).abs() < 0.05,
+                "height within 5 %"
+            );
             // The radius the displaced circle generates: √(e² + k²) ± r.
-            assert!((fitted_radius - closed.radius_mm).abs() < 1e-4, "sphere radius within 0.1 µm");
+            assert!(
+                (fitted_radius - closed.radius_mm).abs() < 1e-4,
+                "sphere radius within 0.1 µm"
+            );
         }
     }
 }
@@ -200,7 +215,11 @@ fn overshooting_the_axis_gives_the_part_of_the_opposite_miss_at_another_inclinat
     let (_, _, r_short, _) = pip_and_radius(&short);
     let (_, _, r_past, _) = pip_and_radius(&same_inclination);
     let (up, down) = (r_short - 53.5, r_past - 53.5);
-    println!("radius change: short {:+.3} µm, past {:+.3} µm", up * 1e3, down * 1e3);
+    println!(
+        "radius change: short {:+.3} µm, past {:+.3} µm",
+        up * 1e3,
+        down * 1e3
+    );
     assert!(up > 0.0 && down < 0.0 && (up + down).abs() < 0.01 * up.abs());
 }
 
@@ -220,7 +239,8 @@ fn plunge_errors_give_a_piston_along_z_and_a_pip_along_the_tool_axis() {
         .map(|(sample, d)| {
             let cos = rings[sample % rings.len()].normal.y;
             let sin2 = 1.0 - cos * cos;
-            let lifted = dp * cos + dp * dp * sin2 / (53.5 + (53.5f64.powi(2) - dp * dp * sin2).sqrt());
+            let lifted =
+                dp * cos + dp * dp * sin2 / (53.5 + (53.5f64.powi(2) - dp * dp * sin2).sqrt());
             (d - lifted).abs()
         })
         .fold(0.0, f64::max);
@@ -236,7 +256,13 @@ fn plunge_errors_give_a_piston_along_z_and_a_pip_along_the_tool_axis() {
     let alpha = Setup::inclination(&along_axis.job);
     // Stopped short along the axis into a concave part, the circle moves back along
     // −a: X by −Δp sin α (past the axis), Z by +Δp cos α.
-    let closed = generated_sphere(&SEED.wheel(), alpha, true, -dp * alpha.sin(), 0.5 + dp * alpha.cos());
+    let closed = generated_sphere(
+        &SEED.wheel(),
+        alpha,
+        true,
+        -dp * alpha.sin(),
+        0.5 + dp * alpha.cos(),
+    );
     let p = &along_axis.protrusion;
     println!(
         "plunge error {dp} mm along the tool axis: {:?} radius {:.2} µm (closed {:.2}), height {:.2} nm (closed {:.2})",
@@ -268,9 +294,17 @@ fn correction_removes_the_pip_and_the_radius_error_at_least_twenty_fold() {
     let tilt = |deg: f64| format!("[[effects]]\nkind = \"inclination_error\"\nerror_deg = {deg}");
     let cases = [
         (&SEED, 6.0, format!("{}\n{}", displaced(0.02), tilt(0.01))),
-        (&SEED, 6.0, format!("{}\n{}", displaced(-0.015), tilt(-0.02))),
+        (
+            &SEED,
+            6.0,
+            format!("{}\n{}", displaced(-0.015), tilt(-0.02)),
+        ),
         (&convex, 8.0, format!("{}\n{}", displaced(0.03), tilt(0.05))),
-        (&seed_edge, 20.0, format!("{}\n{}", displaced(-0.1), tilt(0.02))),
+        (
+            &seed_edge,
+            20.0,
+            format!("{}\n{}", displaced(-0.1), tilt(0.02)),
+        ),
     ];
     for (setup, aperture, effects) in cases {
         let job = setup.job(aperture, aperture / 3.0, "", &effects);
@@ -290,7 +324,10 @@ fn correction_removes_the_pip_and_the_radius_error_at_least_twenty_fold() {
             );
         }
         let check = central_pv_nm(run.last.grid(), &run.last.field, zone);
-        println!("central-zone PV {before:.1} → {after:.2} nm ({:.0}×)", before / after);
+        println!(
+            "central-zone PV {before:.1} → {after:.2} nm ({:.0}×)",
+            before / after
+        );
         assert_eq!(check, after);
         assert!(before / after >= 20.0, "{before} → {after}");
     }
@@ -303,8 +340,7 @@ fn tooth_marks_peak_at_the_cusp_height_of_neighbouring_passes() {
     use toolmark::run::prepare_scenes;
     // 4 teeth, wheel 600 rpm on a part at 10 rpm: 240 tooth passes per turn, two
     // families (one per half of the circle) crossing in a diamond pattern.
-    let job = job(
-        r#"version = 1
+    let job = job(r#"version = 1
 [surface]
 kind = "sphere"
 form = "concave"
@@ -324,9 +360,10 @@ spark_out_revolutions = 1.0
 [grid]
 pitch_um = 5.0
 azimuths = 8192
-"#,
-    );
-    let Scene::Generating(scene) = &prepare_scenes(&job)[0] else { panic!("generating") };
+"#);
+    let Scene::Generating(scene) = &prepare_scenes(&job)[0] else {
+        panic!("generating")
+    };
     let teeth = scene.teeth.unwrap();
     let result = run_cpu(job.clone());
     let grid = result.grid();
@@ -339,7 +376,12 @@ azimuths = 8192
         let f = &contact.frame;
         // The sample's angle about the wheel axis turns Θ' = ρ (e_φ·t)/(R_t + w·u) per
         // radian of the part, so consecutive teeth meet it Δδ = pitch/|K − Θ'| apart.
-        let wu = f.offset.iter().zip(&f.radial).map(|(a, b)| a * b).sum::<f64>();
+        let wu = f
+            .offset
+            .iter()
+            .zip(&f.radial)
+            .map(|(a, b)| a * b)
+            .sum::<f64>();
         let rate = f.radius_mm * f.tangent[1] / (rt + wu);
         let step = teeth.pitch_rad() / (teeth.speed_ratio - rate).abs();
         // Groove direction: the cutting point's velocity over the part, K(R_t + w·u)t − ρe_φ.
@@ -359,10 +401,21 @@ azimuths = 8192
         peak_ratios.push(ratio);
         worst = (worst.0.min(ratio), worst.1.max(ratio));
         if i % 40 == 0 {
-            println!("r = {:.3} mm: pass spacing {:.2} µm, cusp {:.2} nm, highest mark {:.2} nm ({ratio:.4})", ring.radius_mm, spacing * 1e3, cusp * 1e6, peak * 1e6);
+            println!(
+                "r = {:.3} mm: pass spacing {:.2} µm, cusp {:.2} nm, highest mark {:.2} nm ({ratio:.4})",
+                ring.radius_mm,
+                spacing * 1e3,
+                cusp * 1e6,
+                peak * 1e6
+            );
         }
     }
-    println!("highest mark / closed-form cusp over {} rings: {:.4}–{:.4}", peak_ratios.len(), worst.0, worst.1);
+    println!(
+        "highest mark / closed-form cusp over {} rings: {:.4}–{:.4}",
+        peak_ratios.len(),
+        worst.0,
+        worst.1
+    );
     // The two families' cusp lines cross on a lattice; where they cross the surface
     // stands exactly one cusp high, elsewhere lower. Every 100 µm band of rings holds
     // crossings, sampled to within a few per cent of their top.

@@ -132,3 +132,66 @@ fn nc_program_with_a_measured_edge_gpu_matches_cpu() {
         example("upm_1021_measured_edge.toml"),
     );
 }
+
+/// A generating job: the seed-000 wheel (R_t 3.5 mm, r 0.5 mm) on a concave R 53.5 mm part.
+fn generating_job(
+    teeth: u32,
+    tool_rpm: f64,
+    effects: &str,
+    aperture_mm: f64,
+    azimuths: u32,
+) -> toolmark::io::job::Job {
+    job(&format!(
+        r#"version = 1
+[surface]
+kind = "sphere"
+form = "concave"
+radius_mm = 53.5
+aperture_diameter_mm = {aperture_mm}
+[tool]
+kind = "cup_wheel"
+cutting_radius_mm = 3.5
+edge_radius_mm = 0.5
+teeth = {teeth}
+[process]
+kind = "generating"
+tool_rpm = {tool_rpm}
+workpiece_rpm = 10.0
+spark_out_revolutions = 1.5
+[grid]
+pitch_um = 5.0
+azimuths = {azimuths}
+{effects}
+"#
+    ))
+}
+
+#[test]
+fn generating_continuous_edge_with_a_displaced_wheel_gpu_matches_cpu() {
+    compare(
+        "generating, continuous edge, e = 20 µm",
+        generating_job(
+            0,
+            3000.0,
+            "[[effects]]\nkind = \"cutter_displacement\"\noffset_mm = 0.02",
+            4.0,
+            16,
+        ),
+    );
+}
+
+#[test]
+fn generating_teeth_gpu_matches_cpu() {
+    // 6 teeth, 1000 rpm on 10 rpm: 600 marks per turn, not a whole number of passes per
+    // half turn, over 1.5 turns of spark-out.
+    compare(
+        "generating, 6 teeth, e = −10 µm, Δα = 0.01°",
+        generating_job(
+            6,
+            1000.0,
+            "[[effects]]\nkind = \"cutter_displacement\"\noffset_mm = -0.01\n[[effects]]\nkind = \"inclination_error\"\nerror_deg = 0.01",
+            3.0,
+            4096,
+        ),
+    );
+}

@@ -2,42 +2,42 @@
 //! struct shared with Rust has the same member offsets and size on both sides.
 
 use std::mem::{offset_of, size_of};
-use toolmark::engine::gpu::{TURNING_SHADER, layout};
+use toolmark::engine::gpu::{GENERATING_SHADER, TURNING_SHADER, layout};
 
-fn module() -> naga::Module {
-    naga::front::wgsl::parse_str(TURNING_SHADER).unwrap_or_else(|err| {
-        panic!(
-            "turning.wgsl does not parse:\n{}",
-            err.emit_to_string(TURNING_SHADER)
-        )
-    })
+const SHADERS: [(&str, &str, &str); 2] = [
+    ("turning.wgsl", TURNING_SHADER, "remove_turning"),
+    ("generating.wgsl", GENERATING_SHADER, "remove_generating"),
+];
+
+fn module(name: &str, source: &str) -> naga::Module {
+    naga::front::wgsl::parse_str(source)
+        .unwrap_or_else(|err| panic!("{name} does not parse:\n{}", err.emit_to_string(source)))
 }
 
 #[test]
-fn turning_shader_parses_and_validates() {
-    let module = module();
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::all(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|err| {
-        panic!(
-            "turning.wgsl fails validation:\n{}",
-            err.emit_to_string(TURNING_SHADER)
+fn shaders_parse_and_validate() {
+    for (name, source, entry) in SHADERS {
+        let module = module(name, source);
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
         )
-    });
-    assert!(
-        module
-            .entry_points
-            .iter()
-            .any(|e| e.name == "remove_turning"),
-        "entry point remove_turning missing"
-    );
+        .validate(&module)
+        .unwrap_or_else(|err| panic!("{name} fails validation:\n{}", err.emit_to_string(source)));
+        assert!(
+            module.entry_points.iter().any(|e| e.name == entry),
+            "{name}: entry point {entry} missing"
+        );
+    }
 }
 
-/// A shared struct as Rust lays it out: name, size, (member, offset) pairs.
-type RustLayout = (&'static str, usize, Vec<(&'static str, usize)>);
+/// A shared struct as Rust lays it out: shader, name, size, (member, offset) pairs.
+type RustLayout = (
+    &'static str,
+    &'static str,
+    usize,
+    Vec<(&'static str, usize)>,
+);
 
 fn rust_layouts() -> Vec<RustLayout> {
     macro_rules! members {
@@ -47,6 +47,7 @@ fn rust_layouts() -> Vec<RustLayout> {
     }
     vec![
         (
+            "turning.wgsl",
             "Params",
             size_of::<layout::Params>(),
             members!(
@@ -78,6 +79,7 @@ fn rust_layouts() -> Vec<RustLayout> {
             ),
         ),
         (
+            "turning.wgsl",
             "Ring",
             size_of::<layout::Ring>(),
             members!(
@@ -101,27 +103,113 @@ fn rust_layouts() -> Vec<RustLayout> {
             ),
         ),
         (
+            "turning.wgsl",
             "Pose",
             size_of::<layout::Pose>(),
             members!(layout::Pose, x_hi, x_lo, z_hi, z_lo, b_rad, _padding),
         ),
         (
+            "turning.wgsl",
             "Dexel",
             size_of::<layout::Dexel>(),
             members!(layout::Dexel, depth_mm, pass_id),
+        ),
+        (
+            "generating.wgsl",
+            "Dexel",
+            size_of::<layout::Dexel>(),
+            members!(layout::Dexel, depth_mm, pass_id),
+        ),
+        (
+            "generating.wgsl",
+            "GeneratingParams",
+            size_of::<layout::GeneratingParams>(),
+            members!(
+                layout::GeneratingParams,
+                ring_count,
+                azimuth_count,
+                sample_offset,
+                sample_count,
+                dispatch_width,
+                teeth,
+                revolutions,
+                newton_steps,
+                cutting_radius_mm,
+                edge_radius_mm,
+                stock_top_mm,
+                speed_ratio,
+                pitch_rad,
+                window_rad,
+                azimuth_step_rad,
+                passes_per_turn_fraction,
+                passes_per_turn_whole,
+                _padding0,
+                _padding1,
+                _padding2
+            ),
+        ),
+        (
+            "generating.wgsl",
+            "GeneratingRing",
+            size_of::<layout::GeneratingRing>(),
+            members!(
+                layout::GeneratingRing,
+                normal_r,
+                normal_z,
+                contact_count,
+                _padding
+            ),
+        ),
+        (
+            "generating.wgsl",
+            "GeneratingContact",
+            size_of::<layout::GeneratingContact>(),
+            members!(
+                layout::GeneratingContact,
+                depth_mm,
+                radius_mm,
+                azimuth_rad,
+                phase_fraction,
+                offset_rho,
+                offset_phi,
+                offset_z,
+                phase_whole,
+                radial_rho,
+                radial_phi,
+                radial_z,
+                _padding0,
+                tangent_rho,
+                tangent_phi,
+                tangent_z,
+                _padding1,
+                axis_rho,
+                axis_phi,
+                axis_z,
+                _padding2
+            ),
+        ),
+        (
+            "generating.wgsl",
+            "AzimuthPhase",
+            size_of::<layout::AzimuthPhase>(),
+            members!(layout::AzimuthPhase, fraction, whole),
         ),
     ]
 }
 
 #[test]
 fn rust_and_wgsl_structs_have_identical_layouts() {
-    let module = module();
-    for (name, rust_size, rust_members) in rust_layouts() {
+    for (shader, name, rust_size, rust_members) in rust_layouts() {
+        let (_, source, _) = SHADERS
+            .iter()
+            .find(|(s, _, _)| *s == shader)
+            .expect("known shader");
+        let module = module(shader, source);
         let (_, ty) = module
             .types
             .iter()
             .find(|(_, ty)| ty.name.as_deref() == Some(name))
-            .unwrap_or_else(|| panic!("struct {name} not found in turning.wgsl"));
+            .unwrap_or_else(|| panic!("struct {name} not found in {shader}"));
         let naga::TypeInner::Struct { members, span } = &ty.inner else {
             panic!("{name} is not a struct in WGSL");
         };

@@ -1,8 +1,11 @@
 //! Top-view maps: per-sample polar quantities resampled onto a square Cartesian
 //! raster over the aperture, as a viewer shows the part from +Z. Each pixel averages
-//! the samples within one pixel pitch of its radius with a tent (triangle) weight, on
-//! the two nearest azimuth rows blended by angle. A plain box average leaves moiré
-//! from scallops a few times finer than a pixel; the tent's sinc² response does not.
+//! the samples within one pixel pitch of it with a tent (triangle) weight, along the
+//! radius and along the azimuth (over the rows within one pixel pitch of arc, or the
+//! two nearest rows blended by angle when rows are coarser than pixels). A plain box
+//! average leaves moiré from marks a few times finer than a pixel (turning scallops
+//! along the radius, a generator's tooth marks along the azimuth); the tent's sinc²
+//! response does not.
 
 use crate::field::PolarGrid;
 use std::f64::consts::TAU;
@@ -126,13 +129,20 @@ pub fn top_view_within(
             if r < inner || r > outer {
                 continue;
             }
+            // Tent over the rows within one pixel of arc (at least the row spacing).
             let position = y.atan2(x).rem_euclid(TAU) / TAU * azimuths;
-            let below = position.floor();
-            let t = position - below;
-            let a = (below as u32) % grid.azimuths;
-            let b = (a + 1) % grid.azimuths;
-            let value = (1.0 - t) * integrals.tent_mean(a, r, pitch_mm)
-                + t * integrals.tent_mean(b, r, pitch_mm);
+            let span = (pitch_mm / r.max(1e-12) / TAU * azimuths).clamp(1.0, 0.5 * azimuths);
+            let (first, last) = ((position - span).ceil(), (position + span).floor());
+            let (mut sum, mut weight) = (0.0, 0.0);
+            let mut at = first;
+            while at <= last {
+                let w = 1.0 - (at - position).abs() / span;
+                let index = (at as i64).rem_euclid(grid.azimuths as i64) as u32;
+                sum += w * integrals.tent_mean(index, r, pitch_mm);
+                weight += w;
+                at += 1.0;
+            }
+            let value = sum / weight;
             let index = row * pixels + column;
             raster.values[index] = value as f32;
             raster.valid[index] = true;

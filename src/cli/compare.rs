@@ -166,4 +166,3 @@ pub fn compare_profile(args: CompareArgs) -> Result<(), Failure> {
     );
     Ok(())
 }
-

@@ -171,4 +171,3 @@ pub fn compensate(args: CompensateArgs) -> Result<(), Failure> {
     );
     Ok(())
 }
-

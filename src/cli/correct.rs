@@ -94,7 +94,12 @@ fn print_estimate(estimate: &SetupEstimate) {
 }
 
 /// A job file with the settings one hypothesis's correction gives.
-fn corrected_toml(job: &Job, inclination_deg: f64, offset_mm: f64, why: &str) -> Result<String, Failure> {
+fn corrected_toml(
+    job: &Job,
+    inclination_deg: f64,
+    offset_mm: f64,
+    why: &str,
+) -> Result<String, Failure> {
     let mut file: JobFile = job.resolved.clone();
     file.name = Some(format!("{} (corrected)", job.name));
     file.process.inclination_deg = Some(inclination_deg);
@@ -138,7 +143,9 @@ fn correct_measured(
         .rings
         .iter()
         .map(|ring| {
-            let i = radius.partition_point(|&r| r <= ring.radius_mm).clamp(1, radius.len() - 1);
+            let i = radius
+                .partition_point(|&r| r <= ring.radius_mm)
+                .clamp(1, radius.len() - 1);
             let t = (ring.radius_mm - radius[i - 1]) / (radius[i] - radius[i - 1]);
             deviation[i - 1] + t * (deviation[i] - deviation[i - 1])
         })
@@ -149,24 +156,33 @@ fn correct_measured(
     };
     let protrusion = analyse_protrusion(&grid, &field, zone, Surround::Even);
     let sphere = part_sphere(&grid, &field, &protrusion).ok_or_else(|| {
-        Failure::Input(format!("{}: too few points to fit the part's sphere", measured.display()))
+        Failure::Input(format!(
+            "{}: too few points to fit the part's sphere",
+            measured.display()
+        ))
     })?;
     let setup = &job.process.generating().expect("checked").setup;
     let target = 1.0 / job.surface.curvature_per_mm;
-    let estimate =
-        estimate_setup(setup, target, &protrusion, sphere).map_err(Failure::Input)?;
+    let estimate = estimate_setup(setup, target, &protrusion, sphere).map_err(Failure::Input)?;
     println!("{} measured in {}:", job.name, measured.display());
     print_estimate(&estimate);
     println!(
         "the form cannot tell the side: try the first correction, and if the pip does not shrink, the second (both from the settings the part was cut with)"
     );
     let mut files = vec!["correction.json"];
-    for (h, name) in estimate.hypotheses.iter().zip(["corrected_short.toml", "corrected_past.toml"]) {
+    for (h, name) in estimate
+        .hypotheses
+        .iter()
+        .zip(["corrected_short.toml", "corrected_past.toml"])
+    {
         let text = corrected_toml(
             job,
             (setup.inclination_rad.to_degrees()) + h.tilt_deg,
             setup.cutter_offset_mm + h.move_mm,
-            &format!("settings corrected assuming the circle {:?} the axis", h.side),
+            &format!(
+                "settings corrected assuming the circle {:?} the axis",
+                h.side
+            ),
         )?;
         write(name, text.as_bytes())?;
         files.push(name);
@@ -199,17 +215,30 @@ fn correct_simulated(
     let mut engine = open_engine(engine)?;
     let run = correction_loop(job, engine.as_mut(), zone)
         .map_err(|err| Failure::Runtime(err.to_string()))?;
-    println!("{}: the part as set, with the job's effects as the machine's errors:", job.name);
+    println!(
+        "{}: the part as set, with the job's effects as the machine's errors:",
+        job.name
+    );
     print_estimate(&run.first_estimate);
-    println!("\n| cut | settings | central PV (nm, r ≤ {zone:.3} mm) | pip height (nm) | pip radius (µm) | radius error (µm) |");
+    println!(
+        "\n| cut | settings | central PV (nm, r ≤ {zone:.3} mm) | pip height (nm) | pip radius (µm) | radius error (µm) |"
+    );
     println!("| --- | --- | --- | --- | --- | --- |");
     for cut in &run.cuts {
         println!(
             "| {} | {} | {:.2} | {:.1} | {:.2} | {:+.3} |",
-            cut.cut, cut.settings, cut.central_pv_nm, cut.pip_height_nm, cut.pip_radius_um, cut.radius_error_um
+            cut.cut,
+            cut.settings,
+            cut.central_pv_nm,
+            cut.pip_height_nm,
+            cut.pip_radius_um,
+            cut.radius_error_um
         );
     }
-    let (before, after) = (run.cuts[0].central_pv_nm, run.cuts[run.cuts.len() - 1].central_pv_nm);
+    let (before, after) = (
+        run.cuts[0].central_pv_nm,
+        run.cuts[run.cuts.len() - 1].central_pv_nm,
+    );
     println!(
         "central-zone PV {before:.1} → {after:.3} nm ({:.0}×)",
         before / after.max(1e-12)
@@ -224,8 +253,13 @@ fn correct_simulated(
         .min(zone);
     let range = write_centre_map(&out.join("centre_before.png"), &run.first, half_width, None)
         .map_err(runtime)?;
-    write_centre_map(&out.join("centre_after.png"), &run.last, half_width, Some(range))
-        .map_err(runtime)?;
+    write_centre_map(
+        &out.join("centre_after.png"),
+        &run.last,
+        half_width,
+        Some(range),
+    )
+    .map_err(runtime)?;
     write_centre_profile(
         &out.join("centre_profiles.png"),
         &[("before", &run.first), ("after", &run.last)],
@@ -233,7 +267,12 @@ fn correct_simulated(
     )
     .map_err(runtime)?;
     let (inclination, offset) = {
-        let setup = &run.corrected.process.generating().expect("generating").setup;
+        let setup = &run
+            .corrected
+            .process
+            .generating()
+            .expect("generating")
+            .setup;
         (setup.inclination_rad.to_degrees(), setup.cutter_offset_mm)
     };
     let text = corrected_toml(

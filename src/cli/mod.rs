@@ -71,4 +71,3 @@ pub fn slug(name: &str) -> String {
         .join("-");
     if slug.is_empty() { "job".into() } else { slug }
 }
-

@@ -123,7 +123,16 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
             p.height_nm, p.radius_um, p.volume_um3
         ),
     }
+    if let Process::Generating(_) = &result.job.process
+        && let Some(fit) = toolmark::correct::part_sphere(grid, &result.field, &result.protrusion)
+    {
+        println!(
+            "part sphere: R = {:.6} mm ({:+.3} µm from nominal, fit RMS {:.2} nm)",
+            fit.radius_mm,
+            (fit.radius_mm - 1.0 / result.job.surface.curvature_per_mm) * 1e3,
+            fit.rms_residual_nm
+        );
+    }
     println!("wrote {} files to {}", written.len(), out.display());
     Ok(())
 }
-

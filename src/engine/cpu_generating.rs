@@ -21,21 +21,23 @@ pub fn generating_dexel(scene: &GeneratingScene, ring: usize, azimuth_rad: f64) 
     let mut best = stock;
     let normal = scene.grid.rings[ring].normal;
     let window = teeth.distinct_rad();
+    let azimuth_passes = teeth.passes_in(azimuth_rad);
     for (index, contact) in scene.rings[ring].iter().enumerate() {
-        let first_time = (contact.azimuth_rad - azimuth_rad).rem_euclid(TAU);
+        // Turns of the part from the spark-out start until this contact meets the sample.
+        let wrap = (contact.azimuth_rad < azimuth_rad) as u32;
         for revolution in 0..=teeth.revolutions() {
-            let contact_time = first_time + TAU * revolution as f64;
+            let turns = wrap + revolution;
+            let contact_time = contact.azimuth_rad - azimuth_rad + TAU * turns as f64;
             if contact_time > window + PI {
                 break;
             }
-            // Tooth passes, counted from the spark-out start, at the contact time.
-            let count_at_contact = (teeth.speed_ratio * contact_time + teeth.phase_rad
-                - contact.theta_rad)
-                / teeth.pitch_rad();
-            let nearest = count_at_contact.floor();
-            let fraction = count_at_contact - nearest;
-            // Tooth j sits at θ₀ + Kψ + j·pitch, i.e. (count + j)·pitch ahead of the
-            // contact angle at the contact time: the nearest lie at j = o − nearest.
+            // Tooth passes counted from the spark-out start, at the contact time.
+            let count =
+                contact.phase_turns - azimuth_passes + turns as f64 * teeth.passes_per_turn();
+            let nearest = count.floor();
+            let fraction = count - nearest;
+            // Tooth j sits (count + j)·pitch ahead of the contact angle at the contact
+            // time: the nearest lie at j = offset − nearest.
             for offset in -PASSES_PER_CONTACT / 2..PASSES_PER_CONTACT / 2 {
                 let lead = (fraction + offset as f64) * teeth.pitch_rad();
                 let Some((depth, time_shift)) = tooth_pass_entry(
@@ -99,7 +101,11 @@ pub fn tooth_pass_entry(
         ];
         let dw_shift = [-rho * sin, rho * cos, 0.0];
         let dw_depth = [normal.x * cos, normal.x * sin, normal.y];
-        let (wu, wt, wa) = (dot(w, frame.radial), dot(w, frame.tangent), dot(w, frame.axis));
+        let (wu, wt, wa) = (
+            dot(w, frame.radial),
+            dot(w, frame.tangent),
+            dot(w, frame.axis),
+        );
         let reach = rt + wu;
         let q2 = reach * reach + wt * wt;
         let q = q2.sqrt();
@@ -109,9 +115,16 @@ pub fn tooth_pass_entry(
         let g1 = wt.atan2(reach) - k * shift - lead;
         let g2 = (radial * radial + wa * wa - r * r) / (distance + r);
         let partials = |dw: [f64; 3]| {
-            let (du, dt, da) = (dot(dw, frame.radial), dot(dw, frame.tangent), dot(dw, frame.axis));
+            let (du, dt, da) = (
+                dot(dw, frame.radial),
+                dot(dw, frame.tangent),
+                dot(dw, frame.axis),
+            );
             let dq = (reach * du + wt * dt) / q;
-            ((reach * dt - wt * du) / q2, (radial * dq + wa * da) / distance)
+            (
+                (reach * dt - wt * du) / q2,
+                (radial * dq + wa * da) / distance,
+            )
         };
         let (g1_shift, g2_shift) = partials(dw_shift);
         let (g1_depth, g2_depth) = partials(dw_depth);
@@ -143,15 +156,21 @@ mod tests {
     use crate::engine::generating_scene::{Contact, ToothMotion};
     use glam::DVec3;
 
-/// An angle difference in (−π, π].
-fn wrap(angle: f64) -> f64 {
-    let wrapped = angle.rem_euclid(TAU);
-    if wrapped > PI { wrapped - TAU } else { wrapped }
-}
+    /// An angle difference in (−π, π].
+    fn wrap(angle: f64) -> f64 {
+        let wrapped = angle.rem_euclid(TAU);
+        if wrapped > PI { wrapped - TAU } else { wrapped }
+    }
 
     /// The same pass in absolute machine coordinates with a finite-difference Newton: an
     /// independent check of the local-frame algebra.
-    fn absolute_entry(scene: &GeneratingScene, ring_index: usize, contact: &Contact, teeth: &ToothMotion, lead: f64) -> Option<(f64, f64)> {
+    fn absolute_entry(
+        scene: &GeneratingScene,
+        ring_index: usize,
+        contact: &Contact,
+        teeth: &ToothMotion,
+        lead: f64,
+    ) -> Option<(f64, f64)> {
         let ring = &scene.grid.rings[ring_index];
         let circle = &scene.circle;
         let r = scene.edge_radius_mm;
@@ -162,7 +181,10 @@ fn wrap(angle: f64) -> f64 {
             let phi = contact.azimuth_rad + shift;
             let point = DVec3::new(rho * phi.cos(), rho * phi.sin(), z);
             let (distance, theta) = circle.distance(point);
-            (wrap(theta - contact.theta_rad) - k * shift - lead, distance - r)
+            (
+                wrap(theta - contact.theta_rad) - k * shift - lead,
+                distance - r,
+            )
         };
         let (mut shift, mut d) = (-lead / k, contact.depth_mm);
         for _ in 0..60 {
@@ -170,7 +192,12 @@ fn wrap(angle: f64) -> f64 {
             let h = 1e-7;
             let (g1_s, g2_s) = residuals(shift + h, d);
             let (g1_d, g2_d) = residuals(shift, d + h);
-            let (a, b, c, e) = ((g1_s - g1) / h, (g1_d - g1) / h, (g2_s - g2) / h, (g2_d - g2) / h);
+            let (a, b, c, e) = (
+                (g1_s - g1) / h,
+                (g1_d - g1) / h,
+                (g2_s - g2) / h,
+                (g2_d - g2) / h,
+            );
             let det = a * e - b * c;
             let (ds, dd) = ((g1 * e - g2 * b) / det, (a * g2 - c * g1) / det);
             shift -= ds;
@@ -184,13 +211,17 @@ fn wrap(angle: f64) -> f64 {
 
     #[test]
     fn local_frame_passes_match_an_absolute_coordinate_solution() {
+        use crate::effects::GeneratingEffects;
         use crate::field::PolarGrid;
         use crate::geometry::cup_wheel::CupWheel;
         use crate::geometry::{Form, MeridianArcLength, SurfaceOfRevolution};
         use crate::process::{GeneratingSetup, PlungeAxis};
-        use crate::effects::GeneratingEffects;
         let setup = GeneratingSetup {
-            wheel: CupWheel { cutting_radius_mm: 3.5, edge_radius_mm: 0.5, teeth: 4 },
+            wheel: CupWheel {
+                cutting_radius_mm: 3.5,
+                edge_radius_mm: 0.5,
+                teeth: 4,
+            },
             form: Form::Concave,
             inclination_rad: (3.5f64 / 53.0).asin(),
             plunge_axis: PlungeAxis::Z,
@@ -201,20 +232,47 @@ fn wrap(angle: f64) -> f64 {
             stock_allowance_mm: 0.1,
             cutter_offset_mm: 0.0,
         };
-        let effects = GeneratingEffects { cutter_displacement_mm: 0.02, ..Default::default() };
+        let effects = GeneratingEffects {
+            cutter_displacement_mm: 0.02,
+            ..Default::default()
+        };
         let surface = SurfaceOfRevolution::sphere(53.5, Form::Concave);
-        let grid = PolarGrid::new(&surface, &MeridianArcLength::new(&surface, 3.0), 0.0, 3.0, 0.25, 4);
-        let teeth = ToothMotion { count: 4, speed_ratio: 30.0, phase_rad: 0.0, spark_out_rad: TAU };
-        let scene = GeneratingScene::new(grid, setup.cutting_circle(&effects), 0.5, 0.1, Some(teeth));
+        let grid = PolarGrid::new(
+            &surface,
+            &MeridianArcLength::new(&surface, 3.0),
+            0.0,
+            3.0,
+            0.25,
+            4,
+        );
+        let teeth = ToothMotion {
+            count: 4,
+            speed_ratio: 30.0,
+            phase_rad: 0.0,
+            spark_out_rad: TAU,
+        };
+        let scene =
+            GeneratingScene::new(grid, setup.cutting_circle(&effects), 0.5, 0.1, Some(teeth));
         let mut compared = 0;
         for (ring, contacts) in scene.rings.iter().enumerate() {
             for contact in contacts {
                 for lead in [-0.3, -0.05, 0.0, 0.02, 0.2] {
-                    let local = tooth_pass_entry(&contact.frame, scene.grid.rings[ring].normal, contact.depth_mm, 3.5, 0.5, 30.0, lead);
+                    let local = tooth_pass_entry(
+                        &contact.frame,
+                        scene.grid.rings[ring].normal,
+                        contact.depth_mm,
+                        3.5,
+                        0.5,
+                        30.0,
+                        lead,
+                    );
                     let absolute = absolute_entry(&scene, ring, contact, &teeth, lead);
                     match (local, absolute) {
                         (Some(a), Some(b)) => {
-                            assert!((a.0 - b.0).abs() < 1e-11, "ring {ring} lead {lead}: {a:?} vs {b:?}");
+                            assert!(
+                                (a.0 - b.0).abs() < 1e-11,
+                                "ring {ring} lead {lead}: {a:?} vs {b:?}"
+                            );
                             assert!((a.1 - b.1).abs() < 1e-9);
                             compared += 1;
                         }

@@ -37,8 +37,12 @@ pub struct Contact {
     pub theta_rad: f64,
     /// Entry of the ring's dexel ray into the swept solid (mm along the normal).
     pub depth_mm: f64,
-    /// Machine azimuth of the cutting point (where a sample is when it is cut).
+    /// Machine azimuth of the cutting point (where a sample is when it is cut), in [0, 2π).
     pub azimuth_rad: f64,
+    /// With teeth: the tooth passes counted (in tooth pitches) when a sample at
+    /// workpiece azimuth 0 reaches this contact in the first turn, (Kφ_c + θ₀ − θ_c)/pitch;
+    /// a sample at azimuth φ reaches it K·φ/pitch passes earlier. 0 without teeth.
+    pub phase_turns: f64,
     /// The frame: the sample turned to machine azimuth φ_c, axes (e_ρ, e_φ, e_z) there.
     pub frame: ContactFrame,
 }
@@ -78,6 +82,16 @@ impl ToothMotion {
         TAU / self.count as f64
     }
 
+    /// Tooth passes per workpiece turn, N·K (signed).
+    pub fn passes_per_turn(&self) -> f64 {
+        self.count as f64 * self.speed_ratio
+    }
+
+    /// Tooth passes the wheel makes while the part turns by `angle_rad`.
+    pub fn passes_in(&self, angle_rad: f64) -> f64 {
+        self.speed_ratio * angle_rad / self.pitch_rad()
+    }
+
     /// The part of the spark-out whose passes are distinct: when the teeth per
     /// workpiece turn, N·K, make a whole number after m turns, every later pass repeats
     /// one m turns earlier and cuts nothing new (and would only tie with it).
@@ -89,7 +103,9 @@ impl ToothMotion {
                 let passes = per_turn * m as f64;
                 (passes - passes.round()).abs() < 1e-9 * passes.max(1.0)
             })
-            .map_or(self.spark_out_rad, |m| (TAU * m as f64).min(self.spark_out_rad))
+            .map_or(self.spark_out_rad, |m| {
+                (TAU * m as f64).min(self.spark_out_rad)
+            })
     }
 
     /// Workpiece revolutions in which a contact at time ψ₀ ∈ [0, 2π) can recur within
@@ -132,7 +148,15 @@ impl GeneratingScene {
             grid.rings
                 .par_iter()
                 .map(|ring| {
-                    ring_contacts(&circle, edge_radius_mm, ring, coarse_samples, stock_top_mm)
+                    let mut contacts =
+                        ring_contacts(&circle, edge_radius_mm, ring, coarse_samples, stock_top_mm);
+                    if let Some(teeth) = &teeth {
+                        for contact in &mut contacts {
+                            contact.phase_turns = teeth.passes_in(contact.azimuth_rad)
+                                + (teeth.phase_rad - contact.theta_rad) / teeth.pitch_rad();
+                        }
+                    }
+                    contacts
                 })
                 .collect()
         };
@@ -228,7 +252,7 @@ pub fn ring_contacts(
 /// The contact at circle angle θ where the ring's ray enters at `depth`.
 fn contact_at(circle: &CuttingCircle, ring: &Ring, theta: f64, depth: f64) -> Contact {
     let point = circle.point(theta);
-    let azimuth = point.y.atan2(point.x);
+    let azimuth = point.y.atan2(point.x).rem_euclid(TAU);
     let (sin, cos) = azimuth.sin_cos();
     // Machine vector → components along (e_ρ, e_φ, e_z) at the contact azimuth.
     let local = |v: DVec3| [v.x * cos + v.y * sin, -v.x * sin + v.y * cos, v.z];
@@ -241,6 +265,7 @@ fn contact_at(circle: &CuttingCircle, ring: &Ring, theta: f64, depth: f64) -> Co
         theta_rad: theta.rem_euclid(TAU),
         depth_mm: depth,
         azimuth_rad: azimuth,
+        phase_turns: 0.0,
         frame: ContactFrame {
             radius_mm: ray_point.x,
             offset: local(on_ray - point),

@@ -1,9 +1,12 @@
-//! The GPU engine: `shaders/turning.wgsl` through wgpu. Geometry is prepared by
-//! [`TurningScene`] in f64 and uploaded as hi + lo f32 pairs; the kernel works in
-//! sample-relative coordinates so f32 resolves sub-nanometre depths. Grids whose
-//! result does not fit one storage binding are processed in tiles.
+//! The GPU engine: `shaders/turning.wgsl` and `shaders/generating.wgsl` through wgpu.
+//! Geometry is prepared by the scenes in f64 and uploaded as hi + lo f32 pairs or as
+//! small local-frame differences; the kernels work in sample-relative coordinates so
+//! f32 resolves sub-nanometre depths. Grids whose result does not fit one storage
+//! binding are processed in tiles.
 
 use super::cpu::RAY_REFINEMENTS;
+use super::cpu_generating::MAX_NEWTON_STEPS;
+use super::generating_scene::{GeneratingScene, MAX_CONTACTS};
 use super::scene::TurningScene;
 use super::{EngineError, EngineInfo, Progress, RemovalEngine, Scene};
 use crate::field::DexelField;
@@ -11,8 +14,14 @@ use crate::geometry::tool::EDGE_REFINEMENTS;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
-/// The kernel source, as compiled (tests validate it with naga).
+/// The kernel sources, as compiled (tests validate them with naga).
 pub const TURNING_SHADER: &str = include_str!("../../shaders/turning.wgsl");
+pub const GENERATING_SHADER: &str = include_str!("../../shaders/generating.wgsl");
+
+/// Newton steps the f32 generating kernel takes per tooth pass (from a start within a
+/// tooth spacing, quadratic convergence reaches f32 precision in about four).
+const GPU_NEWTON_STEPS: u32 = 8;
+const _: () = assert!(GPU_NEWTON_STEPS as usize <= MAX_NEWTON_STEPS);
 
 /// Threads per workgroup (`@workgroup_size` in the shader).
 const WORKGROUP_SIZE: u32 = 64;
@@ -90,6 +99,79 @@ pub mod layout {
         pub depth_mm: f32,
         pub pass_id: u32,
     }
+
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    pub struct GeneratingParams {
+        pub ring_count: u32,
+        pub azimuth_count: u32,
+        pub sample_offset: u32,
+        pub sample_count: u32,
+        pub dispatch_width: u32,
+        pub teeth: u32,
+        pub revolutions: u32,
+        pub newton_steps: u32,
+        pub cutting_radius_mm: f32,
+        pub edge_radius_mm: f32,
+        pub stock_top_mm: f32,
+        pub speed_ratio: f32,
+        pub pitch_rad: f32,
+        pub window_rad: f32,
+        pub azimuth_step_rad: f32,
+        pub passes_per_turn_fraction: f32,
+        pub passes_per_turn_whole: i32,
+        pub _padding0: u32,
+        pub _padding1: u32,
+        pub _padding2: u32,
+    }
+
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    pub struct GeneratingRing {
+        pub normal_r: f32,
+        pub normal_z: f32,
+        pub contact_count: u32,
+        pub _padding: u32,
+    }
+
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    pub struct GeneratingContact {
+        pub depth_mm: f32,
+        pub radius_mm: f32,
+        pub azimuth_rad: f32,
+        pub phase_fraction: f32,
+        pub offset_rho: f32,
+        pub offset_phi: f32,
+        pub offset_z: f32,
+        pub phase_whole: i32,
+        pub radial_rho: f32,
+        pub radial_phi: f32,
+        pub radial_z: f32,
+        pub _padding0: f32,
+        pub tangent_rho: f32,
+        pub tangent_phi: f32,
+        pub tangent_z: f32,
+        pub _padding1: f32,
+        pub axis_rho: f32,
+        pub axis_phi: f32,
+        pub axis_z: f32,
+        pub _padding2: f32,
+    }
+
+    #[repr(C)]
+    #[derive(Debug, Clone, Copy, Pod, Zeroable)]
+    pub struct AzimuthPhase {
+        pub fraction: f32,
+        pub whole: i32,
+    }
+}
+
+/// A count split into its whole part and the fraction in [0, 1), in f64 before the
+/// fraction goes to f32 (so a tooth count of 10⁵ keeps its fraction to 1e-7).
+pub fn split_count(value: f64) -> (i32, f32) {
+    let whole = value.floor();
+    (whole as i32, (value - whole) as f32)
 }
 
 /// Splits an f64 into f32 hi + lo with hi + lo = value to ~1e-15 relative.
@@ -98,11 +180,19 @@ pub fn split_f64(value: f64) -> (f32, f32) {
     (hi, (value - hi as f64) as f32)
 }
 
+/// A compute pipeline with the bindings both kernels share: 0 the uniform parameters,
+/// 1–3 read-only inputs, 4 the dexel output.
+struct Kernel {
+    pipeline: wgpu::ComputePipeline,
+    bind_group_layout: wgpu::BindGroupLayout,
+    label: &'static str,
+}
+
 pub struct GpuEngine {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipeline: wgpu::ComputePipeline,
-    bind_group_layout: wgpu::BindGroupLayout,
+    turning: Kernel,
+    generating: Kernel,
     info: EngineInfo,
     max_binding_bytes: u64,
     /// Caps the samples per tile below what the adapter allows (tests use it to force tiling).
@@ -146,66 +236,18 @@ impl GpuEngine {
             ))
         })?;
 
-        let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("turning.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(TURNING_SHADER.into()),
-        });
-        let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("turning bindings"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                storage(1, true),
-                storage(2, true),
-                storage(3, true),
-                storage(4, false),
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("turning layout"),
-            bind_group_layouts: &[Some(&bind_group_layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("remove_turning"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("remove_turning"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        // Errors surface as values, not as wgpu's default panic.
-        for (scope, what) in [
-            (validation, "the turning kernel failed validation"),
-            (out_of_memory, "out of GPU memory"),
-        ] {
-            if let Some(err) = pollster::block_on(scope.pop()) {
-                return Err(EngineError(format!(
-                    "{what} on {}: {err}",
-                    adapter_info.name
-                )));
-            }
-        }
+        let turning = build_kernel(
+            &device,
+            "remove_turning",
+            TURNING_SHADER,
+            &adapter_info.name,
+        )?;
+        let generating = build_kernel(
+            &device,
+            "remove_generating",
+            GENERATING_SHADER,
+            &adapter_info.name,
+        )?;
 
         let info = EngineInfo {
             kind: "gpu".into(),
@@ -219,8 +261,8 @@ impl GpuEngine {
         Ok(Self {
             device,
             queue,
-            pipeline,
-            bind_group_layout,
+            turning,
+            generating,
             info,
             max_binding_bytes: limits
                 .max_storage_buffer_binding_size
@@ -276,6 +318,78 @@ impl GpuEngine {
         buffer.unmap();
         Ok(dexels)
     }
+}
+
+/// Compiles one kernel; validation errors come back as values, not wgpu's default panic.
+fn build_kernel(
+    device: &wgpu::Device,
+    entry: &'static str,
+    source: &str,
+    adapter: &str,
+) -> Result<Kernel, EngineError> {
+    let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(entry),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(entry),
+        entries: &[
+            wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            },
+            storage(1, true),
+            storage(2, true),
+            storage(3, true),
+            storage(4, false),
+        ],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(entry),
+        bind_group_layouts: &[Some(&bind_group_layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    for (scope, what) in [
+        (validation, "failed validation"),
+        (out_of_memory, "ran out of GPU memory"),
+    ] {
+        if let Some(err) = pollster::block_on(scope.pop()) {
+            return Err(EngineError(format!(
+                "kernel {entry} {what} on {adapter}: {err}"
+            )));
+        }
+    }
+    Ok(Kernel {
+        pipeline,
+        bind_group_layout,
+        label: entry,
+    })
 }
 
 /// The scene's rings and poses in the shader's layouts.
@@ -384,9 +498,7 @@ impl RemovalEngine for GpuEngine {
     fn remove(&mut self, scene: &Scene, progress: Progress<'_>) -> Result<DexelField, EngineError> {
         match scene {
             Scene::Turning(scene) => self.remove_turning(scene, progress),
-            Scene::Generating(_) => Err(EngineError(
-                "the GPU engine does not run generating jobs yet; use --engine cpu".into(),
-            )),
+            Scene::Generating(scene) => self.remove_generating(scene, progress),
         }
     }
 }
@@ -397,15 +509,7 @@ impl GpuEngine {
         scene: &TurningScene,
         progress: Progress<'_>,
     ) -> Result<DexelField, EngineError> {
-        let sample_count = scene.grid.sample_count() as u64;
-        if sample_count > u32::MAX as u64 {
-            return Err(EngineError(format!(
-                "{sample_count} samples exceed the GPU engine's 2³² sample index"
-            )));
-        }
         let (rings, poses) = gpu_inputs(scene);
-        let ring_buffer = self.upload("rings", &rings)?;
-        let pose_buffer = self.upload("poses", &poses)?;
         let deviation: Vec<f32> = scene
             .edge
             .deviation
@@ -413,8 +517,89 @@ impl GpuEngine {
             .iter()
             .map(|&v| v as f32)
             .collect();
-        let deviation_buffer = self.upload("edge deviation", &deviation)?;
+        let inputs = [
+            self.upload("rings", &rings)?,
+            self.upload("poses", &poses)?,
+            self.upload("edge deviation", &deviation)?,
+        ];
+        self.dispatch(
+            &self.turning,
+            &inputs,
+            scene.grid.sample_count() as u64,
+            &|offset, count, width| tile_params(scene, offset, count, width),
+            progress,
+        )
+    }
 
+    fn remove_generating(
+        &mut self,
+        scene: &GeneratingScene,
+        progress: Progress<'_>,
+    ) -> Result<DexelField, EngineError> {
+        let (rings, contacts) = generating_inputs(scene);
+        let teeth = scene.teeth;
+        let phases: Vec<layout::AzimuthPhase> = match &teeth {
+            Some(teeth) => (0..scene.grid.azimuths)
+                .map(|j| {
+                    let (whole, fraction) = split_count(teeth.passes_in(scene.grid.azimuth_rad(j)));
+                    layout::AzimuthPhase { fraction, whole }
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        let inputs = [
+            self.upload("generating rings", &rings)?,
+            self.upload("contacts", &contacts)?,
+            self.upload("azimuth phases", &phases)?,
+        ];
+        let (whole, fraction) = teeth.map_or((0, 0.0), |t| split_count(t.passes_per_turn()));
+        let params = |offset: u64, count: u64, width: u32| {
+            Ok(layout::GeneratingParams {
+                ring_count: scene.grid.ring_count() as u32,
+                azimuth_count: scene.grid.azimuths,
+                sample_offset: offset as u32,
+                sample_count: count as u32,
+                dispatch_width: width,
+                teeth: teeth.map_or(0, |t| t.count),
+                revolutions: teeth.map_or(0, |t| t.revolutions()),
+                newton_steps: GPU_NEWTON_STEPS,
+                cutting_radius_mm: scene.circle.radius_mm as f32,
+                edge_radius_mm: scene.edge_radius_mm as f32,
+                stock_top_mm: scene.stock_top_mm as f32,
+                speed_ratio: teeth.map_or(1.0, |t| t.speed_ratio) as f32,
+                pitch_rad: teeth.map_or(1.0, |t| t.pitch_rad()) as f32,
+                window_rad: teeth.map_or(0.0, |t| t.distinct_rad()) as f32,
+                azimuth_step_rad: (std::f64::consts::TAU / scene.grid.azimuths as f64) as f32,
+                passes_per_turn_fraction: fraction,
+                passes_per_turn_whole: whole,
+                _padding0: 0,
+                _padding1: 0,
+                _padding2: 0,
+            })
+        };
+        self.dispatch(
+            &self.generating,
+            &inputs,
+            scene.grid.sample_count() as u64,
+            &params,
+            progress,
+        )
+    }
+
+    /// Runs `kernel` over every sample, in tiles that fit one storage binding.
+    fn dispatch<P: Pod>(
+        &self,
+        kernel: &Kernel,
+        inputs: &[wgpu::Buffer; 3],
+        sample_count: u64,
+        params: &dyn Fn(u64, u64, u32) -> Result<P, EngineError>,
+        progress: Progress<'_>,
+    ) -> Result<DexelField, EngineError> {
+        if sample_count > u32::MAX as u64 {
+            return Err(EngineError(format!(
+                "{sample_count} samples exceed the GPU engine's 2³² sample index"
+            )));
+        }
         let dexel_bytes = std::mem::size_of::<layout::Dexel>() as u64;
         let tile_samples = (self.max_binding_bytes / dexel_bytes)
             .min(self.max_tile_samples)
@@ -435,17 +620,11 @@ impl GpuEngine {
         });
         let params_buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
-            size: std::mem::size_of::<layout::Params>() as u64,
+            size: std::mem::size_of::<P>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let buffers = [
-            &params_buffer,
-            &ring_buffer,
-            &pose_buffer,
-            &deviation_buffer,
-            &output,
-        ];
+        let buffers = [&params_buffer, &inputs[0], &inputs[1], &inputs[2], &output];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -455,8 +634,8 @@ impl GpuEngine {
             })
             .collect();
         let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("turning bindings"),
-            layout: &self.bind_group_layout,
+            label: Some(kernel.label),
+            layout: &kernel.bind_group_layout,
             entries: &entries,
         });
 
@@ -468,22 +647,22 @@ impl GpuEngine {
             let groups = count.div_ceil(WORKGROUP_SIZE as u64) as u32;
             let groups_x = groups.min(65_535);
             let groups_y = groups.div_ceil(groups_x);
-            let params = tile_params(scene, offset, count, groups_x * WORKGROUP_SIZE)?;
+            let tile = params(offset, count, groups_x * WORKGROUP_SIZE)?;
             let out_of_memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
             let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
             self.queue
-                .write_buffer(&params_buffer, 0, bytemuck::bytes_of(&params));
+                .write_buffer(&params_buffer, 0, bytemuck::bytes_of(&tile));
             let mut encoder = self
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("turning"),
+                    label: Some(kernel.label),
                 });
             {
                 let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("remove_turning"),
+                    label: Some(kernel.label),
                     timestamp_writes: None,
                 });
-                compute.set_pipeline(&self.pipeline);
+                compute.set_pipeline(&kernel.pipeline);
                 compute.set_bind_group(0, &bind_group, &[]);
                 compute.dispatch_workgroups(groups_x, groups_y, 1);
             }
@@ -507,4 +686,61 @@ impl GpuEngine {
         }
         Ok(DexelField { depth_mm, pass })
     }
+}
+
+/// A generating scene's rings and contacts (two slots per ring) in the shader's layouts.
+fn generating_inputs(
+    scene: &GeneratingScene,
+) -> (Vec<layout::GeneratingRing>, Vec<layout::GeneratingContact>) {
+    let rings = scene
+        .grid
+        .rings
+        .iter()
+        .zip(&scene.rings)
+        .map(|(ring, contacts)| layout::GeneratingRing {
+            normal_r: ring.normal.x as f32,
+            normal_z: ring.normal.y as f32,
+            contact_count: contacts.len() as u32,
+            _padding: 0,
+        })
+        .collect();
+    let mut slots = Vec::with_capacity(scene.rings.len() * MAX_CONTACTS);
+    for contacts in &scene.rings {
+        for slot in 0..MAX_CONTACTS {
+            let Some(c) = contacts.get(slot) else {
+                slots.push(layout::GeneratingContact::zeroed());
+                continue;
+            };
+            let f = &c.frame;
+            let (phase_whole, phase_fraction) = split_count(c.phase_turns);
+            let v = |a: [f64; 3]| [a[0] as f32, a[1] as f32, a[2] as f32];
+            let ([offset_rho, offset_phi, offset_z], [radial_rho, radial_phi, radial_z]) =
+                (v(f.offset), v(f.radial));
+            let ([tangent_rho, tangent_phi, tangent_z], [axis_rho, axis_phi, axis_z]) =
+                (v(f.tangent), v(f.axis));
+            slots.push(layout::GeneratingContact {
+                depth_mm: c.depth_mm as f32,
+                radius_mm: f.radius_mm as f32,
+                azimuth_rad: c.azimuth_rad as f32,
+                phase_fraction,
+                offset_rho,
+                offset_phi,
+                offset_z,
+                phase_whole,
+                radial_rho,
+                radial_phi,
+                radial_z,
+                _padding0: 0.0,
+                tangent_rho,
+                tangent_phi,
+                tangent_z,
+                _padding1: 0.0,
+                axis_rho,
+                axis_phi,
+                axis_z,
+                _padding2: 0.0,
+            });
+        }
+    }
+    (rings, slots)
 }

@@ -212,7 +212,10 @@ mod tests {
             for i in 0..20 {
                 let m = circle.meridional_point(i as f64 * 0.3);
                 let distance = m.x.hypot(m.y - sphere.centre_z_mm);
-                assert!((distance - arc_radius).abs() < 1e-12, "{distance} vs {arc_radius}");
+                assert!(
+                    (distance - arc_radius).abs() < 1e-12,
+                    "{distance} vs {arc_radius}"
+                );
             }
         }
     }

@@ -287,16 +287,28 @@ pub fn read_radial_deviation_str(text: &str) -> Result<(Vec<f64>, Vec<f64>), Mea
         let r = number(cell(r_col), i + 1)?;
         let d = number(cell(d_col), i + 1)?;
         if !r.is_finite() || r < 0.0 || radius.last().is_some_and(|&prev| r <= prev) {
-            return fail(Some(i + 1), format!("radius_mm `{}` is not finite, ≥ 0 and increasing", cell(r_col)));
+            return fail(
+                Some(i + 1),
+                format!(
+                    "radius_mm `{}` is not finite, ≥ 0 and increasing",
+                    cell(r_col)
+                ),
+            );
         }
         if !d.is_finite() {
-            return fail(Some(i + 1), format!("deviation_nm `{}` is not finite", cell(d_col)));
+            return fail(
+                Some(i + 1),
+                format!("deviation_nm `{}` is not finite", cell(d_col)),
+            );
         }
         radius.push(r);
         deviation.push(d * 1e-6);
     }
     if radius.len() < 8 {
-        return fail(None, format!("{} data rows; at least 8 are needed", radius.len()));
+        return fail(
+            None,
+            format!("{} data rows; at least 8 are needed", radius.len()),
+        );
     }
     Ok((radius, deviation))
 }

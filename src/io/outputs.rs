@@ -16,9 +16,10 @@
 use super::atomic::write_bytes_atomically;
 use super::colour::ColourMap;
 use super::exr_io::{ExrImage, write_exr};
-use super::png_out::{FalseColourPlot, write_false_colour_png, write_png16_gray};
 use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
+use super::png_out::{FalseColourPlot, write_false_colour_png, write_png16_gray};
 use crate::analysis::{Raster, top_view, top_view_within};
+use crate::correct::part_sphere;
 use crate::process::Process;
 use crate::run::RunResult;
 use serde_json::json;
@@ -202,7 +203,11 @@ pub fn centre_half_width_mm(result: &RunResult) -> f64 {
     let grid = result.grid();
     let outer = grid.rings[grid.ring_count() - 1].radius_mm;
     let feature = result.protrusion.radius_um * 1e-3;
-    let wanted = if feature > 0.0 { 3.0 * feature } else { 0.1 * outer };
+    let wanted = if feature > 0.0 {
+        3.0 * feature
+    } else {
+        0.1 * outer
+    };
     wanted.max(20.0 * grid.pitch_mm).min(outer)
 }
 
@@ -215,7 +220,7 @@ pub fn write_centre_map(
     half_width_mm: f64,
     range: Option<(f32, f32)>,
 ) -> io::Result<(f32, f32)> {
-    const PIXELS: usize = 384;
+    const PIXELS: usize = 512;
     let grid = result.grid();
     let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
     let map = top_view_within(grid, &deviation_nm, PIXELS, half_width_mm);
@@ -272,15 +277,27 @@ pub fn write_centre_profile(
             .iter()
             .filter(|p| p.radius_mm <= half_width_mm);
         let radius: Vec<f64> = profile.clone().map(|p| p.radius_mm).collect();
-        let prefix = if label.is_empty() { String::new() } else { format!("{label}: ") };
+        let prefix = if label.is_empty() {
+            String::new()
+        } else {
+            format!("{label}: ")
+        };
         curves.push((
             format!("{prefix}azimuth mean"),
             radius.clone(),
             profile.clone().map(|p| p.mean_nm).collect(),
         ));
         if profile.clone().any(|p| p.max_nm - p.min_nm > 1e-3) {
-            curves.push((format!("{prefix}min"), radius.clone(), profile.clone().map(|p| p.min_nm).collect()));
-            curves.push((format!("{prefix}max"), radius, profile.map(|p| p.max_nm).collect()));
+            curves.push((
+                format!("{prefix}min"),
+                radius.clone(),
+                profile.clone().map(|p| p.min_nm).collect(),
+            ));
+            curves.push((
+                format!("{prefix}max"),
+                radius,
+                profile.map(|p| p.max_nm).collect(),
+            ));
         }
     }
     let series: Vec<Series> = curves
@@ -513,6 +530,8 @@ fn process_json(result: &RunResult) -> serde_json::Value {
             let effects = &generating.effects;
             let circle = setup.cutting_circle(effects);
             let marks_per_rev = setup.wheel.teeth as f64 * setup.speed_ratio().abs();
+            let sphere = part_sphere(result.grid(), &result.field, &result.protrusion);
+            let nominal = 1.0 / result.job.surface.curvature_per_mm;
             json!({
                 "process": "generating",
                 "inclination_deg": setup.inclination_rad.to_degrees(),
@@ -526,6 +545,12 @@ fn process_json(result: &RunResult) -> serde_json::Value {
                 "tooth_marks_per_workpiece_rev": (setup.wheel.teeth > 0).then_some(marks_per_rev),
                 "spark_out_revolutions": setup.spark_out_revolutions,
                 "spark_out_s": setup.spark_out_s(),
+                "part_sphere": sphere.map(|fit| json!({
+                    "radius_mm": fit.radius_mm,
+                    "radius_error_um": (fit.radius_mm - nominal) * 1e3,
+                    "fit_rms_nm": fit.rms_residual_nm,
+                    "from_radius_mm": fit.from_radius_mm,
+                })),
             })
         }
     }

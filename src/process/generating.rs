@@ -105,8 +105,11 @@ impl GeneratingSetup {
             PlungeAxis::Z => DVec3::new(0.0, 0.0, -1.0),
             PlungeAxis::ToolAxis => into_part,
         };
-        let shift = DVec3::new(self.cutter_offset_mm + effects.cutter_displacement_mm, 0.0, 0.0)
-            - effects.plunge_error_mm * plunge_direction;
+        let shift = DVec3::new(
+            self.cutter_offset_mm + effects.cutter_displacement_mm,
+            0.0,
+            0.0,
+        ) - effects.plunge_error_mm * plunge_direction;
         CuttingCircle {
             centre: vertex_point + radius * DVec3::new(cos, 0.0, s * sin) + shift,
             axis,
