@@ -220,6 +220,8 @@ pub fn central_pv_nm(grid: &PolarGrid, field: &DexelField, zone_radius_mm: f64) 
 
 fn with_settings(job: &Job, inclination_rad: f64, offset_mm: f64) -> Job {
     let mut job = job.clone();
+    job.name = format!("{} (corrected)", job.name);
+    job.resolved.name = Some(job.name.clone());
     if let Process::Generating(generating) = &mut job.process {
         generating.setup.inclination_rad = inclination_rad;
         generating.setup.cutter_offset_mm = offset_mm;

@@ -425,3 +425,50 @@ azimuths = 8192
         assert!((0.95..1.01).contains(&best), "band {band}: {best}");
     }
 }
+
+#[test]
+fn seed_000_hypocycloid_against_the_three_d_kinematics_of_the_same_set_up() {
+    use toolmark::formulas::{hypocycloid_distance, hypocycloid_distance_as_printed};
+    // The paper's numbers: R_L = 53.5 mm, R_S = 3.5 mm; its Fig. 8 puts the edge's
+    // profile centre on a Ø100 mm circle, so in 3-D the edge radius is 3.5 mm and the
+    // cutting circle lies 50 mm from O. The cutting radius is not given: 10 mm assumed.
+    let (large, small) = (53.5, 3.5);
+    let wheel = Setup {
+        radius_mm: large,
+        concave: true,
+        cutting_radius_mm: 10.0,
+        edge_radius_mm: small,
+    };
+    let job = wheel.job(30.0, 5.0, "", "");
+    let circle = job
+        .process
+        .generating()
+        .unwrap()
+        .setup
+        .cutting_circle(&Default::default());
+    let centre = glam::DVec3::new(0.0, 0.0, large);
+    println!(
+        "| β (rad) | AO, eq. (3) (mm) | eq. (4) as printed (mm) | 3-D: O to the edge at wheel angle β (mm) |"
+    );
+    println!("| --- | --- | --- | --- |");
+    let cusp = std::f64::consts::TAU * small / large;
+    for beta in [0.0, 0.05, 0.1, 0.1073, 0.15, 0.5 * cusp, 0.3, cusp] {
+        // The edge's farthest point from O at this wheel angle: the circle point's
+        // distance from O plus the edge radius.
+        let three_d = (circle.point(beta) - centre).length() + small;
+        println!(
+            "| {beta:.4} | {:.3} | {:.3} | {three_d:.9} |",
+            hypocycloid_distance(large, small, beta),
+            hypocycloid_distance_as_printed(large, small, beta)
+        );
+        assert!((three_d - large).abs() < 1e-9);
+    }
+    // The 3-D simulation of the aligned set-up: the sphere, to the nanometre's fraction.
+    let result = run_cpu(job);
+    println!(
+        "3-D simulation, aligned wheel: deviation PV {:.4} nm, central feature {:?}",
+        result.deviation.pv_nm, result.protrusion.shape
+    );
+    assert!(result.deviation.pv_nm < 0.1);
+    assert_eq!(result.protrusion.shape, ProtrusionShape::None);
+}

@@ -247,19 +247,21 @@ fn correct_simulated(
     let runtime = |err: std::io::Error| Failure::Runtime(err.to_string());
     write_outputs(&out.join("before"), &run.first).map_err(runtime)?;
     write_outputs(&out.join("after"), &run.last).map_err(runtime)?;
-    // Both zooms on the scale of the part before correction, so "after" reads as clean.
+    // Both zooms on one scale, symmetric about zero and set by the part before
+    // correction, so "after" reads as clean.
     let half_width = (3.0 * run.first.protrusion.radius_um * 1e-3)
         .max(20.0 * job.pitch_mm)
         .min(zone);
-    let range = write_centre_map(&out.join("centre_before.png"), &run.first, half_width, None)
-        .map_err(runtime)?;
-    write_centre_map(
-        &out.join("centre_after.png"),
-        &run.last,
-        half_width,
-        Some(range),
-    )
-    .map_err(runtime)?;
+    let before_png = out.join("centre_before.png");
+    let (low, high) =
+        write_centre_map(&before_png, &run.first, half_width, None).map_err(runtime)?;
+    let extent = low.abs().max(high.abs());
+    for (path, result) in [
+        (before_png, &run.first),
+        (out.join("centre_after.png"), &run.last),
+    ] {
+        write_centre_map(&path, result, half_width, Some((-extent, extent))).map_err(runtime)?;
+    }
     write_centre_profile(
         &out.join("centre_profiles.png"),
         &[("before", &run.first), ("after", &run.last)],

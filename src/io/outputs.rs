@@ -128,9 +128,10 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let png_scale = write_deviation_png16(&file("deviation.png"), &deviation_map, &attributes)?;
     let stats = &result.deviation;
     // Diverging colours centred on the map's mean (white), so form shows even when the
-    // whole surface sits above nominal; the bar is labelled in true deviation values.
+    // whole surface sits above nominal; the bar is labelled in true deviation values and
+    // spans at least ±1 nm, so a clean part is white rather than its numerical dust.
     let (low, high, mean) = valid_range(&deviation_map);
-    let half_range = (high - mean).max(mean - low);
+    let half_range = (high - mean).max(mean - low).max(1.0);
     let footer = format!(
         "PV {:.1} nm  RMS {:.1} nm  white = mean {mean:.2} nm  {} engine",
         stats.pv_nm, stats.rms_nm, result.engine.kind
@@ -247,10 +248,7 @@ pub fn write_centre_map(
             height: PIXELS as u32,
             range,
             colour_map: ColourMap::Diverging,
-            title: &format!(
-                "{}: deviation, central ±{:.3} mm",
-                result.job.name, half_width_mm
-            ),
+            title: &format!("{}: central ±{:.3} mm", result.job.name, half_width_mm),
             unit_label: "deviation (nm)",
             footer: &format!(
                 "zone PV {:.1} nm  {feature}  {} engine",
