@@ -197,7 +197,7 @@ fn remove_generating(@builtin(global_invocation_id) id: vec3<u32>) {
                 let time = contact_time + entry.shift_rad;
                 if entry.depth_mm < best_depth && time >= 0.0 && time < params.window_rad {
                     best_depth = entry.depth_mm;
-                    best_pass = u32((nearest - offset) * 2 + i32(index));
+                    best_pass = u32((nearest - offset) * 2 + i32(index)) & 0x7fffffffu;
                 }
             }
         }

@@ -9,7 +9,7 @@ use glam::DVec2;
 use std::f64::consts::{PI, TAU};
 
 /// The machined surface at one sample and the pass that left it: pass 0 for a
-/// continuous edge; with teeth, `tooth pass count · 2 + contact`.
+/// continuous edge; with teeth, `tooth pass count · 2 + contact` (mod 2³¹).
 pub fn generating_dexel(scene: &GeneratingScene, ring: usize, azimuth_rad: f64) -> (f64, u32) {
     let stock = (scene.stock_top_mm, NO_PASS);
     let Some(teeth) = &scene.teeth else {
@@ -53,7 +53,9 @@ pub fn generating_dexel(scene: &GeneratingScene, ring: usize, azimuth_rad: f64) 
                 };
                 let time = contact_time + time_shift;
                 if depth < best.0 && (0.0..window).contains(&time) {
-                    let pass = (nearest as i64 - offset) * 2 + index as i64;
+                    // Kept below 2³¹ so a negative count (a wheel turning backwards)
+                    // never wraps onto NO_PASS.
+                    let pass = ((nearest as i64 - offset) * 2 + index as i64).rem_euclid(1 << 31);
                     best = (depth, pass as u32);
                 }
             }
