@@ -65,6 +65,13 @@ fn main() -> ExitCode {
         // SAFETY: first thing in main, before any thread exists.
         unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
     }
+    // Piped into `head`, a closed pipe should end the program quietly, as for any Unix
+    // tool, not make println! panic: restore the default SIGPIPE action Rust ignores.
+    #[cfg(unix)]
+    // SAFETY: installing the default handler for one signal, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command.unwrap_or(Command::Run(Default::default())) {
         Command::Run(args) => cli::run::run(args),
