@@ -250,7 +250,7 @@ pub fn correction_loop(
     let report = |cut: usize, settings: String, result: &RunResult| {
         let (inclination, offset) = match &result.job.process {
             Process::Generating(g) => (g.setup.inclination_rad, g.setup.cutter_offset_mm),
-            Process::Turning(_) => (0.0, 0.0),
+            _ => (0.0, 0.0),
         };
         let sphere = part_sphere(result.grid(), &result.field, &result.protrusion);
         CutReport {

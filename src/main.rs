@@ -39,6 +39,8 @@ enum Command {
     /// Correct a generator's setup (wheel X position and inclination) from the pip and
     /// radius error of its part: simulated from the job, or measured.
     Correct(cli::correct::CorrectArgs),
+    /// Print the closed-form references (seeds 000–004) for given parameters.
+    Formulas(cli::formulas::FormulasArgs),
 }
 
 #[derive(clap::Args)]
@@ -79,6 +81,7 @@ fn main() -> ExitCode {
         Command::CompareProfile(args) => cli::compare::compare_profile(args),
         Command::Compensate(args) => cli::compensate::compensate(args),
         Command::Correct(args) => cli::correct::correct(args),
+        Command::Formulas(args) => cli::formulas::formulas(args),
         Command::Bench(args) => bench::run_benchmarks(
             args.engine != BenchEngines::Gpu,
             args.engine != BenchEngines::Cpu,

@@ -6,7 +6,8 @@ use crate::analysis::{
 };
 use crate::engine::generating_scene::ToothMotion;
 use crate::engine::{
-    EngineError, EngineInfo, GeneratingScene, Progress, RemovalEngine, Scene, TurningScene,
+    EngineError, EngineInfo, GeneratingScene, MillingScene, Progress, RemovalEngine, Scene,
+    TurningScene,
 };
 use crate::field::{DexelField, PolarGrid};
 use crate::io::job::Job;
@@ -34,6 +35,8 @@ pub struct RunResult {
     pub scallops: ScallopAnalysis,
     pub protrusion: Protrusion,
     pub profile: Vec<ProfilePoint>,
+    /// Milling: per sample, the effective cutting diameter at the generating contact (mm).
+    pub cutting_diameter_mm: Option<Vec<f64>>,
     pub timings: Timings,
 }
 
@@ -51,7 +54,7 @@ impl RunResult {
     pub fn turning_scenes(&self) -> impl Iterator<Item = &TurningScene> {
         self.scenes.iter().filter_map(|scene| match scene {
             Scene::Turning(scene) => Some(scene),
-            Scene::Generating(_) => None,
+            _ => None,
         })
     }
 
@@ -85,6 +88,23 @@ pub fn prepare_scenes(job: &Job) -> Vec<Scene> {
             .collect(),
         Process::Generating(generating) => {
             vec![Scene::Generating(generating_scene(generating, grid))]
+        }
+        Process::Milling(milling) => {
+            let setup = &milling.setup;
+            let path = setup.plan(&job.surface);
+            vec![Scene::Milling(MillingScene::new(
+                grid,
+                setup.tool,
+                path,
+                setup.stock_allowance_mm,
+                setup.stock_allowance_mm - setup.depth_of_cut_mm,
+                setup.profile_radius_mm(),
+                if setup.teeth > 0 {
+                    setup.feed_per_tooth_mm
+                } else {
+                    0.0
+                },
+            ))]
         }
     }
 }
@@ -178,7 +198,9 @@ pub fn simulate(
     let grid = scenes[0].grid();
     let deviation = analysis::deviation_stats(grid, &field);
     let scallops = match &job.process {
-        Process::Turning(_) => analysis::analyse_scallops(grid, &field, ScallopDirection::Meridian),
+        Process::Turning(_) | Process::Milling(_) => {
+            analysis::analyse_scallops(grid, &field, ScallopDirection::Meridian)
+        }
         Process::Generating(g) if g.setup.wheel.teeth > 0 => {
             analysis::analyse_scallops(grid, &field, ScallopDirection::Ring)
         }
@@ -189,11 +211,15 @@ pub fn simulate(
     let pass_spacing = job.process.pass_spacing_mm();
     let zone = default_zone_radius_mm(job.aperture.outer_radius_mm, pass_spacing);
     let surround = match job.process {
-        Process::Turning(_) => Surround::Line,
+        Process::Turning(_) | Process::Milling(_) => Surround::Line,
         Process::Generating(_) => Surround::Even,
     };
     let protrusion = analysis::analyse_protrusion(grid, &field, zone, surround);
     let profile = analysis::radial_profile(grid, &field, &scallops);
+    let cutting_diameter_mm = scenes.iter().find_map(|scene| match scene {
+        Scene::Milling(scene) => Some(scene.cutting_diameters(&field)),
+        _ => None,
+    });
     let analysis_s = started.elapsed().as_secs_f64();
 
     Ok(RunResult {
@@ -205,6 +231,7 @@ pub fn simulate(
         scallops,
         protrusion,
         profile,
+        cutting_diameter_mm,
         timings: Timings {
             prepare_s,
             removal_s,

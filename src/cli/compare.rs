@@ -66,7 +66,7 @@ pub fn compare_profile(args: CompareArgs) -> Result<(), Failure> {
     let out = args.out.unwrap_or_else(|| {
         PathBuf::from("toolmark-out").join(format!("{}-vs-measured", slug(&job.name)))
     });
-    let mut engine = open_engine(args.engine)?;
+    let mut engine = open_engine(args.engine, &job)?;
     let name = job.name.clone();
     let outer = job.aperture.outer_radius_mm;
     let result = simulate(job, engine.as_mut(), &|_, _| {})

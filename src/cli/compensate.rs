@@ -48,7 +48,7 @@ pub fn compensate(args: CompensateArgs) -> Result<(), Failure> {
     let out = args.out.unwrap_or_else(|| {
         PathBuf::from("toolmark-out").join(format!("{}-compensation", slug(&job.name)))
     });
-    let mut engine = open_engine(args.engine)?;
+    let mut engine = open_engine(args.engine, &job)?;
     println!(
         "{}: {} compensation cycles, form measured with a {:.1} µm Gaussian cutoff",
         job.name,

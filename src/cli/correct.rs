@@ -212,7 +212,7 @@ fn correct_simulated(
     out: &Path,
     write: &Write,
 ) -> Result<(), Failure> {
-    let mut engine = open_engine(engine)?;
+    let mut engine = open_engine(engine, job)?;
     let run = correction_loop(job, engine.as_mut(), zone)
         .map_err(|err| Failure::Runtime(err.to_string()))?;
     println!(

@@ -3,6 +3,7 @@
 pub mod compare;
 pub mod compensate;
 pub mod correct;
+pub mod formulas;
 pub mod run;
 
 use clap::ValueEnum;
@@ -36,7 +37,11 @@ pub fn load_job(path: Option<&PathBuf>) -> Result<Job, Failure> {
     }
 }
 
-pub fn open_engine(choice: EngineChoice) -> Result<Box<dyn RemovalEngine>, Failure> {
+pub fn open_engine(choice: EngineChoice, job: &Job) -> Result<Box<dyn RemovalEngine>, Failure> {
+    if choice == EngineChoice::Auto && !GpuEngine::runs(&job.process) {
+        eprintln!("the GPU engine does not run this process yet: using the CPU engine");
+        return Ok(Box::new(CpuEngine));
+    }
     match choice {
         EngineChoice::Cpu => Ok(Box::new(CpuEngine)),
         EngineChoice::Gpu => GpuEngine::new()

@@ -45,7 +45,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     for warning in &job.warnings {
         eprintln!("warning: {warning}");
     }
-    let mut engine = open_engine(args.engine)?;
+    let mut engine = open_engine(args.engine, &job)?;
     let info = engine.info();
     println!(
         "engine: {} — {} ({}{}{})",
@@ -79,6 +79,18 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     let t = &result.timings;
     let motion = match &result.job.process {
         Process::Turning(_) => format!("{:.0} spindle revolutions", result.revolutions()),
+        Process::Milling(m) => format!(
+            "{:?} path with {} passes",
+            m.setup.path,
+            result
+                .scenes
+                .iter()
+                .map(|s| match s {
+                    toolmark::engine::Scene::Milling(scene) => scene.path.passes.len(),
+                    _ => 0,
+                })
+                .sum::<usize>()
+        ),
         Process::Generating(g) => format!(
             "{} workpiece revolutions of spark-out, wheel {} rpm / part {} rpm",
             g.setup.spark_out_revolutions, g.setup.tool_rpm, g.setup.workpiece_rpm

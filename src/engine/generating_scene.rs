@@ -277,12 +277,22 @@ fn contact_at(circle: &CuttingCircle, ring: &Ring, theta: f64, depth: f64) -> Co
 }
 
 /// Minimiser of a unimodal function on [a, b], to ~1e-13 of the bracket.
-pub fn golden_section_min(f: &dyn Fn(f64) -> f64, mut a: f64, mut b: f64) -> f64 {
+pub fn golden_section_min(f: &dyn Fn(f64) -> f64, a: f64, b: f64) -> f64 {
+    golden_section_min_steps(f, a, b, 64)
+}
+
+/// Golden-section search with a set number of steps (each shrinks the bracket by 0.618).
+pub fn golden_section_min_steps(
+    f: &dyn Fn(f64) -> f64,
+    mut a: f64,
+    mut b: f64,
+    steps: usize,
+) -> f64 {
     const INVERSE_PHI: f64 = 0.618_033_988_749_894_9;
     let mut x1 = b - INVERSE_PHI * (b - a);
     let mut x2 = a + INVERSE_PHI * (b - a);
     let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..64 {
+    for _ in 0..steps {
         if f1 <= f2 {
             b = x2;
             x2 = x1;

@@ -200,6 +200,11 @@ pub struct GpuEngine {
 }
 
 impl GpuEngine {
+    /// Whether the GPU kernels cover a process (milling runs on the CPU engine only).
+    pub fn runs(process: &crate::process::Process) -> bool {
+        !matches!(process, crate::process::Process::Milling(_))
+    }
+
     /// Opens the best adapter wgpu finds (honouring `WGPU_BACKEND` / `WGPU_ADAPTER_NAME`).
     /// Fails with a clear message when there is none.
     pub fn new() -> Result<Self, EngineError> {
@@ -499,6 +504,9 @@ impl RemovalEngine for GpuEngine {
         match scene {
             Scene::Turning(scene) => self.remove_turning(scene, progress),
             Scene::Generating(scene) => self.remove_generating(scene, progress),
+            Scene::Milling(_) => Err(EngineError(
+                "the GPU engine does not run milling jobs yet; use --engine cpu (or auto)".into(),
+            )),
         }
     }
 }

@@ -5,9 +5,11 @@ pub mod cpu;
 pub mod cpu_generating;
 pub mod generating_scene;
 pub mod gpu;
+pub mod milling_scene;
 pub mod scene;
 
 pub use generating_scene::GeneratingScene;
+pub use milling_scene::MillingScene;
 pub use scene::TurningScene;
 
 use crate::field::{DexelField, PolarGrid};
@@ -17,6 +19,7 @@ use crate::field::{DexelField, PolarGrid};
 pub enum Scene {
     Turning(TurningScene),
     Generating(GeneratingScene),
+    Milling(MillingScene),
 }
 
 impl Scene {
@@ -24,6 +27,7 @@ impl Scene {
         match self {
             Scene::Turning(scene) => &scene.grid,
             Scene::Generating(scene) => &scene.grid,
+            Scene::Milling(scene) => &scene.grid,
         }
     }
 
@@ -32,6 +36,7 @@ impl Scene {
         match self {
             Scene::Turning(scene) => scene.pair_count(),
             Scene::Generating(scene) => scene.pair_count(),
+            Scene::Milling(scene) => scene.pair_count(),
         }
     }
 
@@ -39,7 +44,7 @@ impl Scene {
     pub fn pass_id_span(&self) -> u32 {
         match self {
             Scene::Turning(scene) => scene.rev_count * scene::PASS_ID_STRIDE,
-            Scene::Generating(_) => 0,
+            Scene::Generating(_) | Scene::Milling(_) => 0,
         }
     }
 }

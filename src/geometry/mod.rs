@@ -2,6 +2,8 @@
 
 pub mod cup_wheel;
 pub mod cutter;
+pub mod disc_cutter;
+pub mod milling_tool;
 pub mod surface;
 pub mod tool;
 

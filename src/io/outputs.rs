@@ -9,6 +9,7 @@
 //! | `scallop_colour.png` | false-colour scallop height with colour bar |
 //! | `deviation_centre.png` | false-colour zoom on the central zone (3× the central feature's radius, or a tenth of the part) |
 //! | `centre_profile.png` | deviation across the central zone: azimuth mean, min and max per ring |
+//! | `cutting_diameter.png` | milling: the effective cutting diameter at each point's generating contact |
 //! | `radial_profile.csv` | per ring: r, s, z, deviation on azimuth 0, mean/min/max over azimuths, scallop |
 //! | `summary.json` | schema `toolmark.summary/1` (README) |
 //! | `job.resolved.toml` | the job with every default filled in |
@@ -58,6 +59,13 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let scallop_map = top_view(grid, &scallop_nm, pixels);
     let height_map = top_view(grid, &height_mm, pixels);
     let protrusion_map = top_view(grid, &protrusion_nm, pixels);
+    // Milling: the effective cutting diameter (0 where nothing cut).
+    let diameter_mm: Option<Vec<f64>> = result.cutting_diameter_mm.as_ref().map(|d| {
+        d.iter()
+            .map(|v| if v.is_finite() { *v } else { 0.0 })
+            .collect()
+    });
+    let diameter_map = diameter_mm.as_ref().map(|d| top_view(grid, d, pixels));
 
     let attributes = common_attributes(result, &deviation_map);
     let mut written = Vec::new();
@@ -72,18 +80,22 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         .iter()
         .map(|&v| v as u8 as f32)
         .collect();
+    let mut surface_channels = vec![
+        ("deviation_nm".into(), deviation_map.values.clone()),
+        ("height_mm".into(), height_map.values.clone()),
+        ("scallop_nm".into(), scallop_map.values.clone()),
+        ("protrusion_nm".into(), protrusion_map.values.clone()),
+        ("valid".into(), valid_channel),
+    ];
+    if let Some(map) = &diameter_map {
+        surface_channels.push(("cutting_diameter_mm".into(), map.values.clone()));
+    }
     write_exr(
         &file("surface.exr"),
         &ExrImage {
             width: pixels,
             height: pixels,
-            channels: vec![
-                ("deviation_nm".into(), deviation_map.values.clone()),
-                ("height_mm".into(), height_map.values.clone()),
-                ("scallop_nm".into(), scallop_map.values.clone()),
-                ("protrusion_nm".into(), protrusion_map.values.clone()),
-                ("valid".into(), valid_channel),
-            ],
+            channels: surface_channels,
             attributes: attributes.clone(),
         },
     )?;
@@ -120,7 +132,15 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
                     protrusion_nm.iter().map(|&v| v as f32).collect(),
                 ),
                 ("pass".into(), result.field.pass_channel()),
-            ],
+            ]
+            .into_iter()
+            .chain(diameter_mm.as_ref().map(|d| {
+                (
+                    "cutting_diameter_mm".to_string(),
+                    d.iter().map(|&v| v as f32).collect(),
+                )
+            }))
+            .collect(),
             attributes: polar_attributes,
         },
     )?;
@@ -172,6 +192,36 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         &png_text(&attributes),
     )?;
 
+    if let Some(map) = &diameter_map {
+        let (low, high, _) = valid_range(map);
+        let stats = cutting_diameter_stats(result);
+        write_false_colour_png(
+            &file("cutting_diameter.png"),
+            &FalseColourPlot {
+                values: &map.values,
+                valid: &map.valid,
+                width: pixels as u32,
+                height: pixels as u32,
+                range: (low, high),
+                colour_map: ColourMap::Sequential,
+                title: &format!("{}: effective cutting diameter", result.job.name),
+                unit_label: "diameter (mm)",
+                footer: &match stats.as_ref().and_then(|s| s.speed_max_m_per_min) {
+                    Some(v) => format!(
+                        "De {:.3}–{:.3} mm  max cutting speed {v:.1} m/min",
+                        stats.as_ref().map_or(0.0, |s| s.min_mm),
+                        stats.as_ref().map_or(0.0, |s| s.max_mm)
+                    ),
+                    None => format!(
+                        "De {:.3}–{:.3} mm  (0 = uncut)",
+                        stats.as_ref().map_or(0.0, |s| s.min_mm),
+                        stats.as_ref().map_or(0.0, |s| s.max_mm)
+                    ),
+                },
+            },
+            &png_text(&attributes),
+        )?;
+    }
     let half_width = centre_half_width_mm(result);
     write_centre_map(&file("deviation_centre.png"), result, half_width, None)?;
     write_centre_profile(&file("centre_profile.png"), &[("", result)], half_width)?;
@@ -498,6 +548,7 @@ fn summary_json(
         "deviation": result.deviation,
         "scallop": scallop,
         "protrusion": result.protrusion,
+        "cutting_diameter": cutting_diameter_stats(result),
         "maps": {
             "pixels": map.pixels,
             "pixel_pitch_mm": map.pitch_mm,
@@ -523,6 +574,7 @@ fn process_json(result: &RunResult) -> serde_json::Value {
                 "machining_time_s": turning.spindle_rpm.map(|rpm| revolutions / rpm * 60.0),
             })
         }
+        Process::Milling(milling) => milling_json(result, &milling.setup),
         Process::Generating(generating) => {
             let setup = &generating.setup;
             let effects = &generating.effects;
@@ -552,6 +604,82 @@ fn process_json(result: &RunResult) -> serde_json::Value {
             })
         }
     }
+}
+
+/// The effective cutting diameter over the cut samples, and the cutting speed it
+/// implies at the job's spindle speed.
+#[derive(serde::Serialize)]
+struct CuttingDiameterStats {
+    min_mm: f64,
+    max_mm: f64,
+    mean_mm: f64,
+    speed_max_m_per_min: Option<f64>,
+}
+
+fn cutting_diameter_stats(result: &RunResult) -> Option<CuttingDiameterStats> {
+    let diameters = result.cutting_diameter_mm.as_ref()?;
+    let cut: Vec<f64> = diameters
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite())
+        .collect();
+    if cut.is_empty() {
+        return None;
+    }
+    let max_mm = cut.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let rpm = result
+        .job
+        .process
+        .milling()
+        .and_then(|m| m.setup.spindle_rpm);
+    Some(CuttingDiameterStats {
+        min_mm: cut.iter().copied().fold(f64::INFINITY, f64::min),
+        max_mm,
+        mean_mm: cut.iter().sum::<f64>() / cut.len() as f64,
+        speed_max_m_per_min: rpm.map(|n| crate::formulas::cutting_speed_m_per_min(max_mm, n)),
+    })
+}
+
+/// The `path` section of a milling job.
+fn milling_json(result: &RunResult, setup: &crate::process::MillingSetup) -> serde_json::Value {
+    use crate::geometry::milling_tool::MillingTool;
+    let path = result.scenes.iter().find_map(|scene| match scene {
+        crate::engine::Scene::Milling(scene) => Some(&scene.path),
+        _ => None,
+    });
+    let (passes, nodes, length) = path.map_or((0, 0, 0.0), |p| {
+        (p.passes.len(), p.node_count(), p.length_mm())
+    });
+    let feed_rate = setup
+        .spindle_rpm
+        .filter(|_| setup.feed_per_tooth_mm > 0.0)
+        .map(|rpm| setup.feed_per_tooth_mm * setup.teeth as f64 * rpm);
+    let tool = match setup.tool {
+        MillingTool::EndMill(c) => json!({
+            "kind": "end_mill", "major_radius_mm": c.major_radius_mm, "corner_radius_mm": c.corner_radius_mm,
+        }),
+        MillingTool::Disc(d) => json!({
+            "kind": "disc", "diameter_mm": d.diameter_mm, "insert_length_mm": d.insert_length_mm,
+            "side_rake_deg": d.side_rake_rad.to_degrees(), "lead_deg": d.lead_rad.to_degrees(),
+        }),
+    };
+    json!({
+        "process": "milling",
+        "path": setup.path,
+        "tool": tool,
+        "passes": passes,
+        "nodes": nodes,
+        "length_mm": length,
+        "stepover_um": setup.stepover_mm * 1e3,
+        "scallop_target_nm": (setup.path == crate::process::MillingPathKind::ConstantScallop).then_some(setup.scallop_mm * 1e6),
+        "profile_radius_mm": setup.profile_radius_mm(),
+        "lead_deg": [setup.lead_rad[0].to_degrees(), setup.lead_rad[1].to_degrees()],
+        "tilt_deg": [setup.tilt_rad[0].to_degrees(), setup.tilt_rad[1].to_degrees()],
+        "teeth": setup.teeth,
+        "feed_per_tooth_mm": setup.feed_per_tooth_mm,
+        "feed_mm_per_min": feed_rate,
+        "machining_time_s": feed_rate.map(|f| length / f * 60.0),
+    })
 }
 
 /// How far the cutting circle passes from the workpiece axis (0 when it crosses it).

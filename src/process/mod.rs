@@ -2,12 +2,14 @@
 
 pub mod compensation;
 pub mod generating;
+pub mod milling;
 pub mod nc_path;
 pub mod pose_table;
 pub mod turning;
 
 pub use compensation::NormalCorrection;
 pub use generating::{GeneratingSetup, PlungeAxis};
+pub use milling::{MillingPathKind, MillingSetup};
 pub use nc_path::{NcPath, NcReference};
 pub use pose_table::{PoseTable, ToolPose};
 pub use turning::{FeedAlong, TurningMode, TurningSpiral};
@@ -20,6 +22,7 @@ use crate::geometry::{ArcNoseTool, MeridianArcLength, SurfaceOfRevolution};
 pub enum Process {
     Turning(TurningProcess),
     Generating(GeneratingProcess),
+    Milling(MillingProcess),
 }
 
 /// Single-point turning (XZ or XZB) with an arc-nosed tool.
@@ -33,6 +36,12 @@ pub struct TurningProcess {
     pub spindle_rpm: Option<f64>,
 }
 
+/// Milling with an end mill or a disc cutter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MillingProcess {
+    pub setup: MillingSetup,
+}
+
 /// Lens generating with a cup wheel.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GeneratingProcess {
@@ -44,14 +53,21 @@ impl Process {
     pub fn turning(&self) -> Option<&TurningProcess> {
         match self {
             Process::Turning(turning) => Some(turning),
-            Process::Generating(_) => None,
+            _ => None,
         }
     }
 
     pub fn generating(&self) -> Option<&GeneratingProcess> {
         match self {
             Process::Generating(generating) => Some(generating),
-            Process::Turning(_) => None,
+            _ => None,
+        }
+    }
+
+    pub fn milling(&self) -> Option<&MillingProcess> {
+        match self {
+            Process::Milling(milling) => Some(milling),
+            _ => None,
         }
     }
 
@@ -60,13 +76,18 @@ impl Process {
         match self {
             Process::Turning(turning) => turning.path.outer_radius_mm(),
             Process::Generating(generating) => generating.setup.reach_radius_mm(),
+            Process::Milling(milling) => milling.setup.contact_radius_mm,
         }
     }
 
-    /// Spacing of the turning passes near the axis; `None` for generating, whose
-    /// marks run across the rings rather than along the meridian.
+    /// Spacing of the passes near the axis (turning feed, milling step-over); `None`
+    /// for generating, whose marks run across the rings rather than along the meridian.
     pub fn pass_spacing_mm(&self) -> Option<f64> {
-        self.turning().map(|turning| turning.path.pass_spacing_mm())
+        match self {
+            Process::Turning(turning) => Some(turning.path.pass_spacing_mm()),
+            Process::Milling(milling) => Some(milling.setup.stepover_mm),
+            Process::Generating(_) => None,
+        }
     }
 }
 

@@ -34,6 +34,17 @@ pub fn validate_generating(
             ("nc_program", spec.nc_program.is_some()),
             ("nc_reference", spec.nc_reference.is_some()),
             ("compensation", spec.compensation.is_some()),
+            ("path", spec.path.is_some()),
+            ("axes", spec.axes.is_some()),
+            ("stepover_mm", spec.stepover_mm.is_some()),
+            ("scallop_mm", spec.scallop_mm.is_some()),
+            ("raster_angle_deg", spec.raster_angle_deg.is_some()),
+            ("lead_deg", spec.lead_deg.is_some()),
+            ("tilt_deg", spec.tilt_deg.is_some()),
+            ("lead_end_deg", spec.lead_end_deg.is_some()),
+            ("tilt_end_deg", spec.tilt_end_deg.is_some()),
+            ("turn_deg", spec.turn_deg.is_some()),
+            ("feed_per_tooth_mm", spec.feed_per_tooth_mm.is_some()),
         ],
     )?;
     let wheel = validate_wheel(file)?;
@@ -190,6 +201,11 @@ fn validate_wheel(file: &JobFile) -> Result<CupWheel, JobError> {
                 spec.edge_profile_smoothing_points.is_some(),
             ),
             ("edge_profile_mirror", spec.edge_profile_mirror.is_some()),
+            ("diameter_mm", spec.diameter_mm.is_some()),
+            ("corner_radius_mm", spec.corner_radius_mm.is_some()),
+            ("insert_length_mm", spec.insert_length_mm.is_some()),
+            ("side_rake_deg", spec.side_rake_deg.is_some()),
+            ("lead_angle_deg", spec.lead_angle_deg.is_some()),
         ],
     )?;
     let cutting = required(

@@ -9,6 +9,7 @@
 
 mod effects;
 mod generating;
+mod milling;
 mod process;
 mod surface;
 
@@ -120,6 +121,15 @@ pub enum ToolKind {
     ArcNose,
     /// A lens generator's cup (ring) wheel.
     CupWheel,
+    /// Milling: a ball-end mill (diameter_mm).
+    BallEnd,
+    /// Milling: a bull-nose (toroidal) end mill (diameter_mm, corner_radius_mm).
+    BullNose,
+    /// Milling: a flat-end mill (diameter_mm).
+    FlatEnd,
+    /// Milling: a disc cutter with straight-edged inserts (diameter_mm at the inserts,
+    /// insert_length_mm, side_rake_deg, lead_angle_deg).
+    Disc,
 }
 
 /// The `[tool]` table. Arc-nose fields: nose_radius_mm, included_angle_deg,
@@ -156,8 +166,24 @@ pub struct ToolSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub edge_radius_mm: Option<f64>,
     /// Cup wheel: number of discrete cutting edges; 0 (default) = a continuous edge.
+    /// Milling: cutting edges (default 2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub teeth: Option<u32>,
+    /// Milling: the tool's diameter (end mills: outer; disc: at the inserts' middles).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diameter_mm: Option<f64>,
+    /// Bull-nose: the corner radius, (0, diameter/2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub corner_radius_mm: Option<f64>,
+    /// Disc: length of each straight edge.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub insert_length_mm: Option<f64>,
+    /// Disc: the edges' side rake λ, [0, 80].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub side_rake_deg: Option<f64>,
+    /// Disc: the edges' lead from the radial direction, (0, 180), 90 = parallel to the axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lead_angle_deg: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -165,6 +191,7 @@ pub struct ToolSpec {
 pub enum ProcessKind {
     Turning,
     Generating,
+    Milling,
 }
 
 /// The `[process]` table. Turning fields: mode, feeds, spindle_rpm, depth_of_cut_mm,
@@ -234,6 +261,41 @@ pub struct ProcessSpec {
     /// writes it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cutter_offset_mm: Option<f64>,
+    /// Milling: 3 (the tool axis stays vertical, default) or 5 (it follows the surface
+    /// normal, leaned by lead_deg and tilt_deg).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axes: Option<u8>,
+    /// Milling: "raster", "spiral" or "constant_scallop".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<crate::process::MillingPathKind>,
+    /// Milling: step between passes in XY (raster, spiral); or give scallop_mm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stepover_mm: Option<f64>,
+    /// Milling: the allowed scallop height (sets the step-over; constant_scallop keeps it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scallop_mm: Option<f64>,
+    /// Milling: raster pass direction from +X (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub raster_angle_deg: Option<f64>,
+    /// Milling: lead λ of the tool axis from the normal toward the feed, [0, 90) (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lead_deg: Option<f64>,
+    /// Milling: tilt ω turning the lean about the normal, [−90, 90] (default 0; 90 = a
+    /// lean across the feed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt_deg: Option<f64>,
+    /// Milling: lead at the path's end (varies linearly; default: lead_deg).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lead_end_deg: Option<f64>,
+    /// Milling: tilt at the path's end (default: tilt_deg).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt_end_deg: Option<f64>,
+    /// Milling, disc cutter: turn ξ of its axis about the normal from square to the feed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub turn_deg: Option<f64>,
+    /// Milling: advance per tooth (0 = a continuous sweep, no feed marks).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub feed_per_tooth_mm: Option<f64>,
 }
 
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -382,6 +444,7 @@ impl Job {
             ProcessKind::Generating => {
                 generating::validate_generating(&file, &mut resolved, &mut warnings)?
             }
+            ProcessKind::Milling => milling::validate_milling(&file, &mut resolved, &mut warnings)?,
         };
         let meridian = MeridianArcLength::new(
             &surface,
@@ -418,8 +481,8 @@ impl Job {
             ));
         }
         match &process {
-            Process::Turning(turning) => {
-                let pass_spacing = turning.path.pass_spacing_mm();
+            Process::Turning(_) | Process::Milling(_) => {
+                let pass_spacing = process.pass_spacing_mm().unwrap_or(f64::INFINITY);
                 if pitch_mm * 4.0 > pass_spacing {
                     warnings.push(format!(
                         "grid.pitch_um = {:.3} is coarser than a quarter of the pass spacing ({:.3} µm): scallops will not be resolved",

@@ -40,6 +40,17 @@ pub fn validate_turning(
             ),
             ("tooth_phase_deg", spec.tooth_phase_deg.is_some()),
             ("cutter_offset_mm", spec.cutter_offset_mm.is_some()),
+            ("path", spec.path.is_some()),
+            ("axes", spec.axes.is_some()),
+            ("stepover_mm", spec.stepover_mm.is_some()),
+            ("scallop_mm", spec.scallop_mm.is_some()),
+            ("raster_angle_deg", spec.raster_angle_deg.is_some()),
+            ("lead_deg", spec.lead_deg.is_some()),
+            ("tilt_deg", spec.tilt_deg.is_some()),
+            ("lead_end_deg", spec.lead_end_deg.is_some()),
+            ("tilt_end_deg", spec.tilt_end_deg.is_some()),
+            ("turn_deg", spec.turn_deg.is_some()),
+            ("feed_per_tooth_mm", spec.feed_per_tooth_mm.is_some()),
         ],
     )?;
     let tool = validate_tool(&file.tool)?;
@@ -134,6 +145,11 @@ fn validate_tool(spec: &ToolSpec) -> Result<ArcNoseTool, JobError> {
             ("cutting_radius_mm", spec.cutting_radius_mm.is_some()),
             ("edge_radius_mm", spec.edge_radius_mm.is_some()),
             ("teeth", spec.teeth.is_some()),
+            ("diameter_mm", spec.diameter_mm.is_some()),
+            ("corner_radius_mm", spec.corner_radius_mm.is_some()),
+            ("insert_length_mm", spec.insert_length_mm.is_some()),
+            ("side_rake_deg", spec.side_rake_deg.is_some()),
+            ("lead_angle_deg", spec.lead_angle_deg.is_some()),
         ],
     )?;
     let nose = required(

@@ -1,0 +1,358 @@
+//! Everything a removal engine needs for a milling job, and the f64 search it runs per
+//! sample (the CPU engine's body).
+//!
+//! A sample's dexel ray meets the tool swept along a pass at the lowest entry over the
+//! pass's arc length. Only poses whose centre lies near where a cutting pose's centre
+//! must be can cut the sample below the stock top: a tool touching the sample's point p
+//! has its centre at p + r·n plus at most its flat radius R across n, and one that dips
+//! below the stock top t there lies within √(2 r_p (t + lift)) more (r_p the profile
+//! radius across the pass). So the path's nodes are binned in 3-D by their centre, and a
+//! sample looks only at the nodes within that radius (plus one node spacing) of p + r·n,
+//! over the span of each pass's nodes found there. Along the span the entry, extended
+//! past the stock top by the distance of the stock-top point from the tool (continuous
+//! where the entry reaches the stock top, growing away from the tool), is minimised by
+//! golden-section search, after a coarse scan when the span is long. With teeth, the
+//! tool cuts only where a tooth passes (every `feed_per_tooth` of travel): the stamps
+//! around the continuous optimum are evaluated instead.
+
+use super::generating_scene::golden_section_min_steps;
+use crate::field::{NO_PASS, PolarGrid};
+use crate::geometry::cutter::CutterPose;
+use crate::geometry::milling_tool::MillingTool;
+use crate::process::milling::MillingPath;
+use glam::DVec3;
+
+#[derive(Debug, Clone)]
+pub struct MillingScene {
+    pub grid: PolarGrid,
+    pub tool: MillingTool,
+    pub path: MillingPath,
+    /// Normal distance of the stock's top above nominal: the value of uncut samples.
+    pub stock_top_mm: f64,
+    /// Where a cutting pose's centre sits from the sample point, along its normal.
+    pub centre_offset_mm: f64,
+    /// How far from there a node's centre can be and its tool still cut the sample.
+    pub search_radius_mm: f64,
+    /// Advance per tooth (0: the tool body sweeps continuously).
+    pub feed_per_tooth_mm: f64,
+    /// For a ball, how far a pass's cut can lie below its value at the node nearest the
+    /// expected centre (half a node spacing of travel under the ball); `None` for other
+    /// tools, whose cut need not be near that node (every candidate pass is searched).
+    pub node_slack_mm: Option<f64>,
+    bins: NodeBins,
+    /// Dexel–pass pairs the engine evaluates (samples × candidate passes).
+    pairs: u64,
+}
+
+/// Path nodes binned in 3-D by their pose centre.
+#[derive(Debug, Clone)]
+struct NodeBins {
+    origin: DVec3,
+    cell_mm: f64,
+    size: [usize; 3],
+    /// Per cell: (pass, node) of the nodes whose centre lies in it.
+    cells: Vec<Vec<(u32, u32)>>,
+}
+
+impl NodeBins {
+    fn new(path: &MillingPath, cell_mm: f64) -> Self {
+        let (mut low, mut high) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for node in path.passes.iter().flat_map(|p| &p.nodes) {
+            low = low.min(node.pose.centre);
+            high = high.max(node.pose.centre);
+        }
+        let count = |span: f64| ((span / cell_mm).floor() as usize + 1).max(1);
+        let size = [
+            count(high.x - low.x),
+            count(high.y - low.y),
+            count(high.z - low.z),
+        ];
+        let mut cells = vec![Vec::new(); size[0] * size[1] * size[2]];
+        for (p, pass) in path.passes.iter().enumerate() {
+            for (n, node) in pass.nodes.iter().enumerate() {
+                let c = ((node.pose.centre - low) / cell_mm).floor();
+                let index = (c.z as usize * size[1] + c.y as usize) * size[0] + c.x as usize;
+                cells[index].push((p as u32, n as u32));
+            }
+        }
+        Self {
+            origin: low,
+            cell_mm,
+            size,
+            cells,
+        }
+    }
+
+    /// Per pass, the range of node indices in the cells around `point` (sorted by pass).
+    fn candidates(&self, point: DVec3) -> Vec<(u32, u32, u32)> {
+        let c = ((point - self.origin) / self.cell_mm).floor();
+        let range = |centre: f64, size: usize| {
+            let low = (centre as i64 - 1).max(0);
+            let high = (centre as i64 + 1).min(size as i64 - 1);
+            low..=high
+        };
+        let mut found: Vec<(u32, u32, u32)> = Vec::new();
+        for z in range(c.z, self.size[2]) {
+            for y in range(c.y, self.size[1]) {
+                for x in range(c.x, self.size[0]) {
+                    let index =
+                        (z as usize * self.size[1] + y as usize) * self.size[0] + x as usize;
+                    for &(pass, node) in &self.cells[index] {
+                        match found.iter_mut().find(|f| f.0 == pass) {
+                            Some(f) => {
+                                f.1 = f.1.min(node);
+                                f.2 = f.2.max(node);
+                            }
+                            None => found.push((pass, node, node)),
+                        }
+                    }
+                }
+            }
+        }
+        found.sort_unstable();
+        found
+    }
+}
+
+/// One pass's cut at a sample: depth along the ray, the path arc length of the pose
+/// that made it, and the pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PassCut {
+    pub depth_mm: f64,
+    pub arc_mm: f64,
+    pub pose: CutterPose,
+}
+
+impl MillingScene {
+    /// `lift_mm` is how far above the nominal the path's contacts sit (stock − depth),
+    /// `profile_radius_mm` the tool's profile radius across the passes.
+    pub fn new(
+        grid: PolarGrid,
+        tool: MillingTool,
+        path: MillingPath,
+        stock_top_mm: f64,
+        lift_mm: f64,
+        profile_radius_mm: f64,
+        feed_per_tooth_mm: f64,
+    ) -> Self {
+        let (centre_offset_mm, lateral) = tool.centre_offset_and_lateral_reach();
+        // Node spacing: a cutting pose may lie between two nodes.
+        let spacing = path
+            .passes
+            .iter()
+            .flat_map(|p| {
+                p.nodes
+                    .windows(2)
+                    .map(|w| (w[1].pose.centre - w[0].pose.centre).length())
+            })
+            .fold(0.0, f64::max);
+        let dip = (stock_top_mm.abs() + lift_mm.abs()).max(0.0);
+        let search_radius_mm =
+            lateral + (2.0 * profile_radius_mm.max(1e-3) * dip).sqrt() + dip + spacing + 1e-6;
+        let bins = NodeBins::new(&path, search_radius_mm);
+        let is_ball = matches!(tool, MillingTool::EndMill(c) if c.major_radius_mm == 0.0);
+        let node_slack_mm =
+            is_ball.then(|| (0.5 * spacing).powi(2) / (2.0 * profile_radius_mm.max(1e-3)) + 1e-9);
+        let mut scene = Self {
+            grid,
+            tool,
+            path,
+            stock_top_mm,
+            centre_offset_mm,
+            search_radius_mm,
+            feed_per_tooth_mm,
+            node_slack_mm,
+            bins,
+            pairs: 0,
+        };
+        scene.pairs = scene.count_pairs();
+        scene
+    }
+
+    /// A sample's nominal point and outward normal in 3-D.
+    pub fn sample_ray(&self, ring: usize, azimuth: u32) -> (DVec3, DVec3) {
+        let r = &self.grid.rings[ring];
+        let (sin, cos) = self.grid.azimuth_rad(azimuth).sin_cos();
+        (
+            DVec3::new(r.radius_mm * cos, r.radius_mm * sin, r.height_mm),
+            DVec3::new(r.normal.x * cos, r.normal.x * sin, r.normal.y),
+        )
+    }
+
+    /// Passes with a node within the search radius of where a pose cutting the sample
+    /// would sit: (pass, first node, last node) of their nodes in the cells around it.
+    pub fn candidate_passes(&self, origin: DVec3, normal: DVec3) -> Vec<(u32, u32, u32)> {
+        let expected = origin + self.centre_offset_mm * normal;
+        let mut candidates = self.bins.candidates(expected);
+        candidates.retain(|&(pass, first, last)| {
+            let nodes = &self.path.passes[pass as usize].nodes[first as usize..=last as usize];
+            nodes
+                .iter()
+                .any(|n| (n.pose.centre - expected).length() <= self.search_radius_mm)
+        });
+        candidates
+    }
+
+    /// Dexel–pass pairs the engine evaluates (samples × candidate passes).
+    pub fn pair_count(&self) -> u64 {
+        self.pairs
+    }
+
+    fn count_pairs(&self) -> u64 {
+        use rayon::prelude::*;
+        let rings = self.grid.ring_count();
+        (0..self.grid.sample_count())
+            .into_par_iter()
+            .map(|s| {
+                let (origin, normal) = self.sample_ray(s % rings, (s / rings) as u32);
+                self.candidate_passes(origin, normal).len() as u64
+            })
+            .sum()
+    }
+
+    /// The entry of the ray into the tool at `pose`, extended above the stock top by
+    /// the stock-top point's distance from the tool.
+    fn extended_entry(&self, pose: &CutterPose, origin: DVec3, normal: DVec3) -> f64 {
+        let top = self.stock_top_mm;
+        match self.tool.ray_entry(pose, origin, normal) {
+            Some(entry) if entry < top => entry,
+            _ => {
+                top + self
+                    .tool
+                    .signed_distance(pose, origin + top * normal)
+                    .max(0.0)
+            }
+        }
+    }
+
+    /// A pass's cut at its node nearest the expected pose centre and that node's
+    /// neighbours: an upper bound of its lowest cut, which for a ball lies at most
+    /// `node_slack_mm` lower.
+    fn node_estimate(&self, pass: u32, first: u32, last: u32, origin: DVec3, normal: DVec3) -> f64 {
+        let nodes = &self.path.passes[pass as usize].nodes;
+        let expected = origin + self.centre_offset_mm * normal;
+        let nearest = (first as usize..=last as usize)
+            .min_by(|&a, &b| {
+                let da = (nodes[a].pose.centre - expected).length_squared();
+                let db = (nodes[b].pose.centre - expected).length_squared();
+                da.total_cmp(&db)
+            })
+            .unwrap_or(first as usize);
+        (nearest.saturating_sub(1)..=(nearest + 1).min(nodes.len() - 1))
+            .map(|i| self.extended_entry(&nodes[i].pose, origin, normal))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The lowest cut of pass `pass` (nodes first..=last near the sample) on the ray.
+    pub fn pass_cut(
+        &self,
+        pass: u32,
+        first: u32,
+        last: u32,
+        origin: DVec3,
+        normal: DVec3,
+    ) -> Option<PassCut> {
+        let pass = &self.path.passes[pass as usize];
+        let nodes = &pass.nodes;
+        let from = nodes[(first as usize).saturating_sub(1)].arc_mm;
+        let to = nodes[(last as usize + 1).min(nodes.len() - 1)].arc_mm;
+        let entry_at = |arc: f64| self.extended_entry(&pass.pose_at(arc), origin, normal);
+        // Scan spans longer than the search radius (tight spiral turns), then refine the
+        // best bracket.
+        let steps = (((to - from) / (0.5 * self.search_radius_mm)).ceil() as usize).max(2);
+        let at = |i: usize| from + (to - from) * i as f64 / steps as f64;
+        let best = (0..=steps)
+            .map(|i| (i, entry_at(at(i))))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or(0, |b| b.0);
+        let (lo, hi) = (at(best.saturating_sub(1)), at((best + 1).min(steps)));
+        // 40 steps shrink the bracket (a few node spacings) to 4e-9 of it.
+        let mut arc = golden_section_min_steps(&entry_at, lo, hi, 40);
+        let mut depth = entry_at(arc);
+        if self.feed_per_tooth_mm > 0.0 {
+            // Only the tooth positions cut: the stamps around the optimum.
+            let pitch = self.feed_per_tooth_mm;
+            let nearest = (arc / pitch).floor();
+            let stamps = (-1..=2)
+                .map(|k| (nearest + k as f64) * pitch)
+                .filter(|s| (pass.start_arc()..=pass.end_arc()).contains(s));
+            (arc, depth) = stamps
+                .map(|s| (s, entry_at(s)))
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .unwrap_or((arc, f64::INFINITY));
+        }
+        (depth < self.stock_top_mm).then(|| PassCut {
+            depth_mm: depth,
+            arc_mm: arc,
+            pose: pass.pose_at(arc),
+        })
+    }
+}
+
+impl MillingScene {
+    /// Per sample, the diameter of the circle about the tool axis on which the edge cut
+    /// the finished surface there (NaN where no pass cut): the effective cutting diameter
+    /// at the generating contact (seed 004's De at the point K).
+    pub fn cutting_diameters(&self, field: &crate::field::DexelField) -> Vec<f64> {
+        use rayon::prelude::*;
+        let rings = self.grid.ring_count();
+        (0..self.grid.sample_count())
+            .into_par_iter()
+            .map(|s| {
+                let pass = field.pass[s];
+                if pass == NO_PASS {
+                    return f64::NAN;
+                }
+                let (origin, normal) = self.sample_ray(s % rings, (s / rings) as u32);
+                self.candidate_passes(origin, normal)
+                    .into_iter()
+                    .find(|c| c.0 == pass)
+                    .and_then(|(p, first, last)| self.pass_cut(p, first, last, origin, normal))
+                    .map_or(f64::NAN, |cut| {
+                        let contact = origin + cut.depth_mm * normal;
+                        2.0 * MillingTool::radius_at(&cut.pose, contact)
+                    })
+            })
+            .collect()
+    }
+}
+
+/// Depths closer than this count as a tie (1e-13 mm, far below any resolved feature).
+const TIE_MM: f64 = 1e-13;
+
+/// The machined surface at one sample and the pass that left it (the pass index).
+/// For a ball, candidate passes are ranked by their cut at the nearest nodes and one is
+/// searched in full only while that estimate, less the slack between nodes, can still
+/// beat the best; other tools search every candidate.
+pub fn milling_dexel(scene: &MillingScene, ring: usize, azimuth: u32) -> (f64, u32) {
+    let (origin, normal) = scene.sample_ray(ring, azimuth);
+    let mut ranked: Vec<(f64, u32, u32, u32)> = scene
+        .candidate_passes(origin, normal)
+        .into_iter()
+        .map(|(pass, first, last)| {
+            let estimate = match scene.node_slack_mm {
+                Some(_) => scene.node_estimate(pass, first, last, origin, normal),
+                None => f64::NEG_INFINITY,
+            };
+            (estimate, pass, first, last)
+        })
+        .collect();
+    ranked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut best = (scene.stock_top_mm, NO_PASS);
+    for (estimate, pass, first, last) in ranked {
+        if scene
+            .node_slack_mm
+            .is_some_and(|slack| estimate - slack >= best.0)
+        {
+            break;
+        }
+        // A pass must cut measurably deeper to win: on a cusp line two passes tie, and
+        // rounding must not make the winner flicker from sample to sample.
+        if let Some(cut) = scene.pass_cut(pass, first, last, origin, normal)
+            && (cut.depth_mm < best.0 - TIE_MM || (cut.depth_mm < best.0 + TIE_MM && pass < best.1))
+        {
+            best = (cut.depth_mm, pass);
+        }
+    }
+    best
+}

@@ -1,0 +1,337 @@
+//! Milling (seeds 001, 003, 004) against closed forms: scallops of ball, bull-nose and
+//! tilted flat-end mills, seed 004's effective diameters, seed 003's disc-cutter section
+//! curvature, the constant-scallop path on the seed-002 asphere, feed marks.
+
+mod common;
+use common::*;
+use toolmark::engine::Scene;
+use toolmark::formulas::{
+    ball_effective_diameter_cusp_side, ball_effective_diameter_inclined, ball_main_angle,
+    ball_scallop_height, ball_side_angle, ball_stepover_for_scallop, effective_radius,
+    flat_scallop_height, oblique_section_radius, sphere_scallop_height, working_width_concave,
+    working_width_convex,
+};
+use toolmark::io::job::Job;
+use toolmark::run::{RunResult, prepare_scenes};
+
+fn milling(surface: &str, tool: &str, process: &str, grid: &str) -> Job {
+    job(&format!(
+        "version = 1\n[surface]\n{surface}\n[tool]\n{tool}\n[process]\nkind = \"milling\"\n{process}\n[grid]\n{grid}\n"
+    ))
+}
+
+/// Interior cusps with their position (mm along the meridian), within [from, to].
+fn cusps(result: &RunResult, from: f64, to: f64) -> Vec<(f64, f64)> {
+    result
+        .scallops
+        .cusps
+        .iter()
+        .filter(|c| (from..=to).contains(&c.position_mm))
+        .map(|c| (c.position_mm, c.scallop_mm))
+        .collect()
+}
+
+/// Worst relative error of the cusps against a constant `expected` (mm).
+fn worst(cusps: &[(f64, f64)], expected: f64) -> f64 {
+    cusps
+        .iter()
+        .map(|c| (c.1 / expected - 1.0).abs())
+        .fold(0.0, f64::max)
+}
+
+const PLANE: &str = "kind = \"plane\"\naperture_diameter_mm = 20.0";
+
+#[test]
+fn scallops_match_the_closed_forms_on_six_cases() {
+    // Ball on a plane, seed 004: D = 16, Tn = 3 → 0.142 mm.
+    let result = run_cpu(milling(
+        PLANE,
+        "kind = \"ball_end\"\ndiameter_mm = 16.0",
+        "path = \"raster\"\nstepover_mm = 3.0\nstock_allowance_mm = 0.3",
+        "pitch_um = 10.0\nazimuths = 48",
+    ));
+    let expected = ball_scallop_height(16.0, 3.0);
+    let found = cusps(&result, 0.0, 10.0);
+    println!(
+        "ball D16 Tn 3 on a plane: closed form {:.5} mm, {} cusps, worst {:.4} %",
+        expected,
+        found.len(),
+        100.0 * worst(&found, expected)
+    );
+    assert!(
+        (expected - 0.1419).abs() < 1e-4 && found.len() >= 10 && worst(&found, expected) < 0.02
+    );
+
+    // Ball on a plane planned for h = 0.01 mm: Tn = 0.80 mm (seed 004 eqs. 7–8).
+    let job = milling(
+        PLANE,
+        "kind = \"ball_end\"\ndiameter_mm = 16.0",
+        "path = \"raster\"\nscallop_mm = 0.01\nstock_allowance_mm = 0.05",
+        "pitch_um = 5.0\nazimuths = 16",
+    );
+    let step = job.process.milling().unwrap().setup.stepover_mm;
+    assert!(
+        (step - ball_stepover_for_scallop(16.0, 0.01)).abs() < 1e-12 && (step - 0.80).abs() < 0.005
+    );
+    let result = run_cpu(job);
+    let found = cusps(&result, 0.0, 10.0);
+    println!(
+        "ball D16 h 0.01 on a plane: Tn {step:.4} mm, {} cusps, worst {:.4} %",
+        found.len(),
+        100.0 * worst(&found, 0.01)
+    );
+    assert!(found.len() >= 40 && worst(&found, 0.01) < 0.02);
+
+    // Ball on concave and convex spheres, step from seed 001 eq. (8) and its convex
+    // counterpart for h = 0.5 µm (near the axis the radial step is the surface spacing).
+    for (form, width) in [
+        ("concave", working_width_concave(0.0005, 1.0, 20.0)),
+        ("convex", working_width_convex(0.0005, 1.0, 20.0)),
+    ] {
+        let result = run_cpu(milling(
+            &format!(
+                "kind = \"sphere\"\nform = \"{form}\"\nradius_mm = 20.0\naperture_diameter_mm = 2.0"
+            ),
+            "kind = \"ball_end\"\ndiameter_mm = 2.0",
+            &format!("path = \"spiral\"\nstepover_mm = {width}\nstock_allowance_mm = 0.003"),
+            "pitch_um = 0.5\nazimuths = 8",
+        ));
+        // Away from the spiral's end at the centre; exact form at each cusp's radius.
+        let found = cusps(&result, 0.2, 0.9);
+        let convex = form == "convex";
+        let error = found
+            .iter()
+            .map(|&(s, h)| {
+                let r = 20.0 * (s / 20.0).sin();
+                let spacing = width * (1.0 + (r / 20.0).powi(2)).sqrt(); // ≈ surface spacing
+                let expected = sphere_scallop_height(1.0, 20.0, spacing / 20.0, convex);
+                (h / expected - 1.0).abs()
+            })
+            .fold(0.0, f64::max);
+        println!(
+            "ball r 1 on a {form} R20 sphere, eq. (8) width {width:.5} mm for h = 0.5 µm: {} cusps, worst vs the exact form {:.3} %, vs h {:.3} %",
+            found.len(),
+            100.0 * error,
+            100.0 * worst(&found, 0.0005)
+        );
+        assert!(found.len() >= 50 && error < 0.02 && worst(&found, 0.0005) < 0.02);
+    }
+
+    // Bull-nose D4 r0.5 (flat bottom radius 1.5) at 3.4 mm on a plane: the corner arcs
+    // 0.4 mm apart leave r − √(r² − (0.2)²).
+    let result = run_cpu(milling(
+        PLANE,
+        "kind = \"bull_nose\"\ndiameter_mm = 4.0\ncorner_radius_mm = 0.5",
+        "path = \"raster\"\nstepover_mm = 3.4\nstock_allowance_mm = 0.05",
+        "pitch_um = 2.0\nazimuths = 48",
+    ));
+    let expected = flat_scallop_height(0.5, 3.4 - 3.0);
+    let found = cusps(&result, 0.0, 10.0);
+    println!(
+        "bull-nose on a plane: closed form {:.4} µm, {} cusps, worst {:.4} %",
+        expected * 1e3,
+        found.len(),
+        100.0 * worst(&found, expected)
+    );
+    assert!(found.len() >= 10 && worst(&found, expected) < 0.02);
+
+    // Flat end D4 leaned 10° toward the feed (5-axis): r_e = r/sin λ (seed 001 eq. 10).
+    let result = run_cpu(milling(
+        PLANE,
+        "kind = \"flat_end\"\ndiameter_mm = 4.0",
+        "path = \"raster\"\naxes = 5\nlead_deg = 10.0\nstepover_mm = 0.5\nstock_allowance_mm = 0.05",
+        "pitch_um = 2.0\nazimuths = 16",
+    ));
+    let r_e = effective_radius(2.0, 10f64.to_radians(), 0.0);
+    let expected = 0.5f64.powi(2) / (8.0 * r_e);
+    // Exactly: the lower half of the ellipse of semi-axes r and r sin λ.
+    let ellipse = 2.0 * 10f64.to_radians().sin() * (1.0 - (1.0 - (0.25f64 / 2.0).powi(2)).sqrt());
+    let found = cusps(&result, 0.0, 10.0);
+    println!(
+        "flat end leaned 10°: s²/8r_e {:.2} nm (r_e {r_e:.3} mm), ellipse {:.2} nm, {} cusps, worst vs s²/8r_e {:.3} %, vs ellipse {:.4} %",
+        expected * 1e6,
+        ellipse * 1e6,
+        found.len(),
+        100.0 * worst(&found, expected),
+        100.0 * worst(&found, ellipse)
+    );
+    assert!(found.len() >= 40 && worst(&found, expected) < 0.02 && worst(&found, ellipse) < 0.001);
+}
+
+#[test]
+fn seed_004_effective_diameters_from_the_simulated_contacts() {
+    // D = 16, ap = 1.2, Tn = 3, the cutter leaned across the feed by α on a plane: the
+    // finished surface is generated on the cusp side at D sin(φ₁ + α) (eq. 5, read from
+    // the simulated contacts), and the planned pose meets the stock's top on the other
+    // side at D sin(φ − α) (eq. 4).
+    for alpha_deg in [0.0f64, 10.5, 55.0] {
+        let job = milling(
+            "kind = \"plane\"\naperture_diameter_mm = 24.0",
+            "kind = \"ball_end\"\ndiameter_mm = 16.0",
+            &format!(
+                "path = \"raster\"\nstepover_mm = 3.0\naxes = 5\nlead_deg = {alpha_deg}\ntilt_deg = 90.0\nstock_allowance_mm = 1.2"
+            ),
+            "pitch_um = 10.0\nazimuths = 32",
+        );
+        let result = run_cpu(job.clone());
+        let alpha = alpha_deg.to_radians();
+        let largest = result
+            .cutting_diameter_mm
+            .as_ref()
+            .unwrap()
+            .iter()
+            .copied()
+            .filter(|d| d.is_finite())
+            .fold(0.0, f64::max);
+        let cusp_side = ball_effective_diameter_cusp_side(16.0, 3.0, alpha);
+        // The stock side, from a planned pose in the middle of the part.
+        let Scene::Milling(scene) = &prepare_scenes(&job)[0] else {
+            panic!()
+        };
+        let pass = &scene.path.passes[scene.path.passes.len() / 2];
+        let pose = pass.nodes[pass.nodes.len() / 2].pose;
+        // In the plane across the feed (x fixed), the ball's circle meets z = ap at
+        // y = centre.y ± √(r² − (centre.z − ap)²); the farther from the axis's foot is A.
+        let (r, ap) = (8.0f64, 1.2f64);
+        let half = (r * r - (pose.centre.z - ap).powi(2)).sqrt();
+        let stock_side = [-half, half]
+            .into_iter()
+            .map(|dy| {
+                let point = pose.centre + glam::DVec3::new(0.0, dy, ap - pose.centre.z);
+                2.0 * toolmark::geometry::milling_tool::MillingTool::radius_at(&pose, point)
+            })
+            .fold(f64::INFINITY, f64::min);
+        let expected_stock = ball_effective_diameter_inclined(16.0, 1.2, alpha);
+        println!(
+            "α = {alpha_deg}°: largest generating diameter {largest:.3} mm (eq. 5: {cusp_side:.3}); stock-side {stock_side:.3} mm (eq. 4: {expected_stock:.3}); φ = {:.2}°, φ₁ = {:.2}°",
+            ball_main_angle(16.0, 1.2).to_degrees(),
+            ball_side_angle(16.0, 3.0).to_degrees()
+        );
+        assert!((largest - cusp_side).abs() < 0.01 * cusp_side);
+        assert!((stock_side - expected_stock).abs() < 0.01 * expected_stock.max(1.0));
+    }
+}
+
+#[test]
+fn disc_cutter_section_radius_follows_the_hyperboloid_and_falls_with_the_turn() {
+    // Seed 003: d = 30 mm, λ = 19°, one straight pass along X over a plane; the section
+    // across the feed (the meridian at 90°) near the throat is a circle of radius
+    // (d/2)(cos²λ − sin²ξ)/sin²λ — 126.5 mm at ξ = 0.
+    for turn in [0.0f64, 10.0, 20.0] {
+        let result = run_cpu(milling(
+            "kind = \"plane\"\naperture_diameter_mm = 3.0",
+            "kind = \"disc\"\ndiameter_mm = 30.0\ninsert_length_mm = 10.0\nside_rake_deg = 19.0",
+            &format!(
+                "path = \"raster\"\nstepover_mm = 9.0\nturn_deg = {turn}\nstock_allowance_mm = 0.05"
+            ),
+            "pitch_um = 5.0\nazimuths = 4",
+        ));
+        let grid = result.grid();
+        // Azimuth row 1 runs along +Y; fit depth = c + y²/(2R) over |y| ≤ 1 mm.
+        let points: Vec<(f64, f64)> = (0..grid.ring_count())
+            .filter(|&i| grid.rings[i].radius_mm <= 1.0)
+            .map(|i| {
+                (
+                    grid.rings[i].radius_mm,
+                    result.field.depth_mm[grid.sample_index(i, 1)],
+                )
+            })
+            .collect();
+        let (n, sx, sy, sxx, sxy) = points.iter().fold((0.0, 0.0, 0.0, 0.0, 0.0), |a, &(y, d)| {
+            let x = y * y;
+            (a.0 + 1.0, a.1 + x, a.2 + d, a.3 + x * x, a.4 + x * d)
+        });
+        let slope = (n * sxy - sx * sy) / (n * sxx - sx * sx);
+        // The pass cuts deeper away from the throat: depth falls as y²/(2R).
+        let radius = -0.5 / slope;
+        let expected = oblique_section_radius(30.0, 19f64.to_radians(), turn.to_radians());
+        println!(
+            "ξ = {turn}°: simulated section radius {radius:.3} mm, closed form {expected:.3} mm"
+        );
+        assert!((radius / expected - 1.0).abs() < 0.01);
+    }
+}
+
+#[test]
+fn constant_scallop_holds_h_on_the_seed_002_asphere_where_constant_step_does_not() {
+    let asphere = "kind = \"asphere\"\nform = \"convex\"\nbase_radius_mm = 5.5\nconic = -0.7\na4 = 0.000284\naperture_diameter_mm = 20.0";
+    let tool = "kind = \"ball_end\"\ndiameter_mm = 1.0";
+    let h = 0.001;
+    let constant_scallop = run_cpu(milling(
+        asphere,
+        tool,
+        &format!("path = \"constant_scallop\"\nscallop_mm = {h}\nstock_allowance_mm = 0.02"),
+        "pitch_um = 2.0\nazimuths = 4",
+    ));
+    let constant_step = run_cpu(milling(
+        asphere,
+        tool,
+        "path = \"spiral\"\nstepover_mm = 0.06\nstock_allowance_mm = 0.02",
+        "pitch_um = 2.0\nazimuths = 4",
+    ));
+    // The spiral ends on the axis at whatever angle its last turn reaches it, so the
+    // innermost turns are spaced unevenly on some azimuths: skip three steps there.
+    let planned = &constant_scallop.job.process.milling().unwrap().setup;
+    let from = 3.0 * planned.radial_step(&constant_scallop.job.surface, 0.0);
+    let outer = constant_scallop.grid().rings.last().unwrap().arc_length_mm;
+    let a = cusps(&constant_scallop, from, outer);
+    let b = cusps(&constant_step, from, outer);
+    let range = |c: &[(f64, f64)]| {
+        c.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), x| {
+            (lo.min(x.1), hi.max(x.1))
+        })
+    };
+    let (a_lo, a_hi) = range(&a);
+    let (b_lo, b_hi) = range(&b);
+    println!(
+        "seed-002 asphere, ball r 0.5, h = {:.0} nm: constant scallop {} cusps {:.1}–{:.1} nm; constant 60 µm step {} cusps {:.1}–{:.1} nm",
+        h * 1e6,
+        a.len(),
+        a_lo * 1e6,
+        a_hi * 1e6,
+        b.len(),
+        b_lo * 1e6,
+        b_hi * 1e6
+    );
+    assert!(a.len() > 500);
+    assert!(
+        a_lo >= 0.9 * h && a_hi <= 1.1 * h,
+        "constant scallop within ±10 %"
+    );
+    assert!(
+        b_lo < 0.9 * h || b_hi > 1.1 * h,
+        "constant step-over is not"
+    );
+}
+
+#[test]
+fn teeth_leave_feed_marks_of_the_per_tooth_advance() {
+    // A ball r 1 mm with 2 teeth at 0.05 mm per tooth: stamps 0.05 mm apart along the
+    // feed leave marks r − √(r² − (f/2)²) = 312.7 nm high along a pass.
+    let result = run_cpu(milling(
+        "kind = \"plane\"\naperture_diameter_mm = 4.0",
+        "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2",
+        "path = \"raster\"\nstepover_mm = 0.1\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.005",
+        "pitch_um = 0.1\nazimuths = 4",
+    ));
+    let grid = result.grid();
+    // Azimuth row 0 runs along +X, on the pass through the axis: its deviation swings
+    // between the stamps' bottoms and the marks.
+    let row: Vec<f64> = (0..grid.ring_count())
+        .filter(|&i| grid.rings[i].radius_mm < 0.5)
+        .map(|i| result.field.depth_mm[grid.sample_index(i, 0)])
+        .collect();
+    let (lo, hi) = row
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &d| {
+            (a.min(d), b.max(d))
+        });
+    let expected = flat_scallop_height(1.0, 0.05);
+    println!(
+        "feed marks: swing {:.2} nm along the pass, closed form {:.2} nm",
+        (hi - lo) * 1e6,
+        expected * 1e6
+    );
+    // Sampled every 0.1 µm, a mark's top (a kink of slope f/2r) is missed by < 1.3 nm.
+    assert!(((hi - lo) / expected - 1.0).abs() < 0.01);
+}
