@@ -29,9 +29,15 @@ pub struct MillingScene {
     pub path: MillingPath,
     /// Normal distance of the stock's top above nominal: the value of uncut samples.
     pub stock_top_mm: f64,
-    /// Where a cutting pose's centre sits from the sample point, along its normal.
+    /// Where a cutting pose's centre sits from the sample point, along its normal (an
+    /// end mill's corner radius, a disc's throat radius).
     pub centre_offset_mm: f64,
-    /// How far from there a node's centre can be and its tool still cut the sample.
+    /// How far across the normal it can sit besides (an end mill's flat radius R, which
+    /// the axis of each run of nodes pins down; half a disc's edge span).
+    pub lateral_mm: f64,
+    /// How far from the expected centre a node's centre can be and its tool still cut
+    /// the sample: the dip below the stock top a profile of radius r_p allows across
+    /// the pass, plus one node spacing.
     pub search_radius_mm: f64,
     /// Advance per tooth (0: the tool body sweeps continuously).
     pub feed_per_tooth_mm: f64,
@@ -44,14 +50,34 @@ pub struct MillingScene {
     pairs: u64,
 }
 
-/// Path nodes binned in 3-D by their pose centre.
+/// Path nodes binned in 3-D by their pose centre, as runs of consecutive nodes of one
+/// pass lying in one cell (with the run's bounding box and the axis at its start).
 #[derive(Debug, Clone)]
 struct NodeBins {
     origin: DVec3,
     cell_mm: f64,
     size: [usize; 3],
-    /// Per cell: (pass, node) of the nodes whose centre lies in it.
-    cells: Vec<Vec<(u32, u32)>>,
+    cells: Vec<Vec<Run>>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Run {
+    pass: u32,
+    first: u32,
+    last: u32,
+    low: DVec3,
+    high: DVec3,
+    axis: DVec3,
+}
+
+impl Run {
+    /// Distance from a point to the run's bounding box.
+    fn distance(&self, point: DVec3) -> f64 {
+        (self.low - point)
+            .max(point - self.high)
+            .max(DVec3::ZERO)
+            .length()
+    }
 }
 
 impl NodeBins {
@@ -67,12 +93,40 @@ impl NodeBins {
             count(high.y - low.y),
             count(high.z - low.z),
         ];
-        let mut cells = vec![Vec::new(); size[0] * size[1] * size[2]];
+        let mut cells: Vec<Vec<Run>> = vec![Vec::new(); size[0] * size[1] * size[2]];
+        let cell_of = |centre: DVec3| {
+            let c = ((centre - low) / cell_mm).floor();
+            (c.z as usize * size[1] + c.y as usize) * size[0] + c.x as usize
+        };
         for (p, pass) in path.passes.iter().enumerate() {
+            let mut current: Option<(usize, Run)> = None;
             for (n, node) in pass.nodes.iter().enumerate() {
-                let c = ((node.pose.centre - low) / cell_mm).floor();
-                let index = (c.z as usize * size[1] + c.y as usize) * size[0] + c.x as usize;
-                cells[index].push((p as u32, n as u32));
+                let centre = node.pose.centre;
+                let cell = cell_of(centre);
+                match &mut current {
+                    Some((c, run)) if *c == cell => {
+                        run.last = n as u32;
+                        run.low = run.low.min(centre);
+                        run.high = run.high.max(centre);
+                    }
+                    _ => {
+                        if let Some((c, run)) = current.take() {
+                            cells[c].push(run);
+                        }
+                        let run = Run {
+                            pass: p as u32,
+                            first: n as u32,
+                            last: n as u32,
+                            low: centre,
+                            high: centre,
+                            axis: node.pose.axis,
+                        };
+                        current = Some((cell, run));
+                    }
+                }
+            }
+            if let Some((c, run)) = current {
+                cells[c].push(run);
             }
         }
         Self {
@@ -83,34 +137,24 @@ impl NodeBins {
         }
     }
 
-    /// Per pass, the range of node indices in the cells around `point` (sorted by pass).
-    fn candidates(&self, point: DVec3) -> Vec<(u32, u32, u32)> {
+    /// The runs in the cells around `point`.
+    fn runs_near(&self, point: DVec3) -> impl Iterator<Item = &Run> {
         let c = ((point - self.origin) / self.cell_mm).floor();
         let range = |centre: f64, size: usize| {
             let low = (centre as i64 - 1).max(0);
             let high = (centre as i64 + 1).min(size as i64 - 1);
             low..=high
         };
-        let mut found: Vec<(u32, u32, u32)> = Vec::new();
+        let mut indices = Vec::with_capacity(27);
         for z in range(c.z, self.size[2]) {
             for y in range(c.y, self.size[1]) {
                 for x in range(c.x, self.size[0]) {
-                    let index =
-                        (z as usize * self.size[1] + y as usize) * self.size[0] + x as usize;
-                    for &(pass, node) in &self.cells[index] {
-                        match found.iter_mut().find(|f| f.0 == pass) {
-                            Some(f) => {
-                                f.1 = f.1.min(node);
-                                f.2 = f.2.max(node);
-                            }
-                            None => found.push((pass, node, node)),
-                        }
-                    }
+                    let index = (z as usize * self.size[1] + y as usize) * self.size[0] + x as usize;
+                    indices.push(index);
                 }
             }
         }
-        found.sort_unstable();
-        found
+        indices.into_iter().flat_map(move |i| self.cells[i].iter())
     }
 }
 
@@ -148,8 +192,8 @@ impl MillingScene {
             .fold(0.0, f64::max);
         let dip = (stock_top_mm.abs() + lift_mm.abs()).max(0.0);
         let search_radius_mm =
-            lateral + (2.0 * profile_radius_mm.max(1e-3) * dip).sqrt() + dip + spacing + 1e-6;
-        let bins = NodeBins::new(&path, search_radius_mm);
+            (2.0 * profile_radius_mm.max(1e-3) * dip).sqrt() + dip + spacing + 1e-6;
+        let bins = NodeBins::new(&path, search_radius_mm + lateral);
         let is_ball = matches!(tool, MillingTool::EndMill(c) if c.major_radius_mm == 0.0);
         let node_slack_mm =
             is_ball.then(|| (0.5 * spacing).powi(2) / (2.0 * profile_radius_mm.max(1e-3)) + 1e-9);
@@ -159,6 +203,7 @@ impl MillingScene {
             path,
             stock_top_mm,
             centre_offset_mm,
+            lateral_mm: lateral,
             search_radius_mm,
             feed_per_tooth_mm,
             node_slack_mm,
@@ -179,18 +224,41 @@ impl MillingScene {
         )
     }
 
-    /// Passes with a node within the search radius of where a pose cutting the sample
-    /// would sit: (pass, first node, last node) of their nodes in the cells around it.
+    /// Passes with nodes within the search radius of where a pose cutting the sample
+    /// would sit: (pass, first node, last node) over their runs near it. For an end mill
+    /// with a flat radius, each run's axis fixes the centre's offset across the normal
+    /// (toward n's part across the axis); a flat tip square to the normal may cut from
+    /// anywhere within R.
     pub fn candidate_passes(&self, origin: DVec3, normal: DVec3) -> Vec<(u32, u32, u32)> {
-        let expected = origin + self.centre_offset_mm * normal;
-        let mut candidates = self.bins.candidates(expected);
-        candidates.retain(|&(pass, first, last)| {
-            let nodes = &self.path.passes[pass as usize].nodes[first as usize..=last as usize];
-            nodes
-                .iter()
-                .any(|n| (n.pose.centre - expected).length() <= self.search_radius_mm)
-        });
-        candidates
+        let core = origin + self.centre_offset_mm * normal;
+        let mut found: Vec<(u32, u32, u32)> = Vec::new();
+        for run in self.bins.runs_near(core) {
+            let (expected, radius) = match self.tool {
+                MillingTool::EndMill(cutter) if cutter.major_radius_mm > 0.0 => {
+                    let across = normal - normal.dot(run.axis) * run.axis;
+                    if across.length() > 1e-6 {
+                        // The axis turns a little along a run (five-axis): allow for it.
+                        let centre = core + cutter.major_radius_mm * across.normalize();
+                        (centre, 2.0 * self.search_radius_mm)
+                    } else {
+                        (core, cutter.major_radius_mm + self.search_radius_mm)
+                    }
+                }
+                _ => (core, self.lateral_mm + self.search_radius_mm),
+            };
+            if run.distance(expected) > radius {
+                continue;
+            }
+            match found.iter_mut().find(|f| f.0 == run.pass) {
+                Some(f) => {
+                    f.1 = f.1.min(run.first);
+                    f.2 = f.2.max(run.last);
+                }
+                None => found.push((run.pass, run.first, run.last)),
+            }
+        }
+        found.sort_unstable();
+        found
     }
 
     /// Dexel–pass pairs the engine evaluates (samples × candidate passes).
@@ -259,7 +327,8 @@ impl MillingScene {
         let entry_at = |arc: f64| self.extended_entry(&pass.pose_at(arc), origin, normal);
         // Scan spans longer than the search radius (tight spiral turns), then refine the
         // best bracket.
-        let steps = (((to - from) / (0.5 * self.search_radius_mm)).ceil() as usize).max(2);
+        let scan = 0.5 * (self.search_radius_mm + self.lateral_mm);
+        let steps = (((to - from) / scan).ceil() as usize).max(2);
         let at = |i: usize| from + (to - from) * i as f64 / steps as f64;
         let best = (0..=steps)
             .map(|i| (i, entry_at(at(i))))

@@ -40,7 +40,8 @@ pub struct MillingSetup {
     /// Cutting edges (feed marks need feed_per_tooth_mm > 0 too).
     pub teeth: u32,
     pub path: MillingPathKind,
-    /// Step between passes in XY (raster, spiral).
+    /// Step between passes in XY (raster, spiral); for constant_scallop the tightest
+    /// spacing of its turns along the surface (planned).
     pub stepover_mm: f64,
     /// Target scallop height (constant_scallop).
     pub scallop_mm: f64,

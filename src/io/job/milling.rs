@@ -230,9 +230,13 @@ pub fn validate_milling(
     }
     setup.contact_radius_mm = contact;
     if path == MillingPathKind::ConstantScallop {
-        // The tightest step over the part, for the default grid and the reports.
+        // The tightest spacing of the turns along the surface, for the default grid and
+        // the reports.
         setup.stepover_mm = (0..=200)
-            .map(|i| setup.radial_step(&surface, contact * i as f64 / 200.0))
+            .map(|i| {
+                let r = contact * i as f64 / 200.0;
+                setup.radial_step(&surface, r) * surface.arc_length_rate(r)
+            })
             .fold(f64::INFINITY, f64::min);
     }
 
@@ -242,7 +246,17 @@ pub fn validate_milling(
             let passes = 2.0 * contact / setup.stepover_mm;
             passes * 2.0 * contact / (0.25 * tool.reach_mm()).min(0.05)
         }
-        _ => contact / setup.stepover_mm * SPIRAL_NODES_PER_TURN as f64,
+        MillingPathKind::Spiral => contact / setup.stepover_mm * SPIRAL_NODES_PER_TURN as f64,
+        MillingPathKind::ConstantScallop => {
+            let steps = 400;
+            let turns: f64 = (0..steps)
+                .map(|i| {
+                    let r = contact * (i as f64 + 0.5) / steps as f64;
+                    contact / steps as f64 / setup.radial_step(&surface, r)
+                })
+                .sum();
+            turns * SPIRAL_NODES_PER_TURN as f64
+        }
     };
     if nodes > MAX_NODES {
         return Err(error(
