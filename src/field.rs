@@ -1,11 +1,24 @@
-//! The normal-dexel field: samples of the nominal surface on a polar grid (rings
-//! evenly spaced in meridian arc length × evenly spaced azimuths), their normals, and
-//! the machined result at each: the signed distance along the outward normal from the
-//! nominal surface to the machined surface (+ = material left).
+//! The normal-dexel field: samples of the nominal surface on a grid of profile
+//! positions ("rings", evenly spaced in arc length along the profile) × rows, their
+//! normals, and the machined result at each: the signed distance along the outward
+//! normal from the nominal surface to the machined surface (+ = material left).
+//!
+//! A part is a profile z(u) either revolved about Z (rows = azimuths; planes, spheres,
+//! aspheres) or extruded along Y (rows = positions along Y; cylinders, the profile then
+//! running across the part from −X to +X).
 
 use crate::geometry::{MeridianArcLength, SurfaceOfRevolution};
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 use std::f64::consts::TAU;
+
+/// How the profile becomes the part.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Layout {
+    /// Revolved about Z: row j is azimuth 2πj/rows.
+    Polar,
+    /// Extruded along Y over `length_mm`: row j sits at y = −L/2 + (j + ½)·L/rows.
+    Extruded { length_mm: f64 },
+}
 
 /// One ring of samples: a nominal surface point and its normal, shared by all azimuths.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,13 +37,16 @@ impl Ring {
     }
 }
 
-/// Rings × azimuths. Sample `s = azimuth · ring_count + ring`: a row per azimuth.
+/// Rings × rows. Sample `s = row · ring_count + ring`: a row per azimuth (polar) or per
+/// position along Y (extruded).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PolarGrid {
     pub rings: Vec<Ring>,
+    /// Rows: azimuths (polar) or positions along Y (extruded).
     pub azimuths: u32,
     /// Spacing of the rings along the meridian (mm).
     pub pitch_mm: f64,
+    pub layout: Layout,
 }
 
 impl PolarGrid {
@@ -63,6 +79,87 @@ impl PolarGrid {
             rings,
             azimuths,
             pitch_mm,
+            layout: Layout::Polar,
+        }
+    }
+
+    /// An extruded part: the profile from x = −half_width to +half_width (rings evenly
+    /// spaced in arc length, the ring's `radius_mm` its signed x), `rows` positions along
+    /// Y over `length_mm`.
+    pub fn extruded(
+        surface: &SurfaceOfRevolution,
+        meridian: &MeridianArcLength,
+        half_width_mm: f64,
+        length_mm: f64,
+        pitch_mm: f64,
+        rows: u32,
+    ) -> Self {
+        let half = meridian.arc_length_at(half_width_mm);
+        let count = (2.0 * half / pitch_mm + 1e-9).floor() as usize + 1;
+        let start = -0.5 * (count - 1) as f64 * pitch_mm;
+        let rings = (0..count)
+            .map(|i| {
+                let arc_length_mm = start + i as f64 * pitch_mm;
+                let x = meridian
+                    .radius_at(arc_length_mm.abs())
+                    .copysign(arc_length_mm);
+                let normal = surface.normal(x.abs());
+                Ring {
+                    arc_length_mm,
+                    radius_mm: x,
+                    height_mm: surface.height(x.abs()),
+                    normal: DVec2::new(normal.x * x.signum(), normal.y),
+                }
+            })
+            .collect();
+        Self {
+            rings,
+            azimuths: rows,
+            pitch_mm,
+            layout: Layout::Extruded { length_mm },
+        }
+    }
+
+    /// The 3-D nominal point of a sample.
+    pub fn sample_point(&self, ring: usize, row: u32) -> DVec3 {
+        let r = &self.rings[ring];
+        match self.layout {
+            Layout::Polar => {
+                let (sin, cos) = self.azimuth_rad(row).sin_cos();
+                DVec3::new(r.radius_mm * cos, r.radius_mm * sin, r.height_mm)
+            }
+            Layout::Extruded { .. } => DVec3::new(r.radius_mm, self.row_y_mm(row), r.height_mm),
+        }
+    }
+
+    /// The 3-D outward unit normal of a sample.
+    pub fn sample_normal(&self, ring: usize, row: u32) -> DVec3 {
+        let n = self.rings[ring].normal;
+        match self.layout {
+            Layout::Polar => {
+                let (sin, cos) = self.azimuth_rad(row).sin_cos();
+                DVec3::new(n.x * cos, n.x * sin, n.y)
+            }
+            Layout::Extruded { .. } => DVec3::new(n.x, 0.0, n.y),
+        }
+    }
+
+    /// Y of an extruded row (0 for polar grids).
+    pub fn row_y_mm(&self, row: u32) -> f64 {
+        match self.layout {
+            Layout::Polar => 0.0,
+            Layout::Extruded { length_mm } => {
+                -0.5 * length_mm + (row as f64 + 0.5) * length_mm / self.azimuths as f64
+            }
+        }
+    }
+
+    /// Spacing of the rows where they cross ring `ring`: arc length along the ring, or
+    /// the Y step.
+    pub fn row_pitch_mm(&self, ring: usize) -> f64 {
+        match self.layout {
+            Layout::Polar => self.rings[ring].radius_mm * TAU / self.azimuths as f64,
+            Layout::Extruded { length_mm } => length_mm / self.azimuths as f64,
         }
     }
 
@@ -83,10 +180,13 @@ impl PolarGrid {
         azimuth as usize * self.rings.len() + ring
     }
 
-    /// Surface area each ring's samples stand for, relative (∝ r·ds); the ring on
-    /// the axis stands for a small disc rather than nothing.
+    /// Surface area each ring's samples stand for, relative (polar ∝ r·ds, the ring on
+    /// the axis standing for a small disc rather than nothing; extruded: even).
     pub fn area_weight(&self, ring: usize) -> f64 {
-        self.rings[ring].radius_mm.max(self.pitch_mm / 8.0)
+        match self.layout {
+            Layout::Polar => self.rings[ring].radius_mm.max(self.pitch_mm / 8.0),
+            Layout::Extruded { .. } => 1.0,
+        }
     }
 }
 

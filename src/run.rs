@@ -9,7 +9,7 @@ use crate::engine::{
     EngineError, EngineInfo, GeneratingScene, MillingScene, Progress, RemovalEngine, Scene,
     TurningScene,
 };
-use crate::field::{DexelField, PolarGrid};
+use crate::field::{DexelField, Layout, PolarGrid};
 use crate::io::job::Job;
 use crate::process::{GeneratingProcess, Process, TurningProcess};
 use std::time::Instant;
@@ -73,14 +73,24 @@ impl RunResult {
 /// Builds the engine-ready scenes (one per cutting pass) for a validated job.
 pub fn prepare_scenes(job: &Job) -> Vec<Scene> {
     let meridian = job.meridian();
-    let grid = PolarGrid::new(
-        &job.surface,
-        &meridian,
-        job.aperture.inner_radius_mm,
-        job.aperture.outer_radius_mm,
-        job.pitch_mm,
-        job.azimuths,
-    );
+    let grid = match job.layout {
+        Layout::Polar => PolarGrid::new(
+            &job.surface,
+            &meridian,
+            job.aperture.inner_radius_mm,
+            job.aperture.outer_radius_mm,
+            job.pitch_mm,
+            job.azimuths,
+        ),
+        Layout::Extruded { length_mm } => PolarGrid::extruded(
+            &job.surface,
+            &meridian,
+            job.aperture.outer_radius_mm,
+            length_mm,
+            job.pitch_mm,
+            job.azimuths,
+        ),
+    };
     match &job.process {
         Process::Turning(turning) => turning_scenes(job, turning, grid)
             .into_iter()

@@ -428,11 +428,29 @@ fn formulas_prints_the_seeds_worked_numbers_and_refuses_bad_parameters() {
     let text = String::from_utf8_lossy(&output.stdout);
     // Seed 004: φ 31.79°, φ₁ 10.81°, De 8.429 mm, h 0.1419 mm, Tn 0.7997 mm, De₁ 14.595 mm;
     // seed 003: 126.52 mm; seed 000: 49.880 mm.
-    for number in ["31.79°", "10.81°", "8.429 mm", "0.1419 mm", "0.7997 mm", "14.595 mm", "126.52 mm", "49.880 mm"] {
+    for number in [
+        "31.79°",
+        "10.81°",
+        "8.429 mm",
+        "0.1419 mm",
+        "0.7997 mm",
+        "14.595 mm",
+        "126.52 mm",
+        "49.880 mm",
+    ] {
         assert!(text.contains(number), "missing {number}:\n{text}");
     }
     let output = toolmark(
-        &["formulas", "ball-end", "--diameter-mm", "16", "--depth-mm", "9", "--stepover-mm", "3"],
+        &[
+            "formulas",
+            "ball-end",
+            "--diameter-mm",
+            "16",
+            "--depth-mm",
+            "9",
+            "--stepover-mm",
+            "3",
+        ],
         &[],
     );
     assert_eq!(output.status.code(), Some(2));

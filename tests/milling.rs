@@ -335,3 +335,50 @@ fn teeth_leave_feed_marks_of_the_per_tooth_advance() {
     // Sampled every 0.1 µm, a mark's top (a kink of slope f/2r) is missed by < 1.3 nm.
     assert!(((hi - lo) / expected - 1.0).abs() < 0.01);
 }
+
+#[test]
+fn cylinders_milled_along_their_axis_leave_the_circle_on_circle_scallop() {
+    // Ball r 1 mm, passes along the axis of an R 20 mm cylinder, 0.2 mm apart around it
+    // (arc length, as indexing the part does): the section is a circle of radius 20, so
+    // the scallop is `sphere_scallop_height(1, 20, 0.2/20)` (convex +, concave −).
+    for (form, convex) in [("convex", true), ("concave", false)] {
+        for axes in [3, 5] {
+            let result = run_cpu(milling(
+                &format!(
+                    "kind = \"cylinder\"\nform = \"{form}\"\nradius_mm = 20.0\naperture_diameter_mm = 8.0\nlength_mm = 4.0"
+                ),
+                "kind = \"ball_end\"\ndiameter_mm = 2.0",
+                &format!(
+                    "path = \"raster\"\naxes = {axes}\nstepover_mm = 0.2\nstock_allowance_mm = 0.01"
+                ),
+                "pitch_um = 2.0\nazimuths = 16",
+            ));
+            let expected = sphere_scallop_height(1.0, 20.0, 0.2 / 20.0, convex);
+            let found = cusps(&result, -3.5, 3.5);
+            let largest = result
+                .cutting_diameter_mm
+                .as_ref()
+                .unwrap()
+                .iter()
+                .copied()
+                .filter(|d| d.is_finite())
+                .fold(0.0, f64::max);
+            println!(
+                "{form} cylinder, {axes}-axis: closed form {:.2} nm, {} cusps, worst {:.4} %; largest cutting diameter {largest:.4} mm",
+                expected * 1e6,
+                found.len(),
+                100.0 * worst(&found, expected)
+            );
+            assert!(found.len() >= 300 && worst(&found, expected) < 0.01);
+            // Indexed (5-axis: the axis stays radial) the ball cuts at its tip as on a flat:
+            // the largest diameter is the cusp's, D sin φ₁ = 2·0.1 mm. In 3-axis the
+            // flanks (11.5° at the edge) move the contact up the ball, to about
+            // 2r·sin(11.5° + φ₁) ≈ 0.59 mm.
+            if axes == 5 {
+                assert!((largest - 0.2).abs() < 0.01 * 0.2 + 0.002, "{largest}");
+            } else {
+                assert!(largest > 0.55 && largest < 0.6, "{largest}");
+            }
+        }
+    }
+}

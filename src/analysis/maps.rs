@@ -7,7 +7,7 @@
 //! along the radius, a generator's tooth marks along the azimuth); the tent's sinc²
 //! response does not.
 
-use crate::field::PolarGrid;
+use crate::field::{Layout, PolarGrid};
 use std::f64::consts::TAU;
 
 /// A square raster over [−half_width, half_width]²; row 0 is the +Y edge.
@@ -96,7 +96,13 @@ impl<'a> RowIntegrals<'a> {
 /// Resamples a per-sample quantity (sample order of `grid`) to a `pixels`² top view.
 pub fn top_view(grid: &PolarGrid, values: &[f64], pixels: usize) -> Raster {
     let outer = grid.rings[grid.ring_count() - 1].radius_mm;
-    top_view_within(grid, values, pixels, outer)
+    let half_width = match grid.layout {
+        Layout::Polar => outer,
+        Layout::Extruded { length_mm } => outer
+            .max(grid.rings[0].radius_mm.abs())
+            .max(0.5 * length_mm),
+    };
+    top_view_within(grid, values, pixels, half_width)
 }
 
 /// A top view of the square [−half_width, half_width]² about the axis (a zoom on the
@@ -113,6 +119,9 @@ pub fn top_view_within(
         grid.rings[grid.ring_count() - 1].radius_mm,
     );
     let pitch_mm = 2.0 * half_width_mm / pixels as f64;
+    if let Layout::Extruded { length_mm } = grid.layout {
+        return extruded_view(grid, &integrals, pixels, half_width_mm, length_mm);
+    }
     let azimuths = grid.azimuths as f64;
     let mut raster = Raster {
         pixels,
@@ -146,6 +155,64 @@ pub fn top_view_within(
             let index = row * pixels + column;
             raster.values[index] = value as f32;
             raster.valid[index] = true;
+        }
+    }
+    raster
+}
+
+/// The top view of an extruded part: the profile runs along X (rings at their signed
+/// x), the rows along Y; each pixel takes the tent mean across the profile and a tent
+/// across the rows within one pixel (or the two nearest rows).
+fn extruded_view(
+    grid: &PolarGrid,
+    integrals: &RowIntegrals,
+    pixels: usize,
+    half_width_mm: f64,
+    length_mm: f64,
+) -> Raster {
+    let pitch_mm = 2.0 * half_width_mm / pixels as f64;
+    let (low, high) = (
+        grid.rings[0].radius_mm,
+        grid.rings[grid.ring_count() - 1].radius_mm,
+    );
+    let rows = grid.azimuths as f64;
+    let row_pitch = length_mm / rows;
+    let span = (pitch_mm / row_pitch).max(1.0);
+    let mut raster = Raster {
+        pixels,
+        pitch_mm,
+        half_width_mm,
+        values: vec![0.0; pixels * pixels],
+        valid: vec![false; pixels * pixels],
+    };
+    for row in 0..pixels {
+        let y = half_width_mm - (row as f64 + 0.5) * pitch_mm;
+        if y.abs() > 0.5 * length_mm {
+            continue;
+        }
+        let position = (y + 0.5 * length_mm) / row_pitch - 0.5;
+        let (first, last) = (
+            (position - span).ceil().max(0.0),
+            (position + span).floor().min(rows - 1.0),
+        );
+        for column in 0..pixels {
+            let x = -half_width_mm + (column as f64 + 0.5) * pitch_mm;
+            if x < low || x > high {
+                continue;
+            }
+            let (mut sum, mut weight) = (0.0, 0.0);
+            let mut at = first;
+            while at <= last {
+                let w = (1.0 - (at - position).abs() / span).max(1e-6);
+                sum += w * integrals.tent_mean(at as u32, x, pitch_mm);
+                weight += w;
+                at += 1.0;
+            }
+            if weight > 0.0 {
+                let index = row * pixels + column;
+                raster.values[index] = (sum / weight) as f32;
+                raster.valid[index] = true;
+            }
         }
     }
     raster

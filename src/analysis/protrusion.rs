@@ -91,8 +91,9 @@ pub fn analyse_protrusion(
         surround_rms_nm,
         map_mm: vec![0.0; grid.sample_count()],
     };
-    if radii[0] > 0.5 * grid.pitch_mm || rings < 8 {
-        return none(0.0); // an annulus has no axis to carry a feature
+    let extruded = matches!(grid.layout, crate::field::Layout::Extruded { .. });
+    if extruded || radii[0] > 0.5 * grid.pitch_mm || rings < 8 {
+        return none(0.0); // an annulus or an extruded part has no axis to carry a feature
     }
 
     let mean: Vec<f64> = (0..rings)

@@ -103,14 +103,14 @@ fn lines(grid: &PolarGrid, direction: ScallopDirection) -> Vec<Line> {
             .rings
             .iter()
             .enumerate()
-            .filter(|(_, ring)| ring.radius_mm > 0.0)
-            .map(|(index, ring)| Line {
+            .filter(|(index, _)| grid.row_pitch_mm(*index) > 0.0)
+            .map(|(index, _)| Line {
                 number: index as u32,
                 samples: (0..grid.azimuths)
                     .map(|azimuth| grid.sample_index(index, azimuth))
                     .collect(),
                 origin_mm: 0.0,
-                pitch_mm: ring.radius_mm * std::f64::consts::TAU / grid.azimuths as f64,
+                pitch_mm: grid.row_pitch_mm(index),
             })
             .collect(),
     }

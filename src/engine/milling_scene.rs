@@ -149,7 +149,8 @@ impl NodeBins {
         for z in range(c.z, self.size[2]) {
             for y in range(c.y, self.size[1]) {
                 for x in range(c.x, self.size[0]) {
-                    let index = (z as usize * self.size[1] + y as usize) * self.size[0] + x as usize;
+                    let index =
+                        (z as usize * self.size[1] + y as usize) * self.size[0] + x as usize;
                     indices.push(index);
                 }
             }
@@ -216,11 +217,9 @@ impl MillingScene {
 
     /// A sample's nominal point and outward normal in 3-D.
     pub fn sample_ray(&self, ring: usize, azimuth: u32) -> (DVec3, DVec3) {
-        let r = &self.grid.rings[ring];
-        let (sin, cos) = self.grid.azimuth_rad(azimuth).sin_cos();
         (
-            DVec3::new(r.radius_mm * cos, r.radius_mm * sin, r.height_mm),
-            DVec3::new(r.normal.x * cos, r.normal.x * sin, r.normal.y),
+            self.grid.sample_point(ring, azimuth),
+            self.grid.sample_normal(ring, azimuth),
         )
     }
 

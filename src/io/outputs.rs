@@ -103,10 +103,19 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let mut polar_attributes = attributes.clone();
     polar_attributes.insert(
         "frame".into(),
-        format!(
-            "polar: column i = ring at meridian arc length {:.9} + i × {:.9} mm from the axis; row j = azimuth 360°·j/{} (counter-clockwise from +X seen from +Z)",
-            grid.rings[0].arc_length_mm, grid.pitch_mm, grid.azimuths
-        ),
+        match grid.layout {
+            crate::field::Layout::Polar => format!(
+                "polar: column i = ring at meridian arc length {:.9} + i × {:.9} mm from the axis; row j = azimuth 360°·j/{} (counter-clockwise from +X seen from +Z)",
+                grid.rings[0].arc_length_mm, grid.pitch_mm, grid.azimuths
+            ),
+            crate::field::Layout::Extruded { length_mm } => format!(
+                "extruded (a cylinder with its axis along Y): column i = profile position at arc length {:.9} + i × {:.9} mm from the crest (negative toward −X); row j = y = −{:.6} + (j + 0.5) × {:.9} mm",
+                grid.rings[0].arc_length_mm,
+                grid.pitch_mm,
+                0.5 * length_mm,
+                length_mm / grid.azimuths as f64
+            ),
+        },
     );
     polar_attributes.remove("pixel_pitch_mm");
     polar_attributes.insert(

@@ -60,8 +60,12 @@ pub struct MillingSetup {
     pub spindle_rpm: Option<f64>,
     pub stock_allowance_mm: f64,
     pub depth_of_cut_mm: f64,
-    /// The contact path covers the part out to this radius.
+    /// The contact path covers the part out to this radius (for a cylinder: out to this
+    /// distance across its axis).
     pub contact_radius_mm: f64,
+    /// A cylinder's length along Y (its profile extruded along Y); `None` for parts of
+    /// revolution.
+    pub part_length_mm: Option<f64>,
 }
 
 /// How poses between two nodes are interpolated.
@@ -162,11 +166,10 @@ impl MillingSetup {
 
     /// Plans the path over `surface`.
     pub fn plan(&self, surface: &SurfaceOfRevolution) -> MillingPath {
-        let contacts = match self.path {
-            MillingPathKind::Raster => self.raster_contacts(surface),
-            MillingPathKind::Spiral | MillingPathKind::ConstantScallop => {
-                self.spiral_contacts(surface)
-            }
+        let contacts = match (self.path, self.part_length_mm) {
+            (MillingPathKind::Raster, Some(length)) => self.cylinder_contacts(surface, length),
+            (MillingPathKind::Raster, None) => self.raster_contacts(surface),
+            _ => self.spiral_contacts(surface),
         };
         let interpolation = match self.path {
             MillingPathKind::Raster => Interpolation::Linear,
@@ -182,14 +185,7 @@ impl MillingSetup {
             let mut nodes = Vec::with_capacity(pass_contacts.len());
             let mut unwrapped: Option<f64> = None;
             for (i, &contact) in pass_contacts.iter().enumerate() {
-                let radius = contact.truncate().length();
-                let normal2 = surface.normal(radius);
-                let radial = if radius > 0.0 {
-                    contact.truncate() / radius
-                } else {
-                    DVec2::X
-                };
-                let normal = DVec3::new(normal2.x * radial.x, normal2.x * radial.y, normal2.y);
+                let normal = self.surface_normal(surface, contact);
                 // Feed direction: toward the next contact (or from the previous one).
                 let next = pass_contacts.get(i + 1).copied();
                 let feed = match next {
@@ -229,6 +225,53 @@ impl MillingSetup {
             }
         }
         MillingPath { passes }
+    }
+
+    /// The part's outward normal at a contact point: revolved about Z, or (a cylinder)
+    /// the profile's normal in the XZ plane.
+    fn surface_normal(&self, surface: &SurfaceOfRevolution, contact: DVec3) -> DVec3 {
+        match self.part_length_mm {
+            Some(_) => {
+                let n = surface.normal(contact.x.abs());
+                DVec3::new(n.x * contact.x.signum(), 0.0, n.y)
+            }
+            None => {
+                let radius = contact.truncate().length();
+                let n = surface.normal(radius);
+                let radial = if radius > 0.0 {
+                    contact.truncate() / radius
+                } else {
+                    DVec2::X
+                };
+                DVec3::new(n.x * radial.x, n.x * radial.y, n.y)
+            }
+        }
+    }
+
+    /// A cylinder's raster: passes along its axis (Y), a step apart in arc length around
+    /// its profile (as indexing it on a rotary table does), one over the crest, zig-zag;
+    /// the passes run a node past each end.
+    fn cylinder_contacts(&self, surface: &SurfaceOfRevolution, length: f64) -> Vec<Vec<DVec3>> {
+        let meridian = crate::geometry::MeridianArcLength::new(surface, self.contact_radius_mm);
+        let limit = meridian.arc_length_at(self.contact_radius_mm);
+        let spacing = (0.25 * self.tool.reach_mm()).min(0.05);
+        let half = 0.5 * length + 2.0 * spacing;
+        let count = ((2.0 * half / spacing).ceil() as usize).max(1);
+        let reach = (limit / self.stepover_mm).floor() as i64;
+        (-reach..=reach)
+            .map(|k| {
+                let arc = k as f64 * self.stepover_mm;
+                let x = meridian.radius_at(arc.abs()).copysign(arc);
+                let z = surface.height(x.abs());
+                let mut points: Vec<DVec3> = (0..=count)
+                    .map(|i| DVec3::new(x, -half + 2.0 * half * i as f64 / count as f64, z))
+                    .collect();
+                if k.rem_euclid(2) == 1 {
+                    points.reverse();
+                }
+                points
+            })
+            .collect()
     }
 
     /// Node spacing along raster passes from the chord tolerance and the surface's largest

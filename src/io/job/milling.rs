@@ -53,6 +53,21 @@ pub fn validate_milling(
         spec.path,
         "\"raster\", \"spiral\" or \"constant_scallop\"",
     )?;
+    let cylinder = file.surface.kind == super::SurfaceKind::Cylinder;
+    if cylinder {
+        if path != MillingPathKind::Raster {
+            return Err(error(
+                "process.path",
+                "a cylinder is milled in raster passes along its axis; allowed with surface.kind = \"cylinder\": \"raster\"",
+            ));
+        }
+        if spec.raster_angle_deg.is_some() {
+            return Err(error(
+                "process.raster_angle_deg",
+                "a cylinder's passes run along its axis (Y), stepping around it; remove it",
+            ));
+        }
+    }
     let angle = |field: &str, value: Option<f64>, low: f64, high: f64| -> Result<f64, JobError> {
         let degrees = value.unwrap_or(0.0);
         if !degrees.is_finite() || degrees < low || degrees >= high {
@@ -166,6 +181,7 @@ pub fn validate_milling(
         stock_allowance_mm: stock,
         depth_of_cut_mm: depth,
         contact_radius_mm: 0.0,
+        part_length_mm: None,
     };
     let profile = setup.profile_radius_mm();
     if !(profile.is_finite() && profile > 0.0) {
@@ -229,6 +245,9 @@ pub fn validate_milling(
         }
     }
     setup.contact_radius_mm = contact;
+    if cylinder {
+        setup.part_length_mm = file.surface.length_mm;
+    }
     if path == MillingPathKind::ConstantScallop {
         // The tightest spacing of the turns along the surface, for the default grid and
         // the reports.

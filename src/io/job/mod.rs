@@ -52,6 +52,9 @@ pub enum SurfaceKind {
     Plane,
     Sphere,
     Asphere,
+    /// A circular cylinder with its axis along Y (milling): `radius_mm`, `form`,
+    /// `aperture_diameter_mm` the width across the axis, `length_mm` along it.
+    Cylinder,
     /// The surface an ideal tool cuts along the job's NC program (when no design is known).
     FromPath,
 }
@@ -96,6 +99,9 @@ pub struct SurfaceSpec {
     pub aperture_diameter_mm: Option<f64>,
     #[serde(default)]
     pub inner_diameter_mm: f64,
+    /// Cylinder: its length along Y.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length_mm: Option<f64>,
 }
 
 impl SurfaceSpec {
@@ -379,8 +385,11 @@ pub struct Aperture {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Job {
     pub name: String,
+    /// The nominal profile: revolved about Z, or extruded along Y (see `layout`).
     pub surface: SurfaceOfRevolution,
     pub aperture: Aperture,
+    /// How the profile makes the part (polar: revolved; extruded: a cylinder).
+    pub layout: crate::field::Layout,
     /// The process, its tool and effects.
     pub process: Process,
     pub pitch_mm: f64,
@@ -446,6 +455,19 @@ impl Job {
             }
             ProcessKind::Milling => milling::validate_milling(&file, &mut resolved, &mut warnings)?,
         };
+        let layout = match file.surface.kind {
+            SurfaceKind::Cylinder => {
+                let length = required(
+                    "surface.length_mm",
+                    file.surface.length_mm,
+                    "a finite number in (0, 10000]",
+                )?;
+                crate::field::Layout::Extruded {
+                    length_mm: check("surface.length_mm", length, 0.0, 1e4, false)?,
+                }
+            }
+            _ => crate::field::Layout::Polar,
+        };
         let meridian = MeridianArcLength::new(
             &surface,
             aperture.outer_radius_mm.max(process.outer_radius_mm()),
@@ -468,8 +490,15 @@ impl Job {
                 format!("{azimuths} is out of range; allowed: 1 to 65536"),
             ));
         }
-        let meridian_span = meridian.arc_length_at(aperture.outer_radius_mm)
-            - meridian.arc_length_at(aperture.inner_radius_mm);
+        let meridian_span = match layout {
+            crate::field::Layout::Polar => {
+                meridian.arc_length_at(aperture.outer_radius_mm)
+                    - meridian.arc_length_at(aperture.inner_radius_mm)
+            }
+            crate::field::Layout::Extruded { .. } => {
+                2.0 * meridian.arc_length_at(aperture.outer_radius_mm)
+            }
+        };
         let samples = (meridian_span / pitch_mm + 1.0).floor() * azimuths as f64;
         if samples > MAX_SAMPLES {
             return Err(error(
@@ -512,6 +541,7 @@ impl Job {
             name,
             surface,
             aperture,
+            layout,
             process,
             pitch_mm,
             azimuths,

@@ -53,6 +53,12 @@ pub fn validate_turning(
             ("feed_per_tooth_mm", spec.feed_per_tooth_mm.is_some()),
         ],
     )?;
+    if file.surface.kind == SurfaceKind::Cylinder {
+        return Err(error(
+            "surface.kind",
+            "a cylinder (axis along Y) is milled, not turned; allowed with process.kind = \"turning\": \"plane\", \"sphere\", \"asphere\" or \"from_path\"",
+        ));
+    }
     let tool = validate_tool(&file.tool)?;
     let (surface, aperture, path, spindle_rpm) = match &spec.nc_program {
         None => {

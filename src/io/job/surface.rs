@@ -49,6 +49,7 @@ pub fn validate(spec: &SurfaceSpec) -> Result<(SurfaceOfRevolution, Aperture), J
         SurfaceKind::Plane => "plane",
         SurfaceKind::Sphere => "sphere",
         SurfaceKind::Asphere => "asphere",
+        SurfaceKind::Cylinder => "cylinder",
         SurfaceKind::FromPath => {
             return Err(error(
                 "surface.kind",
@@ -85,7 +86,13 @@ pub fn validate(spec: &SurfaceSpec) -> Result<(SurfaceOfRevolution, Aperture), J
             unused("a4..a20", has_polynomial)?;
             SurfaceOfRevolution::plane()
         }
-        SurfaceKind::Sphere => {
+        SurfaceKind::Sphere | SurfaceKind::Cylinder => {
+            if spec.kind == SurfaceKind::Cylinder && spec.inner_diameter_mm != 0.0 {
+                return Err(error(
+                    "surface.inner_diameter_mm",
+                    "is not used by kind = \"cylinder\" (its aperture_diameter_mm is the width across its axis); remove it",
+                ));
+            }
             unused("base_radius_mm", spec.base_radius_mm.is_some())?;
             unused("conic", spec.conic.is_some())?;
             unused("a4..a20", has_polynomial)?;
@@ -114,6 +121,9 @@ pub fn validate(spec: &SurfaceSpec) -> Result<(SurfaceOfRevolution, Aperture), J
             SurfaceOfRevolution::asphere(base, conic, coefficients, form(spec)?)
         }
     };
+    if spec.kind != SurfaceKind::Cylinder {
+        unused("length_mm", spec.length_mm.is_some())?;
+    }
     check_defined(&surface, &aperture)?;
     Ok((surface, aperture))
 }
