@@ -177,6 +177,26 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
         );
     }
 
+    println!(
+        "\n## milling (CPU engine only): the seed-002 asphere, Ø1 mm ball, constant-scallop spiral for 1 µm, 2 µm × 16 azimuths"
+    );
+    println!("| engine | samples | dexel–pass pairs | removal s | pairs/s | µs per sample |");
+    println!("| --- | --- | --- | --- | --- | --- |");
+    let job = Job::from_toml_str(
+        include_str!("../examples/milling_asphere_constant_scallop.toml"),
+        "bench",
+    )
+    .map_err(|e| e.to_string())?;
+    let m = time_removal(&mut CpuEngine, &job)?;
+    println!(
+        "| cpu | {} | {:.3e} | {:.3} | {:.3e} | {:.2} |",
+        m.samples,
+        m.pairs as f64,
+        m.seconds,
+        m.pairs as f64 / m.seconds,
+        m.seconds / m.samples as f64 * 1e6
+    );
+
     if large && gpu {
         // 50 001 rings × 400 azimuths × 8 bytes = 160 MB of results: more than lavapipe's
         // 128 MiB storage binding, so the GPU engine must tile.

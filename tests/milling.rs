@@ -382,3 +382,63 @@ fn cylinders_milled_along_their_axis_leave_the_circle_on_circle_scallop() {
         }
     }
 }
+
+#[test]
+fn a_lead_varying_along_the_path_varies_the_effective_radius_with_it() {
+    // A flat end D4 leaned from 5° at the path's start to 20° at its end, 0.4 mm passes
+    // on a flat: each cusp is the ellipse scallop of the local lead, ≈ s² sin λ/(8r), so
+    // the scallops grow about four-fold across the part (sin 20°/sin 5°).
+    let job = milling(
+        "kind = \"plane\"\naperture_diameter_mm = 12.0",
+        "kind = \"flat_end\"\ndiameter_mm = 4.0",
+        "path = \"raster\"\naxes = 5\nlead_deg = 5.0\nlead_end_deg = 20.0\nstepover_mm = 0.4\nstock_allowance_mm = 0.05",
+        "pitch_um = 2.0\nazimuths = 4",
+    );
+    let Scene::Milling(scene) = &prepare_scenes(&job)[0] else {
+        panic!()
+    };
+    let result = run_cpu(job.clone());
+    // The planned lead where the passes either side of a cusp (at x = 0, y) run.
+    let lead_at = |y: f64| {
+        let leads: Vec<f64> = scene
+            .path
+            .passes
+            .iter()
+            .flat_map(|p| &p.nodes)
+            .filter(|n| (n.pose.centre.y - y).abs() <= 0.21 && n.pose.centre.x.abs() < 2.5)
+            .map(|n| n.pose.axis.z.acos())
+            .collect();
+        leads.iter().sum::<f64>() / leads.len() as f64
+    };
+    let (mut checked, mut smallest, mut largest) = (0, f64::INFINITY, 0.0f64);
+    // Azimuth rows 1 and 3 run along ±Y, across the passes.
+    for cusp in result
+        .scallops
+        .cusps
+        .iter()
+        .filter(|c| c.line == 1 || c.line == 3)
+    {
+        let y = if cusp.line == 1 {
+            cusp.position_mm
+        } else {
+            -cusp.position_mm
+        };
+        let lead = lead_at(y);
+        let ellipse = 2.0 * lead.sin() * (1.0 - (1.0 - (0.2f64 / 2.0).powi(2)).sqrt());
+        assert!(
+            (cusp.scallop_mm / ellipse - 1.0).abs() < 0.02,
+            "y {y}: {} vs {ellipse} (lead {:.2}°)",
+            cusp.scallop_mm,
+            lead.to_degrees()
+        );
+        smallest = smallest.min(cusp.scallop_mm);
+        largest = largest.max(cusp.scallop_mm);
+        checked += 1;
+    }
+    println!(
+        "{checked} cusps follow the local lead's ellipse within 2 %, from {:.1} to {:.1} nm",
+        smallest * 1e6,
+        largest * 1e6
+    );
+    assert!(checked >= 20 && largest / smallest > 3.0);
+}
