@@ -50,6 +50,50 @@ pub fn least_squares(a: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
     Some(x)
 }
 
+/// Solution of the small square system `A x = b` by Gaussian elimination with partial
+/// pivoting; `None` when A is singular (a pivot below 1e-300 or 1e-14 of the largest).
+pub fn solve_linear(a: &[Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
+    let n = b.len();
+    let mut m: Vec<Vec<f64>> = a.iter().zip(b).map(|(row, bi)| {
+        let mut r = row.clone();
+        r.push(*bi);
+        r
+    }).collect();
+    let scale = a.iter().flatten().fold(0.0_f64, |s, v| s.max(v.abs()));
+    for k in 0..n {
+        let pivot = (k..n).max_by(|&i, &j| m[i][k].abs().total_cmp(&m[j][k].abs()))?;
+        if m[pivot][k].abs() <= (1e-14 * scale).max(1e-300) {
+            return None;
+        }
+        m.swap(k, pivot);
+        for i in k + 1..n {
+            let factor = m[i][k] / m[k][k];
+            for j in k..=n {
+                m[i][j] -= factor * m[k][j];
+            }
+        }
+    }
+    let mut x = vec![0.0; n];
+    for k in (0..n).rev() {
+        let known: f64 = (k + 1..n).map(|j| m[k][j] * x[j]).sum();
+        x[k] = (m[k][n] - known) / m[k][k];
+    }
+    Some(x)
+}
+
+/// The inverse of a small square matrix (`None` when singular).
+pub fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    let n = a.len();
+    let columns: Option<Vec<Vec<f64>>> = (0..n)
+        .map(|j| {
+            let e: Vec<f64> = (0..n).map(|i| f64::from(u8::from(i == j))).collect();
+            solve_linear(a, &e)
+        })
+        .collect();
+    let columns = columns?;
+    Some((0..n).map(|i| (0..n).map(|j| columns[j][i]).collect()).collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -84,5 +128,24 @@ mod tests {
     fn rank_deficient_systems_are_refused() {
         let rows = vec![vec![1.0, 2.0], vec![2.0, 4.0], vec![3.0, 6.0]];
         assert!(least_squares(&rows, &[1.0, 2.0, 3.0]).is_none());
+    }
+
+    #[test]
+    fn small_systems_solve_and_invert() {
+        // A 3×3 system with the exact solution (1, −2, 3).
+        let a = vec![vec![4.0, -2.0, 1.0], vec![-2.0, 4.0, -2.0], vec![1.0, -2.0, 4.0]];
+        let b = [4.0 * 1.0 - 2.0 * -2.0 + 3.0, -2.0 - 8.0 - 6.0, 1.0 + 4.0 + 12.0];
+        let x = solve_linear(&a, &b).unwrap();
+        for (xi, ti) in x.iter().zip([1.0, -2.0, 3.0]) {
+            assert!((xi - ti).abs() < 1e-12, "{x:?}");
+        }
+        let inv = invert(&a).unwrap();
+        for i in 0..3 {
+            for j in 0..3 {
+                let p: f64 = (0..3).map(|k| a[i][k] * inv[k][j]).sum();
+                assert!((p - f64::from(u8::from(i == j))).abs() < 1e-12);
+            }
+        }
+        assert!(solve_linear(&[vec![1.0, 2.0], vec![2.0, 4.0]], &[1.0, 2.0]).is_none());
     }
 }

@@ -39,6 +39,8 @@ pub struct TurningEffects {
     pub radius_error_mm: f64,
     /// Radial deviation of the edge from its own circle, w(ψ) (mm).
     pub edge_deviation: AngleTable,
+    /// Z drift of the tool over the cut (mm) — placeholder until the effects branch lands.
+    pub axial_drift_mm: f64,
 }
 
 impl TurningEffects {

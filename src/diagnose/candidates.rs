@@ -1,0 +1,300 @@
+//! The diagnosable effects: for each candidate, its parameters (in report units), how
+//! trial values enter a job (added to the job's own effects), how fitted values are
+//! written back as `[[effects]]` tables, and how a result is said to a machinist.
+
+use crate::effects::WAVINESS_SAMPLES;
+use crate::geometry::tool::AngleTable;
+use crate::io::job::Job;
+use crate::process::{PlungeAxis, Process};
+
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case", tag = "effect")]
+pub enum Candidate {
+    CentreHeight,
+    XDecentre,
+    NoseRadiusError,
+    AxialDrift,
+    /// One harmonic of the edge's radial deviation; `order` is chosen by the fit.
+    EdgeWaviness {
+        order: f64,
+    },
+    CutterDisplacement,
+    InclinationError,
+}
+
+/// One fitted parameter.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Parameter {
+    pub name: &'static str,
+    pub unit: &'static str,
+    /// A typical magnitude: the search's first step.
+    pub scale: f64,
+    /// The largest magnitude the job files allow.
+    pub bound: f64,
+}
+
+fn parameter(name: &'static str, unit: &'static str, scale: f64, bound: f64) -> Parameter {
+    Parameter {
+        name,
+        unit,
+        scale,
+        bound,
+    }
+}
+
+/// An effect the job's process has but the diagnosis cannot fit, and why.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NotDiagnosable {
+    pub effect: &'static str,
+    pub reason: String,
+}
+
+/// The candidates for a job's process, and the process's effects left out (with why).
+pub fn candidates_for(job: &Job) -> (Vec<Candidate>, Vec<NotDiagnosable>) {
+    match &job.process {
+        Process::Turning(_) => (
+            vec![
+                Candidate::CentreHeight,
+                Candidate::XDecentre,
+                Candidate::NoseRadiusError,
+                Candidate::AxialDrift,
+                Candidate::EdgeWaviness { order: 0.0 },
+            ],
+            Vec::new(),
+        ),
+        Process::Generating(g) => {
+            let reason = match g.setup.plunge_axis {
+                PlungeAxis::Z => "a plunge error along Z only moves the part as a whole (a piston), which registration removes".to_string(),
+                PlungeAxis::ToolAxis => "a plunge error along the tool axis acts exactly as a cutter displacement of −Δp·sin α plus a piston: the data cannot tell them apart, so it is reported as a displacement".to_string(),
+            };
+            (
+                vec![Candidate::CutterDisplacement, Candidate::InclinationError],
+                vec![NotDiagnosable {
+                    effect: "plunge_error",
+                    reason,
+                }],
+            )
+        }
+        Process::Milling(_) => (Vec::new(), Vec::new()),
+    }
+}
+
+impl Candidate {
+    /// The effect's `kind` in job files.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Candidate::CentreHeight => "centre_height",
+            Candidate::XDecentre => "x_decentre",
+            Candidate::NoseRadiusError => "nose_radius_error",
+            Candidate::AxialDrift => "axial_drift",
+            Candidate::EdgeWaviness { .. } => "edge_waviness",
+            Candidate::CutterDisplacement => "cutter_displacement",
+            Candidate::InclinationError => "inclination_error",
+        }
+    }
+
+    /// A name for tables.
+    pub fn label(&self) -> String {
+        match self {
+            Candidate::EdgeWaviness { order } if *order > 0.0 => {
+                format!("edge waviness (order {order:.1})")
+            }
+            _ => self.kind().replace('_', " "),
+        }
+    }
+
+    pub fn parameters(&self, job: &Job) -> Vec<Parameter> {
+        let nose_um = job
+            .process
+            .turning()
+            .map_or(0.0, |t| t.tool.nose_radius_mm * 1e3);
+        match self {
+            Candidate::CentreHeight => vec![parameter("height", "µm", 1.0, 0.5 * nose_um)],
+            Candidate::XDecentre => vec![parameter("offset", "µm", 1.0, nose_um)],
+            Candidate::NoseRadiusError => vec![parameter("error", "µm", 1.0, 0.5 * nose_um)],
+            Candidate::AxialDrift => vec![parameter("drift", "nm", 10.0, 1e4)],
+            Candidate::EdgeWaviness { .. } => vec![
+                parameter("cos", "nm", 10.0, 1e4),
+                parameter("sin", "nm", 10.0, 1e4),
+            ],
+            Candidate::CutterDisplacement | Candidate::InclinationError => {
+                let g = &job.process.generating().expect("a generating job").setup;
+                match self {
+                    Candidate::CutterDisplacement => vec![parameter(
+                        "offset",
+                        "µm",
+                        10.0,
+                        0.5 * g.wheel.edge_radius_mm * 1e3,
+                    )],
+                    _ => vec![parameter(
+                        "error",
+                        "deg",
+                        0.002,
+                        0.1 * g.inclination_rad.to_degrees(),
+                    )],
+                }
+            }
+        }
+    }
+
+    /// Adds the effect at `values` (report units) to the job's own effects.
+    pub fn apply(&self, values: &[f64], job: &mut Job) {
+        match (&mut job.process, self) {
+            (Process::Turning(t), _) => {
+                let e = &mut t.effects;
+                match self {
+                    Candidate::CentreHeight => e.centre_height_mm += values[0] * 1e-3,
+                    Candidate::XDecentre => e.x_decentre_mm += values[0] * 1e-3,
+                    Candidate::NoseRadiusError => e.radius_error_mm += values[0] * 1e-3,
+                    Candidate::AxialDrift => e.axial_drift_mm += values[0] * 1e-6,
+                    Candidate::EdgeWaviness { order } => {
+                        add_harmonic(&mut e.edge_deviation, *order, values[0] * 1e-6, values[1] * 1e-6)
+                    }
+                    _ => unreachable!("a turning candidate"),
+                }
+            }
+            (Process::Generating(g), Candidate::CutterDisplacement) => {
+                g.effects.cutter_displacement_mm += values[0] * 1e-3
+            }
+            (Process::Generating(g), Candidate::InclinationError) => {
+                g.effects.inclination_error_rad += values[0].to_radians()
+            }
+            _ => unreachable!("candidates come from candidates_for"),
+        }
+    }
+
+    /// The fitted effect as an `[[effects]]` table (TOML).
+    pub fn effects_table(&self, values: &[f64]) -> String {
+        let (key, value) = match self {
+            Candidate::CentreHeight => ("height_mm", values[0] * 1e-3),
+            Candidate::XDecentre | Candidate::CutterDisplacement => ("offset_mm", values[0] * 1e-3),
+            Candidate::NoseRadiusError => ("error_mm", values[0] * 1e-3),
+            Candidate::AxialDrift => ("drift_mm", values[0] * 1e-6),
+            Candidate::InclinationError => ("error_deg", values[0]),
+            Candidate::EdgeWaviness { order } => {
+                let (amplitude, phase) = amplitude_phase(values);
+                return format!(
+                    "[[effects]]\nkind = \"edge_waviness\"\nharmonics = [{{ order = {order:.4}, amplitude_mm = {:.6e}, phase_deg = {phase:.3} }}]\n",
+                    amplitude * 1e-6
+                );
+            }
+        };
+        format!("[[effects]]\nkind = \"{}\"\n{key} = {value:.6e}\n", self.kind())
+    }
+
+    /// What the fit says, with its uncertainty, in a machinist's words.
+    pub fn describe(&self, values: &[f64], sigmas: &[f64]) -> String {
+        let v = values[0];
+        let s = sigmas[0];
+        match self {
+            Candidate::CentreHeight => format!(
+                "the tool sits {} µm {} centre",
+                pm(v.abs(), s),
+                if v >= 0.0 { "above" } else { "below" }
+            ),
+            Candidate::XDecentre => {
+                if v >= 0.0 {
+                    format!("the tool stops {} µm short of the axis", pm(v, s))
+                } else {
+                    format!("the tool runs {} µm past the axis", pm(-v, s))
+                }
+            }
+            Candidate::NoseRadiusError => format!(
+                "the nose radius is {} µm {} than nominal",
+                pm(v.abs(), s),
+                if v >= 0.0 { "larger" } else { "smaller" }
+            ),
+            Candidate::AxialDrift => format!(
+                "the tool drifted {} nm along Z over the cut ({})",
+                pm(v.abs(), s),
+                if v >= 0.0 { "away from the part" } else { "into the part" }
+            ),
+            Candidate::EdgeWaviness { order } => {
+                let (amplitude, phase) = amplitude_phase(values);
+                let sigma = sigmas[0].hypot(sigmas[1]) / 2f64.sqrt();
+                format!(
+                    "the edge carries waviness of order {order:.1}: {} nm amplitude (phase {phase:.0}°)",
+                    pm(amplitude, sigma)
+                )
+            }
+            Candidate::CutterDisplacement => format!(
+                "the wheel's cutting circle {} the axis by {} µm",
+                if v >= 0.0 { "stops short of" } else { "runs past" },
+                pm(v.abs(), s)
+            ),
+            Candidate::InclinationError => format!(
+                "the wheel is inclined {}° {} than set",
+                pm_digits(v.abs(), s, 4),
+                if v >= 0.0 { "more" } else { "less" }
+            ),
+        }
+    }
+
+    /// What to do at the machine.
+    pub fn advice(&self, values: &[f64]) -> String {
+        let v = values[0];
+        match self {
+            Candidate::CentreHeight => format!(
+                "{} the tool by {:.2} µm",
+                if v >= 0.0 { "lower" } else { "raise" },
+                v.abs()
+            ),
+            Candidate::XDecentre => format!(
+                "shift the tool's X zero {:.2} µm {}",
+                v.abs(),
+                if v >= 0.0 { "toward the axis" } else { "away from the axis" }
+            ),
+            Candidate::NoseRadiusError => format!(
+                "plan the path with the measured nose radius (nominal {:+.2} µm)",
+                v
+            ),
+            Candidate::AxialDrift => {
+                "let the machine reach thermal balance before finishing, or compensate Z over the cut".to_string()
+            }
+            Candidate::EdgeWaviness { .. } => {
+                "compensate the edge waviness in the path (toolmark compensate --effects effects.toml)".to_string()
+            }
+            Candidate::CutterDisplacement => format!(
+                "move the wheel {:.2} µm {} along X",
+                v.abs(),
+                if v >= 0.0 { "toward the axis" } else { "away from the axis" }
+            ),
+            Candidate::InclinationError => format!("change the wheel's inclination by {:+.4}°", -v),
+        }
+    }
+}
+
+/// A value ± its uncertainty at a sensible number of digits.
+fn pm(value: f64, sigma: f64) -> String {
+    let digits = if sigma.is_finite() && sigma > 0.0 {
+        (-(sigma.log10().floor()) + 1.0).clamp(0.0, 4.0) as usize
+    } else {
+        2
+    };
+    pm_digits(value, sigma, digits)
+}
+
+fn pm_digits(value: f64, sigma: f64, digits: usize) -> String {
+    if sigma.is_finite() {
+        format!("{value:.digits$} ± {sigma:.digits$}")
+    } else {
+        format!("{value:.digits$} (uncertainty unknown)")
+    }
+}
+
+/// (amplitude, phase°) of a cos/sin pair: a cos kψ + b sin kψ = A cos(kψ + φ).
+fn amplitude_phase(values: &[f64]) -> (f64, f64) {
+    (values[0].hypot(values[1]), (-values[1]).atan2(values[0]).to_degrees())
+}
+
+/// Adds a·cos(kψ) + b·sin(kψ) (mm) to an edge deviation table (a new table over the
+/// edge when it was zero).
+fn add_harmonic(table: &mut AngleTable, order: f64, a: f64, b: f64) {
+    if table.values_mm.is_empty() || table.is_zero() {
+        *table = AngleTable::from_harmonics(&[(order, 0.0, 0.0)], WAVINESS_SAMPLES);
+    }
+    for (i, v) in table.values_mm.iter_mut().enumerate() {
+        let psi = table.start_rad + i as f64 * table.step_rad;
+        *v += a * (order * psi).cos() + b * (order * psi).sin();
+    }
+}

@@ -1,0 +1,374 @@
+//! The forward model: the job re-simulated with trial effects, on a grid trimmed to the
+//! measured region, and seen at the measured points the way the instrument sees them
+//! (a stylus tip's dilation, a pixel's average).
+
+use super::measurement::{Measurement, Shape};
+use crate::engine::{EngineError, RemovalEngine};
+use crate::field::{Layout, PolarGrid};
+use crate::io::job::Job;
+use crate::run::{prepare_scenes, remove_all};
+use glam::DVec2;
+use std::f64::consts::TAU;
+use std::time::Instant;
+
+/// Lateral slack the simulated region keeps around the measured points, as a share of
+/// their extent: room for the registration's shift.
+pub const SHIFT_ROOM: f64 = 0.05;
+
+pub struct ForwardModel<'e> {
+    base: Job,
+    engine: &'e mut dyn RemovalEngine,
+    /// For a line: the two rows through the axis along it (its azimuth and opposite).
+    line_rows: Option<(u32, u32)>,
+    pub simulations: usize,
+    pub prepare_s: f64,
+    pub removal_s: f64,
+}
+
+#[derive(Debug)]
+pub struct ForwardError(pub String);
+
+impl std::fmt::Display for ForwardError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl From<EngineError> for ForwardError {
+    fn from(err: EngineError) -> Self {
+        ForwardError(err.0)
+    }
+}
+
+impl<'e> ForwardModel<'e> {
+    /// `pitch_mm`: the simulation's ring pitch (the job's own unless the caller refines it).
+    pub fn new(
+        job: &Job,
+        measurement: &Measurement,
+        engine: &'e mut dyn RemovalEngine,
+    ) -> Result<Self, ForwardError> {
+        if job.layout != Layout::Polar {
+            return Err(ForwardError(
+                "the diagnosis handles parts of revolution (planes, spheres, aspheres); cylinders are not supported yet".into(),
+            ));
+        }
+        let mut base = job.clone();
+        let extent = measurement.extent_mm();
+        let room = SHIFT_ROOM * extent + 3.0 * job.pitch_mm + measurement.instrument.stylus_tip_mm.unwrap_or(0.0);
+        let radii = measurement.xy_mm.iter().map(|p| p.length());
+        let (r_min, r_max) = radii.fold((f64::INFINITY, 0.0_f64), |(lo, hi), r| (lo.min(r), hi.max(r)));
+        base.aperture.inner_radius_mm = job.aperture.inner_radius_mm.max(r_min - room).max(0.0);
+        base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(r_max + room);
+        let line_rows = match measurement.shape {
+            Shape::Line { azimuth_rad } => {
+                let (rows, row) = line_rows_through(azimuth_rad).ok_or_else(|| {
+                    ForwardError(format!(
+                        "the profile's azimuth {:.4}° is not a multiple of 0.5°",
+                        azimuth_rad.to_degrees()
+                    ))
+                })?;
+                base.azimuths = rows;
+                Some((row, (row + rows / 2) % rows))
+            }
+            Shape::Raster { pixel_mm, .. } => {
+                let pixel = pixel_mm[0].min(pixel_mm[1]);
+                // Half a pixel of arc at the outer edge, so straight marks stay resolved.
+                let rows = (TAU * base.aperture.outer_radius_mm / (0.5 * pixel)).ceil();
+                base.azimuths = (rows as u32).clamp(16, 8192).next_multiple_of(4);
+                base.pitch_mm = job.pitch_mm.max(0.5 * pixel);
+                None
+            }
+        };
+        Ok(Self {
+            base,
+            engine,
+            line_rows,
+            simulations: 0,
+            prepare_s: 0.0,
+            removal_s: 0.0,
+        })
+    }
+
+    /// Simulates `factor` times finer (ring pitch, and the rows of a map).
+    pub fn refine(&mut self, factor: f64) {
+        self.base.pitch_mm /= factor;
+        if self.line_rows.is_none() {
+            let rows = (self.base.azimuths as f64 * factor).ceil() as u32;
+            self.base.azimuths = rows.next_multiple_of(4);
+        }
+    }
+
+    /// The job the model simulates (trimmed grid, the job's own effects).
+    pub fn base_job(&self) -> &Job {
+        &self.base
+    }
+
+    pub fn engine_kind(&self) -> String {
+        self.engine.info().kind
+    }
+
+    /// Simulates the base job changed by `modify` (the trial effects).
+    pub fn simulate(
+        &mut self,
+        modify: &dyn Fn(&mut Job),
+        measurement: &Measurement,
+    ) -> Result<SimulatedSurface, ForwardError> {
+        let mut job = self.base.clone();
+        modify(&mut job);
+        let started = Instant::now();
+        let scenes = prepare_scenes(&job);
+        self.prepare_s += started.elapsed().as_secs_f64();
+        let started = Instant::now();
+        let field = remove_all(&scenes, self.engine, &|_, _| {})?;
+        self.removal_s += started.elapsed().as_secs_f64();
+        self.simulations += 1;
+        let grid = scenes[0].grid().clone();
+        let height_mm = (0..grid.sample_count())
+            .map(|s| {
+                let ring = &grid.rings[s % grid.ring_count()];
+                ring.height_mm + field.depth_mm[s] / ring.normal.y
+            })
+            .collect();
+        Ok(SimulatedSurface::new(grid, height_mm, self.line_rows, measurement))
+    }
+}
+
+/// The fewest (even) rows with one along `azimuth_rad`, and that row; `None` when the
+/// azimuth is not a multiple of 0.5°.
+fn line_rows_through(azimuth_rad: f64) -> Option<(u32, u32)> {
+    let turns = azimuth_rad.rem_euclid(TAU) / TAU;
+    (2..=720).step_by(2).find_map(|rows: u32| {
+        let at = turns * rows as f64;
+        ((at - at.round()).abs() < 1e-6).then(|| (rows, (at.round() as u32) % rows))
+    })
+}
+
+/// A simulated surface: heights along Z at every grid sample, and (for a line) the
+/// dense trace through the axis as the instrument records it.
+pub struct SimulatedSurface {
+    pub grid: PolarGrid,
+    /// Height along Z of the machined surface at each sample (mm).
+    pub height_mm: Vec<f64>,
+    /// Line: (signed position, traced height) through the axis, increasing position.
+    trace: Option<(Vec<f64>, Vec<f64>)>,
+    /// Raster with pixel averaging: the pixel's size (mm).
+    pixel_mm: Option<[f64; 2]>,
+}
+
+impl SimulatedSurface {
+    fn new(
+        grid: PolarGrid,
+        height_mm: Vec<f64>,
+        line_rows: Option<(u32, u32)>,
+        measurement: &Measurement,
+    ) -> Self {
+        let trace = line_rows.map(|(ahead, behind)| {
+            let (mut x, mut z) = (Vec::new(), Vec::new());
+            let rings = grid.ring_count();
+            for k in (0..rings).rev() {
+                x.push(-grid.rings[k].radius_mm);
+                z.push(height_mm[grid.sample_index(k, behind)]);
+            }
+            for k in 0..rings {
+                let r = grid.rings[k].radius_mm;
+                let h = height_mm[grid.sample_index(k, ahead)];
+                if r <= 1e-12 {
+                    // The axis sample on both rows: one point, their mean.
+                    let last = z.len() - 1;
+                    z[last] = 0.5 * (z[last] + h);
+                    x[last] = 0.0;
+                } else {
+                    x.push(r);
+                    z.push(h);
+                }
+            }
+            if let Some(tip) = measurement.instrument.stylus_tip_mm {
+                z = stylus_trace(&x, &z, tip);
+            }
+            (x, z)
+        });
+        let pixel_mm = match measurement.shape {
+            Shape::Raster { pixel_mm, .. } if measurement.instrument.pixel_averaging => Some(pixel_mm),
+            _ => None,
+        };
+        Self {
+            grid,
+            height_mm,
+            trace,
+            pixel_mm,
+        }
+    }
+
+    /// The simulated heights at the measured points when the part's axis sits at
+    /// `shift_mm` in the measurement's frame (NaN where the simulation has no data).
+    pub fn sample(&self, measurement: &Measurement, shift_mm: DVec2) -> Vec<f64> {
+        match &self.trace {
+            Some((x, z)) => {
+                let along = DVec2::from_angle(self.line_azimuth(measurement));
+                let s0 = shift_mm.dot(along);
+                measurement
+                    .along_mm
+                    .iter()
+                    .map(|s| interpolate(x, z, s - s0))
+                    .collect()
+            }
+            None => measurement
+                .xy_mm
+                .iter()
+                .map(|p| self.area_value(*p - shift_mm))
+                .collect(),
+        }
+    }
+
+    fn line_azimuth(&self, measurement: &Measurement) -> f64 {
+        match measurement.shape {
+            Shape::Line { azimuth_rad } => azimuth_rad,
+            Shape::Raster { .. } => 0.0,
+        }
+    }
+
+    /// A pixel's value: the point, or the mean over its footprint (3 × 3 midpoints).
+    fn area_value(&self, p: DVec2) -> f64 {
+        match self.pixel_mm {
+            None => self.at(p),
+            Some([dx, dy]) => {
+                let mut sum = 0.0;
+                for i in -1..=1 {
+                    for j in -1..=1 {
+                        let offset = DVec2::new(i as f64 * dx, j as f64 * dy) / 3.0;
+                        sum += self.at(p + offset);
+                    }
+                }
+                sum / 9.0
+            }
+        }
+    }
+
+    /// Bilinear in (radius, azimuth) on the polar grid; NaN outside its rings.
+    pub fn at(&self, p: DVec2) -> f64 {
+        let rings = &self.grid.rings;
+        let r = p.length();
+        let k = rings.partition_point(|ring| ring.radius_mm <= r);
+        let (k0, k1, t) = if k == 0 {
+            if r < rings[0].radius_mm - 1e-12 {
+                return f64::NAN;
+            }
+            (0, 0, 0.0)
+        } else if k == rings.len() {
+            if r > rings[k - 1].radius_mm + 1e-12 {
+                return f64::NAN;
+            }
+            (k - 1, k - 1, 0.0)
+        } else {
+            let (a, b) = (rings[k - 1].radius_mm, rings[k].radius_mm);
+            (k - 1, k, (r - a) / (b - a))
+        };
+        let rows = self.grid.azimuths;
+        let turn = p.y.atan2(p.x).rem_euclid(TAU) / TAU * rows as f64;
+        let j0 = (turn.floor() as u32) % rows;
+        let j1 = (j0 + 1) % rows;
+        let u = turn - turn.floor();
+        let value = |k: usize, j: u32| self.height_mm[self.grid.sample_index(k, j)];
+        let row0 = value(k0, j0) + t * (value(k1, j0) - value(k0, j0));
+        let row1 = value(k0, j1) + t * (value(k1, j1) - value(k0, j1));
+        row0 + u * (row1 - row0)
+    }
+}
+
+/// Linear interpolation in a table of increasing x; NaN outside it.
+fn interpolate(x: &[f64], z: &[f64], at: f64) -> f64 {
+    let k = x.partition_point(|v| *v <= at);
+    if k == 0 || k == x.len() {
+        let edge = if k == 0 { 0 } else { x.len() - 1 };
+        return if (at - x[edge]).abs() <= 1e-12 {
+            z[edge]
+        } else {
+            f64::NAN
+        };
+    }
+    let t = (at - x[k - 1]) / (x[k] - x[k - 1]);
+    z[k - 1] + t * (z[k] - z[k - 1])
+}
+
+/// The trace a stylus tip of radius `tip` leaves over the profile (x increasing, the
+/// surface linear between samples): the lowest height at which the tip, centred above
+/// each x, touches no point of it. Exact for the piecewise-linear surface, so samples
+/// coarser than the tip still give the right ride-up on slopes (ρ(√(1+m²) − 1)).
+pub fn stylus_trace(x: &[f64], z: &[f64], tip: f64) -> Vec<f64> {
+    let mut out = Vec::with_capacity(x.len());
+    let mut first = 0;
+    for &xi in x {
+        while first + 1 < x.len() && x[first + 1] < xi - tip {
+            first += 1;
+        }
+        let mut top = f64::NEG_INFINITY;
+        for j in first..x.len() {
+            let d = x[j] - xi;
+            if d.abs() <= tip {
+                top = top.max(z[j] + (tip * tip - d * d).sqrt());
+            }
+            if j + 1 < x.len() {
+                // Where the tip touches the segment to the next sample, if inside it.
+                let slope = (z[j + 1] - z[j]) / (x[j + 1] - x[j]);
+                let root = (1.0 + slope * slope).sqrt();
+                let u = xi + tip * slope / root;
+                if u > x[j] && u < x[j + 1] {
+                    top = top.max(z[j] + slope * (u - x[j]) + tip / root);
+                }
+            }
+            if d > tip {
+                break;
+            }
+        }
+        out.push(top - tip);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_rows_put_a_row_on_the_azimuth() {
+        assert_eq!(line_rows_through(0.0), Some((2, 0)));
+        assert_eq!(line_rows_through(90f64.to_radians()), Some((4, 1)));
+        assert_eq!(line_rows_through(45f64.to_radians()), Some((8, 1)));
+        assert_eq!(line_rows_through(0.5f64.to_radians()), Some((720, 1)));
+        assert_eq!(line_rows_through(0.25f64.to_radians()), None);
+    }
+
+    #[test]
+    fn a_stylus_rolls_over_a_ridge_and_rides_the_flanks_higher() {
+        // A 45° ridge z = −|x|: within ρ/√2 of the apex the tip touches the apex itself
+        // (trace √(ρ² − x²) − ρ); beyond, it touches the flank, its lowest point
+        // ρ(√2 − 1) above it.
+        let x: Vec<f64> = (-2000..=2000).map(|i| i as f64 * 1e-5).collect();
+        let z: Vec<f64> = x.iter().map(|v| -v.abs()).collect();
+        let tip = 0.002;
+        let trace = stylus_trace(&x, &z, tip);
+        for (i, &xi) in x.iter().enumerate() {
+            let expected = if xi.abs() <= tip / 2f64.sqrt() {
+                (tip * tip - xi * xi).sqrt() - tip
+            } else {
+                -xi.abs() + tip * (2f64.sqrt() - 1.0)
+            };
+            assert!((trace[i] - expected).abs() < 1e-12, "{xi}: {} vs {expected}", trace[i]);
+        }
+    }
+
+    #[test]
+    fn a_stylus_rides_a_slope_sampled_coarser_than_its_tip() {
+        // z = m x sampled every 5 µm under a 2 µm tip: the trace is the slope raised by
+        // ρ(√(1 + m²) − 1), the tip touching between samples.
+        let m = 0.2;
+        let x: Vec<f64> = (0..200).map(|i| i as f64 * 5e-3).collect();
+        let z: Vec<f64> = x.iter().map(|v| m * v).collect();
+        let tip = 2e-3;
+        let trace = stylus_trace(&x, &z, tip);
+        let lift = tip * ((1.0 + m * m).sqrt() - 1.0);
+        for i in 1..199 {
+            assert!((trace[i] - z[i] - lift).abs() < 1e-15, "{} vs {lift}", trace[i] - z[i]);
+        }
+    }
+}

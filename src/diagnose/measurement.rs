@@ -1,0 +1,214 @@
+//! The measured surface as the diagnosis sees it: its valid points placed on the part
+//! (in the part's XY plane, mm, where the instrument says they are), their heights along
+//! the part's +Z (the side the tool cut from), and how the instrument responds laterally.
+
+use glam::DVec2;
+
+/// How the points were taken.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Shape {
+    /// A straight line through (near) the axis at azimuth `azimuth_rad`: a point's
+    /// position along it is signed (negative beyond the axis).
+    Line { azimuth_rad: f64 },
+    /// A raster of `nx` × `ny` pixels of `pixel_mm` (x, y); valid points keep their index.
+    Raster {
+        nx: usize,
+        ny: usize,
+        pixel_mm: [f64; 2],
+    },
+}
+
+/// The instrument's lateral response, declared by the user (the diagnosis applies it to
+/// the simulation so both are seen the same way).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Instrument {
+    /// A stylus profiler's tip radius (mm): the trace is the surface dilated by the tip.
+    pub stylus_tip_mm: Option<f64>,
+    /// An area instrument's pixels average the surface over their footprint.
+    pub pixel_averaging: bool,
+}
+
+#[derive(Debug, Clone)]
+pub struct Measurement {
+    pub shape: Shape,
+    /// Per valid point: where it lies in the part's XY plane (mm), before registration.
+    pub xy_mm: Vec<DVec2>,
+    /// Line: the signed position along the line (mm); raster: empty.
+    pub along_mm: Vec<f64>,
+    /// Raster: each valid point's pixel index (row-major); line: its row in the file.
+    pub index: Vec<usize>,
+    pub height_mm: Vec<f64>,
+    pub instrument: Instrument,
+    /// Points in the file, valid or not.
+    pub total_points: usize,
+}
+
+impl Measurement {
+    /// A profile: positions along the line in the file's frame (mm), heights (NaN =
+    /// invalid); `axis_at_mm` is where the part's axis lies in that frame.
+    pub fn line(
+        positions_mm: &[f64],
+        height_mm: &[f64],
+        azimuth_rad: f64,
+        axis_at_mm: f64,
+        instrument: Instrument,
+    ) -> Self {
+        let direction = DVec2::from_angle(azimuth_rad);
+        let mut m = Self::empty(Shape::Line { azimuth_rad }, instrument, height_mm.len());
+        for (i, (&x, &h)) in positions_mm.iter().zip(height_mm).enumerate() {
+            if h.is_finite() && x.is_finite() {
+                let along = x - axis_at_mm;
+                m.along_mm.push(along);
+                m.xy_mm.push(along * direction);
+                m.index.push(i);
+                m.height_mm.push(h);
+            }
+        }
+        m
+    }
+
+    /// A height map: pixel (i, j) centred at `origin_mm + (i·dx, j·dy)` in the file's
+    /// frame, heights row-major (NaN = invalid); `axis_at_mm` is where the part's axis
+    /// lies in that frame.
+    pub fn raster(
+        (nx, ny): (usize, usize),
+        origin_mm: DVec2,
+        pixel_mm: [f64; 2],
+        height_mm: &[f64],
+        axis_at_mm: DVec2,
+        instrument: Instrument,
+    ) -> Self {
+        let shape = Shape::Raster { nx, ny, pixel_mm };
+        let mut m = Self::empty(shape, instrument, height_mm.len());
+        for (k, &h) in height_mm.iter().enumerate().take(nx * ny) {
+            if h.is_finite() {
+                let (i, j) = (k % nx, k / nx);
+                let at = origin_mm + DVec2::new(i as f64 * pixel_mm[0], j as f64 * pixel_mm[1]);
+                m.xy_mm.push(at - axis_at_mm);
+                m.index.push(k);
+                m.height_mm.push(h);
+            }
+        }
+        m
+    }
+
+    fn empty(shape: Shape, instrument: Instrument, total_points: usize) -> Self {
+        Self {
+            shape,
+            xy_mm: Vec::new(),
+            along_mm: Vec::new(),
+            index: Vec::new(),
+            height_mm: Vec::new(),
+            instrument,
+            total_points,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.height_mm.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.height_mm.is_empty()
+    }
+
+    pub fn is_line(&self) -> bool {
+        matches!(self.shape, Shape::Line { .. })
+    }
+
+    /// The coordinate a tilt is linear in, per point: along the line, or (x, y).
+    pub fn tilt_coordinates(&self, i: usize) -> [f64; 2] {
+        match self.shape {
+            Shape::Line { .. } => [self.along_mm[i], 0.0],
+            Shape::Raster { .. } => self.xy_mm[i].to_array(),
+        }
+    }
+
+    /// Largest distance of a point from the axis (mm).
+    pub fn max_radius_mm(&self) -> f64 {
+        self.xy_mm.iter().map(|p| p.length()).fold(0.0, f64::max)
+    }
+
+    /// Largest distance between two points' positions along the line, or the raster's
+    /// diagonal extent (mm).
+    pub fn extent_mm(&self) -> f64 {
+        let (lo, hi) = self.xy_mm.iter().fold(
+            (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        if self.is_empty() {
+            0.0
+        } else {
+            (hi - lo).length()
+        }
+    }
+
+    /// Typical spacing of neighbouring points (mm).
+    pub fn spacing_mm(&self) -> f64 {
+        match self.shape {
+            Shape::Line { .. } => {
+                let mut steps: Vec<f64> = self
+                    .along_mm
+                    .windows(2)
+                    .map(|w| (w[1] - w[0]).abs())
+                    .filter(|d| *d > 0.0)
+                    .collect();
+                steps.sort_by(f64::total_cmp);
+                steps.get(steps.len() / 2).copied().unwrap_or(0.0)
+            }
+            Shape::Raster { pixel_mm, .. } => pixel_mm[0].min(pixel_mm[1]),
+        }
+    }
+
+    /// The points where `keep` holds, in order.
+    pub fn subset(&self, keep: impl Fn(usize) -> bool) -> Measurement {
+        let mut m = Self::empty(self.shape, self.instrument, self.total_points);
+        for i in (0..self.len()).filter(|&i| keep(i)) {
+            m.xy_mm.push(self.xy_mm[i]);
+            if self.is_line() {
+                m.along_mm.push(self.along_mm[i]);
+            }
+            m.index.push(self.index[i]);
+            m.height_mm.push(self.height_mm[i]);
+        }
+        m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn invalid_points_are_dropped_and_positions_placed_on_the_part() {
+        let m = Measurement::line(
+            &[0.0, 0.1, 0.2, 0.3],
+            &[1.0, f64::NAN, 3.0, 4.0],
+            std::f64::consts::FRAC_PI_2,
+            0.1,
+            Instrument::default(),
+        );
+        assert_eq!(m.len(), 3);
+        assert_eq!(m.index, vec![0, 2, 3]);
+        assert!((m.along_mm[0] + 0.1).abs() < 1e-15);
+        // Along +Y at azimuth 90°.
+        assert!((m.xy_mm[2] - DVec2::new(0.0, 0.2)).length() < 1e-15);
+        assert!((m.spacing_mm() - 0.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn raster_pixels_keep_their_index() {
+        let h = [0.0, f64::NAN, 2.0, 3.0, 4.0, f64::NAN];
+        let m = Measurement::raster(
+            (3, 2),
+            DVec2::new(-1.0, -0.5),
+            [1.0, 1.0],
+            &h,
+            DVec2::ZERO,
+            Instrument::default(),
+        );
+        assert_eq!(m.index, vec![0, 2, 3, 4]);
+        assert!((m.xy_mm[1] - DVec2::new(1.0, -0.5)).length() < 1e-15);
+        assert!((m.xy_mm[3] - DVec2::new(0.0, 0.5)).length() < 1e-15);
+    }
+}

@@ -1,0 +1,799 @@
+//! Sim-to-real diagnosis (DESIGN §8): given a job (the model, without the unknown
+//! effect) and a measured surface, say where the gap between them lies, which
+//! unmodelled effect causes it, and how far it shrinks once that effect is added.
+//!
+//! 1. Register (piston, tilt, optionally power; the axis found in the measurement's
+//!    frame) and check that the measurement fits the job at all.
+//! 2. Residual = measured − simulated: its zones, bands and (maps) azimuthal orders.
+//! 3. Fit every candidate effect of the job's process by re-simulating (the removal
+//!    engine is the forward model), rank them by the evidence they add (BIC on the
+//!    effective point count, so correlated residuals do not count as independent
+//!    evidence), combine greedily, and accept only what beats noise.
+//! 4. Report the residual before and after each accepted effect, overall and per zone,
+//!    and — when part of the data was held out — on the part the fit never saw.
+
+pub mod candidates;
+pub mod fit;
+pub mod forward;
+pub mod measurement;
+pub mod register;
+pub mod report;
+pub mod zones;
+
+use crate::analysis::profile_stats::profile_stats;
+use crate::engine::RemovalEngine;
+use crate::io::job::Job;
+use candidates::{Candidate, NotDiagnosable, candidates_for};
+use fit::{Fit, Problem, bic, width};
+use forward::{ForwardError, ForwardModel, SHIFT_ROOM, SimulatedSurface};
+use glam::DVec2;
+use measurement::Measurement;
+use register::{Registered, ShiftSearch, Terms, register};
+use report::*;
+use std::time::Instant;
+use zones::{Zones, band_cutoffs, bands, gaussian_lowpass, pv, radii, rms, white_noise_mm};
+
+/// How the diagnosis runs.
+#[derive(Debug, Clone)]
+pub struct Options {
+    pub terms: Terms,
+    /// Most effects combined.
+    pub max_effects: usize,
+    /// ΔBIC an effect must add to be accepted (10: "very strong" evidence).
+    pub min_evidence: f64,
+    /// Fit only these effect kinds (job-file names); all of the process's when empty.
+    pub only: Vec<String>,
+    /// Fit on the points whose position (along the line, or X for a map, in the file's
+    /// frame, mm) lies in this range; the rest is held out to judge the fit.
+    pub calibrate_on_mm: Option<(f64, f64)>,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            terms: Terms {
+                power: false,
+                shift: true,
+            },
+            max_effects: 3,
+            min_evidence: 10.0,
+            only: Vec::new(),
+            calibrate_on_mm: None,
+        }
+    }
+}
+
+#[derive(Debug)]
+pub enum DiagnoseError {
+    /// The measurement cannot be compared with this job at all.
+    DoesNotFit(String),
+    Forward(String),
+}
+
+impl std::fmt::Display for DiagnoseError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DiagnoseError::DoesNotFit(why) => write!(f, "the measurement does not fit the job: {why}"),
+            DiagnoseError::Forward(why) => f.write_str(why),
+        }
+    }
+}
+
+impl From<ForwardError> for DiagnoseError {
+    fn from(err: ForwardError) -> Self {
+        DiagnoseError::Forward(err.0)
+    }
+}
+
+/// The diagnosis and the per-point data behind its images.
+pub struct Outcome {
+    pub diagnosis: Diagnosis,
+    /// The points fitted (the calibration part when some were held out).
+    pub fitted: Measurement,
+    /// Registered model heights and residuals (mm) at the fitted points: nominal job,
+    /// then with the accepted effects.
+    pub model_before_mm: Vec<f64>,
+    pub model_after_mm: Vec<f64>,
+    pub residual_before_mm: Vec<f64>,
+    pub residual_after_mm: Vec<f64>,
+    /// Per fitted point, its radial zone.
+    pub zone: Vec<usize>,
+    pub zones: Zones,
+    /// The accepted effects as an `[[effects]]` fragment.
+    pub effects_fragment: String,
+}
+
+/// Diagnoses `measurement` against `job` (the job's own effects are part of the model).
+pub fn diagnose(
+    job: &Job,
+    measurement: &Measurement,
+    engine: &mut dyn RemovalEngine,
+    options: &Options,
+    log: &dyn Fn(&str),
+) -> Result<Outcome, DiagnoseError> {
+    let started = Instant::now();
+    let on_part = check_coverage(job, measurement)?;
+    let (fitted, held_out) = split(&on_part, options.calibrate_on_mm)?;
+    let model = ForwardModel::new(job, &on_part, engine)?;
+    let period = mark_period_mm(job, &fitted);
+
+    // The nominal model, registered with a wide search for the axis.
+    log("simulating the job as given and registering it");
+    let mut problem = Problem::new(
+        &fitted,
+        model,
+        options.terms,
+        ShiftSearch {
+            start: DVec2::ZERO,
+            half_width_mm: 0.8 * SHIFT_ROOM * fitted.extent_mm(),
+            step_mm: 0.25 * period,
+        },
+    );
+    let nominal_sim = problem.model.simulate(&|_| {}, &fitted)?;
+    let wide = wide_search(&fitted, period);
+    let nominal = register(&fitted, &nominal_sim, options.terms, Some(wide));
+    // Fits re-solve the axis only near where the nominal model put it.
+    problem.shift = ShiftSearch {
+        start: nominal.shift_mm,
+        half_width_mm: 0.25 * period,
+        step_mm: 0.25 * period,
+    };
+    let check = fit_check(&fitted, &nominal, job, options.terms, period);
+    let zones = Zones::new(fitted.max_radius_mm());
+
+    let (all_candidates, not_diagnosable) = candidates_for(job);
+    let candidates: Vec<Candidate> = all_candidates
+        .into_iter()
+        .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
+        .collect();
+    let baseline = problem.evaluate(&[], &[])?;
+    let rss0 = baseline.rss();
+
+    let mut singles: Vec<(Fit, f64)> = Vec::new();
+    let mut accepted: Vec<Fit> = Vec::new();
+    let mut steps: Vec<Fit> = Vec::new();
+    if check.fits {
+        for c in &candidates {
+            log(&format!("fitting {}", c.label()));
+            let Some(fit) = fit_new(&mut problem, &[], &[], *c, job, &fitted)? else {
+                continue;
+            };
+            let evidence = bic(rss0, fit.evaluation.registered.used, fit.effective_points, 0) - fit.bic();
+            singles.push((fit, evidence));
+        }
+        singles.sort_by(|a, b| b.1.total_cmp(&a.1));
+        // Greedy: the strongest, then whatever adds most to what is accepted.
+        let mut current: Option<Fit> = None;
+        while accepted.len() < options.max_effects {
+            let taken: Vec<Candidate> = current.as_ref().map_or(Vec::new(), |f| f.set.clone());
+            let mut best: Option<(Fit, f64)> = None;
+            for (single, _) in &singles {
+                let c = single.set[0];
+                if taken.iter().any(|t| t.kind() == c.kind()) {
+                    continue;
+                }
+                let fit = match &current {
+                    None => Some(single.clone()),
+                    Some(cur) => {
+                        log(&format!("fitting {} with {}", c.label(), labels(&cur.set)));
+                        fit_new(&mut problem, &cur.set, &cur.values, c, job, &fitted)?
+                    }
+                };
+                let Some(fit) = fit else { continue };
+                let rss_before = current.as_ref().map_or(rss0, |f| f.evaluation.rss());
+                let k_before = current.as_ref().map_or(0, |f| f.values.len());
+                let evidence = bic(rss_before, fit.evaluation.registered.used, fit.effective_points, k_before) - fit.bic();
+                if best.as_ref().is_none_or(|b| evidence > b.1) {
+                    best = Some((fit, evidence));
+                }
+            }
+            match best {
+                Some((fit, evidence)) if evidence > options.min_evidence && significant(&fit, fit.set.len() - 1) => {
+                    accepted.push(fit.clone());
+                    steps.push(fit.clone());
+                    current = Some(fit);
+                }
+                _ => break,
+            }
+        }
+        // One backward pass: an effect the others now explain is dropped.
+        if let Some(cur) = current.clone().filter(|c| c.set.len() > 1) {
+            for drop in 0..cur.set.len() {
+                let rest: Vec<Candidate> = cur.set.iter().enumerate().filter(|(i, _)| *i != drop).map(|(_, c)| *c).collect();
+                let start: Vec<f64> = (0..cur.set.len())
+                    .filter(|i| *i != drop)
+                    .flat_map(|i| cur.values_of(i).0.to_vec())
+                    .collect();
+                let reduced = problem.fit(&rest, start, &[])?;
+                let evidence = reduced.bic() - cur.bic();
+                if evidence < options.min_evidence {
+                    log(&format!("{} adds nothing beyond the others: dropped", cur.set[drop].label()));
+                    steps.push(reduced.clone());
+                    current = Some(reduced);
+                    break;
+                }
+            }
+        }
+        if let Some(cur) = &current {
+            accepted = vec![cur.clone()];
+        }
+    }
+
+    let final_fit = accepted.last().cloned();
+    let after = final_fit.as_ref().map_or(baseline.clone(), |f| f.evaluation.clone());
+    let radii_fitted = radii(&fitted, nominal.shift_mm);
+    let zone: Vec<usize> = radii_fitted.iter().map(|r| zones.of(*r)).collect();
+    let residual_before = nominal.residual_mm.clone();
+    let residual_after = after.registered.residual_mm.clone();
+    let (marks_cutoff, form_cutoff) = band_cutoffs(&fitted, Some(period));
+    let analyse = |residual: &[f64], axis: DVec2| ResidualInfo {
+        pv_nm: pv(residual) * 1e6,
+        rms_nm: rms(residual) * 1e6,
+        zones: zones.stats(&radii(&fitted, axis), residual),
+        bands: bands(&fitted, residual, marks_cutoff, form_cutoff),
+        azimuthal_orders: if fitted.is_line() {
+            Vec::new()
+        } else {
+            zones::azimuthal_orders(&fitted, residual, axis)
+        },
+        white_noise_nm: white_noise_mm(&fitted, residual) * 1e6,
+        correlation_length_points: zones::correlation_length(&fitted, residual),
+    };
+    let before_info = analyse(&residual_before, nominal.shift_mm);
+    let after_info = analyse(&residual_after, after.registered.shift_mm);
+
+    let candidate_results: Vec<CandidateResult> = singles
+        .iter()
+        .enumerate()
+        .map(|(rank, (fit, evidence))| CandidateResult {
+            rank: rank + 1,
+            accepted: final_fit.as_ref().is_some_and(|f| f.set.iter().any(|c| c.kind() == fit.set[0].kind())),
+            delta_bic: *evidence,
+            explained: 1.0 - fit.evaluation.rss() / rss0.max(1e-300),
+            ..effect_result(fit, 0, rss0)
+        })
+        .collect();
+    let accepted_results: Vec<CandidateResult> = final_fit
+        .as_ref()
+        .map(|f| (0..f.set.len()).map(|i| effect_result(f, i, rss0)).collect())
+        .unwrap_or_default();
+
+    let mut shrinkage = vec![shrink_step("nominal job", &residual_before, &radii(&fitted, nominal.shift_mm), &zones)];
+    for step in &steps {
+        shrinkage.push(shrink_step(
+            &format!("+ {}", labels(&step.set)),
+            &step.evaluation.registered.residual_mm,
+            &radii(&fitted, step.evaluation.registered.shift_mm),
+            &zones,
+        ));
+    }
+    let indistinguishable = indistinguishable(&singles, &baseline.registered);
+
+    let held = match (&held_out, check.fits) {
+        (Some(held), true) => Some(judge_held_out(
+            &mut problem.model,
+            held,
+            final_fit.as_ref(),
+            options.terms,
+            period,
+        )?),
+        _ => None,
+    };
+    let fragment = effects_fragment(job, final_fit.as_ref());
+    let verdict = verdict(&check, final_fit.as_ref(), &before_info, &after_info, &indistinguishable, held.as_ref());
+    let diagnosis = Diagnosis {
+        schema: SCHEMA,
+        toolmark_version: env!("CARGO_PKG_VERSION"),
+        job: JobInfo {
+            name: job.name.clone(),
+            process: process_name(job).into(),
+        },
+        measurement: MeasurementInfo::of(&on_part, measurement, &fitted, held_out.as_ref()),
+        registration: RegistrationInfo {
+            terms: term_names(options.terms),
+            nominal: nominal.registration,
+            fitted: after.registered.registration,
+        },
+        fit_check: check,
+        residual_before: before_info,
+        residual_after: after_info,
+        candidates: candidate_results,
+        not_diagnosable,
+        accepted: accepted_results,
+        shrinkage,
+        indistinguishable,
+        held_out: held,
+        verdict,
+        run: RunInfo {
+            engine: problem.model.engine_kind(),
+            simulations: problem.model.simulations,
+            prepare_s: problem.model.prepare_s,
+            removal_s: problem.model.removal_s,
+            total_s: started.elapsed().as_secs_f64(),
+            mark_period_um: period * 1e3,
+        },
+    };
+    Ok(Outcome {
+        diagnosis,
+        model_before_mm: nominal.model_mm.clone(),
+        model_after_mm: after.registered.model_mm.clone(),
+        residual_before_mm: residual_before,
+        residual_after_mm: residual_after,
+        zone,
+        zones,
+        effects_fragment: fragment,
+        fitted,
+    })
+}
+
+/// Fits candidate `c` on top of `base` (at `base_values`); `None` when it cannot be
+/// fitted here (waviness with no resolvable order).
+fn fit_new(
+    problem: &mut Problem,
+    base: &[Candidate],
+    base_values: &[f64],
+    c: Candidate,
+    job: &Job,
+    fitted: &Measurement,
+) -> Result<Option<Fit>, DiagnoseError> {
+    let mut set = base.to_vec();
+    let mut start = base_values.to_vec();
+    let first = start.len();
+    match c {
+        Candidate::EdgeWaviness { .. } => {
+            let orders = waviness_orders(job, fitted);
+            if orders.is_empty() {
+                return Ok(None);
+            }
+            let Some((order, a, b)) = problem.screen_waviness(base, base_values, &orders, 20.0)? else {
+                return Ok(None);
+            };
+            set.push(Candidate::EdgeWaviness { order });
+            start.extend([a, b]);
+            Ok(Some(problem.fit(&set, start, &[])?))
+        }
+        _ => {
+            set.push(c);
+            start.extend(std::iter::repeat_n(0.0, width(&c)));
+            let scan: Vec<usize> = (first..start.len()).collect();
+            Ok(Some(problem.fit(&set, start, &scan)?))
+        }
+    }
+}
+
+/// Whether member `member`'s parameters stand 3σ clear of zero together.
+fn significant(fit: &Fit, member: usize) -> bool {
+    let (values, sigmas) = fit.values_of(member);
+    let z2: f64 = values.iter().zip(sigmas).map(|(v, s)| (v / s).powi(2)).sum();
+    z2.sqrt() > 3.0
+}
+
+fn labels(set: &[Candidate]) -> String {
+    set.iter().map(Candidate::label).collect::<Vec<_>>().join(" + ")
+}
+
+/// Harmonic orders to screen for edge waviness: from half a cycle over the edge angles
+/// the measured region uses to a wavelength of a quarter of one mark's contact, in
+/// steps that shift the phase by at most a quarter cycle across the range (at most 40).
+fn waviness_orders(job: &Job, m: &Measurement) -> Vec<f64> {
+    let Some(turning) = job.process.turning() else {
+        return Vec::new();
+    };
+    let nose = turning.tool.nose_radius_mm;
+    let contact = (turning.path.pass_spacing_mm() / nose).max(0.01);
+    let r_max = m.max_radius_mm().min(job.aperture.outer_radius_mm);
+    let slope_angle = |r: f64| job.surface.slope(r).atan();
+    let (lo, hi) = match turning.path.mode() {
+        crate::process::TurningMode::Xz => {
+            let samples = (0..=64).map(|i| slope_angle(r_max * i as f64 / 64.0));
+            let (a, b) = samples.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+            // A line through the axis meets both sides: the edge angle changes sign.
+            if m.xy_mm.iter().any(|p| p.x < 0.0) || m.is_line() {
+                (-(a.abs().max(b.abs())), a.abs().max(b.abs()))
+            } else {
+                (a, b)
+            }
+        }
+        crate::process::TurningMode::Xzb => (0.0, 0.0),
+    };
+    let span = (hi - lo) + contact;
+    let k_min = (std::f64::consts::PI / span).max(1.0);
+    let k_max = (std::f64::consts::TAU / (0.25 * contact)).min(400.0);
+    if k_max <= k_min {
+        return Vec::new();
+    }
+    let step = (0.5 * std::f64::consts::PI / span).max((k_max - k_min) / 40.0);
+    let count = ((k_max - k_min) / step).floor() as usize + 1;
+    (0..count).map(|i| k_min + i as f64 * step).collect()
+}
+
+/// The spacing of the process's marks along the measurement (mm); a twentieth of the
+/// extent for a process without marks.
+fn mark_period_mm(job: &Job, m: &Measurement) -> f64 {
+    job.process
+        .pass_spacing_mm()
+        .filter(|s| *s > 0.0)
+        .unwrap_or(m.extent_mm() / 40.0)
+        .min(m.extent_mm() / 8.0)
+}
+
+/// The nominal registration's search: a few per cent of the extent, scanned at a
+/// quarter period (coarser on maps, whose scan is two-dimensional).
+fn wide_search(m: &Measurement, period: f64) -> ShiftSearch {
+    let half = 0.8 * SHIFT_ROOM * m.extent_mm();
+    let step = if m.is_line() {
+        (0.25 * period).max(half / 200.0)
+    } else {
+        (0.25 * period).max(half / 12.0)
+    };
+    ShiftSearch {
+        start: DVec2::ZERO,
+        half_width_mm: half,
+        step_mm: step,
+    }
+}
+
+/// Keeps the points on the part; refuses a measurement mostly off it.
+fn check_coverage(job: &Job, m: &Measurement) -> Result<Measurement, DiagnoseError> {
+    if m.len() < 16 {
+        return Err(DiagnoseError::DoesNotFit(format!(
+            "only {} valid points (of {}); a diagnosis needs at least 16",
+            m.len(),
+            m.total_points
+        )));
+    }
+    let (inner, outer) = (job.aperture.inner_radius_mm, job.aperture.outer_radius_mm);
+    let on = |i: usize| {
+        let r = m.xy_mm[i].length();
+        r >= inner * 0.98 && r <= outer * 1.02
+    };
+    let count = (0..m.len()).filter(|&i| on(i)).count();
+    if (count as f64) < 0.5 * m.len() as f64 || count < 16 {
+        return Err(DiagnoseError::DoesNotFit(format!(
+            "its points reach {:.4} mm from the axis over an extent of {:.4} mm, but the part spans r = {:.4}–{:.4} mm: only {count} of {} points lie on it (a lateral unit error, or another part?)",
+            m.max_radius_mm(),
+            m.extent_mm(),
+            inner,
+            outer,
+            m.len()
+        )));
+    }
+    Ok(m.subset(on))
+}
+
+/// Splits into the fitted part and the held-out rest.
+fn split(m: &Measurement, range: Option<(f64, f64)>) -> Result<(Measurement, Option<Measurement>), DiagnoseError> {
+    let Some((from, to)) = range else {
+        return Ok((m.clone(), None));
+    };
+    let position = |i: usize| if m.is_line() { m.along_mm[i] } else { m.xy_mm[i].x };
+    let fitted = m.subset(|i| (from..=to).contains(&position(i)));
+    let held = m.subset(|i| !(from..=to).contains(&position(i)));
+    if fitted.len() < 16 || held.len() < 16 {
+        return Err(DiagnoseError::DoesNotFit(format!(
+            "calibrating on {from}–{to} mm leaves {} points to fit and {} held out; each needs at least 16",
+            fitted.len(),
+            held.len()
+        )));
+    }
+    Ok((fitted, Some(held)))
+}
+
+/// Whether the measurement can be this job's part at all: its marks, its form.
+fn fit_check(m: &Measurement, nominal: &Registered, job: &Job, terms: Terms, period: f64) -> FitCheck {
+    let mut findings = Vec::new();
+    let measured: Vec<f64> = m.height_mm.clone();
+    let model = &nominal.model_mm;
+    let used = nominal.used as f64 / m.len() as f64;
+    if used < 0.9 {
+        findings.push(Finding::note(format!(
+            "{:.0} % of the points fall outside the simulated region after registration",
+            100.0 * (1.0 - used)
+        )));
+    }
+    // Form: the simulated surface's own variation against what registration leaves.
+    let detrend = |values: &[f64]| -> Vec<f64> {
+        let zero = vec![0.0; values.len()];
+        let flat = Measurement { height_mm: values.to_vec(), ..m.clone() };
+        register::fit_linear(&flat, &zero, nominal.shift_mm, terms.power).residual_mm
+    };
+    let form_rms = rms(&detrend(model));
+    let measured_rms = rms(&detrend(&measured));
+    let residual_rms = rms(&nominal.residual_mm);
+    let (mut mark_measured_um, mut mark_simulated_um) = (None, None);
+    if m.is_line() && job.process.pass_spacing_mm().is_some() && m.extent_mm() > 6.0 * period {
+        let high_pass = |values: &[f64]| -> Vec<f64> {
+            let low = gaussian_lowpass(m, values, 5.0 * period);
+            values.iter().zip(&low).map(|(v, l)| v - l).collect()
+        };
+        let (hm, hs) = (high_pass(&measured), high_pass(model));
+        let finite: Vec<usize> = (0..m.len()).filter(|&i| hm[i].is_finite() && hs[i].is_finite()).collect();
+        let pick = |v: &[f64]| finite.iter().map(|&i| v[i]).collect::<Vec<f64>>();
+        let x = pick(&m.along_mm);
+        let (pm, ps) = (profile_stats(&x, &pick(&hm), 0), profile_stats(&x, &pick(&hs), 0));
+        if ps.rms_nm > 0.5 && pm.rms_nm > 0.5 {
+            mark_measured_um = Some(pm.dominant_period_um);
+            mark_simulated_um = Some(ps.dominant_period_um);
+            let ratio = pm.dominant_period_um / ps.dominant_period_um;
+            if !(0.75..=1.33).contains(&ratio) {
+                findings.push(Finding::severe(format!(
+                    "the measured tool marks are {:.2} µm apart, the simulated {:.2} µm: not this feed, or the lateral unit is wrong",
+                    pm.dominant_period_um, ps.dominant_period_um
+                )));
+            }
+            let amplitude = pm.rms_nm / ps.rms_nm;
+            if !(1.0 / 30.0..=30.0).contains(&amplitude) {
+                findings.push(Finding::severe(format!(
+                    "the measured tool marks are {amplitude:.3}× as high as the simulated ({:.1} nm against {:.1} nm RMS): the height unit is wrong, or this is another process",
+                    pm.rms_nm, ps.rms_nm
+                )));
+            }
+        }
+    }
+    let noise = white_noise_mm(m, &nominal.residual_mm);
+    if form_rms > 5.0 * noise.max(1e-7) && residual_rms > 0.5 * form_rms {
+        let hint = if terms.power {
+            ""
+        } else {
+            " — if the file's form was removed before export, diagnose with --remove power"
+        };
+        findings.push(Finding::severe(format!(
+            "the measured surface does not follow the part's form: {:.1} nm RMS left against {:.1} nm RMS of form (measured {:.1} nm RMS): another part, or heights in the wrong unit{hint}",
+            residual_rms * 1e6,
+            form_rms * 1e6,
+            measured_rms * 1e6
+        )));
+    }
+    FitCheck {
+        fits: findings.iter().all(|f| f.severity != "severe"),
+        findings,
+        form_rms_nm: form_rms * 1e6,
+        measured_rms_nm: measured_rms * 1e6,
+        mark_period_measured_um: mark_measured_um,
+        mark_period_simulated_um: mark_simulated_um,
+    }
+}
+
+/// A fitted effect (member `i` of a fit) as a result row.
+fn effect_result(fit: &Fit, i: usize, rss0: f64) -> CandidateResult {
+    let c = fit.set[i];
+    let (values, sigmas) = fit.values_of(i);
+    let start: usize = fit.set[..i].iter().map(width).sum();
+    CandidateResult {
+        effect: c.kind().into(),
+        label: c.label(),
+        order: match c {
+            Candidate::EdgeWaviness { order } => Some(order),
+            _ => None,
+        },
+        parameters: values
+            .iter()
+            .zip(sigmas)
+            .zip(&fit.parameters[start..start + values.len()])
+            .map(|((v, s), p)| ParameterValue {
+                name: p.name.into(),
+                unit: p.unit.into(),
+                value: *v,
+                sigma: *s,
+            })
+            .collect(),
+        description: c.describe(values, sigmas),
+        advice: c.advice(values),
+        rank: 0,
+        accepted: true,
+        delta_bic: 0.0,
+        explained: 1.0 - fit.evaluation.rss() / rss0.max(1e-300),
+    }
+}
+
+fn shrink_step(model: &str, residual: &[f64], radii: &[f64], zones: &Zones) -> ShrinkageStep {
+    ShrinkageStep {
+        model: model.into(),
+        pv_nm: pv(residual) * 1e6,
+        rms_nm: rms(residual) * 1e6,
+        zones: zones.stats(radii, residual),
+    }
+}
+
+/// Candidates the data cannot tell from the best: nearly the same evidence and nearly
+/// the same change to the residual.
+fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<String> {
+    let Some((best, best_evidence)) = singles.first() else {
+        return Vec::new();
+    };
+    let change = |f: &Fit| -> Vec<f64> {
+        f.evaluation
+            .registered
+            .residual_mm
+            .iter()
+            .zip(&baseline.residual_mm)
+            .map(|(a, b)| if a.is_finite() && b.is_finite() { b - a } else { 0.0 })
+            .collect()
+    };
+    let reference = change(best);
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    singles[1..]
+        .iter()
+        .filter(|(f, evidence)| {
+            let other = change(f);
+            let cos = reference.iter().zip(&other).map(|(a, b)| a * b).sum::<f64>()
+                / (norm(&reference) * norm(&other)).max(1e-300);
+            *best_evidence > 0.0 && (best_evidence - evidence).abs() < 0.02 * best_evidence.abs() + 2.0 && cos > 0.98
+        })
+        .map(|(f, _)| f.set[0].label())
+        .collect()
+}
+
+/// Judges the fitted effects on the held-out points: each registered on its own
+/// (metrology, not calibration), with and without the effects.
+fn judge_held_out(
+    model: &mut ForwardModel,
+    held: &Measurement,
+    fit: Option<&Fit>,
+    terms: Terms,
+    period: f64,
+) -> Result<HeldOut, DiagnoseError> {
+    let search = wide_search(held, period);
+    let nominal: SimulatedSurface = model.simulate(&|_| {}, held)?;
+    let before = register(held, &nominal, terms, Some(search));
+    let after = match fit {
+        Some(f) => {
+            let apply = |job: &mut Job| {
+                for i in 0..f.set.len() {
+                    f.set[i].apply(f.values_of(i).0, job);
+                }
+            };
+            let sim = model.simulate(&apply, held)?;
+            register(held, &sim, terms, Some(search))
+        }
+        None => before.clone(),
+    };
+    let position = |i: usize| if held.is_line() { held.along_mm[i] } else { held.xy_mm[i].x };
+    let (from, to) = (0..held.len()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), i| {
+        (a.min(position(i)), b.max(position(i)))
+    });
+    Ok(HeldOut {
+        points: held.len(),
+        from_mm: from,
+        to_mm: to,
+        before_pv_nm: pv(&before.residual_mm) * 1e6,
+        before_rms_nm: rms(&before.residual_mm) * 1e6,
+        after_pv_nm: pv(&after.residual_mm) * 1e6,
+        after_rms_nm: rms(&after.residual_mm) * 1e6,
+    })
+}
+
+/// The accepted effects as a job fragment (TOML), with a header saying where it came from.
+fn effects_fragment(job: &Job, fit: Option<&Fit>) -> String {
+    let mut text = format!(
+        "# Effects fitted by `toolmark diagnose` for job \"{}\".\n# Use: toolmark run JOB --effects THIS_FILE (or compensate … --effects THIS_FILE).\n",
+        job.name
+    );
+    match fit {
+        Some(f) => {
+            for i in 0..f.set.len() {
+                text.push('\n');
+                text.push_str(&f.set[i].effects_table(f.values_of(i).0));
+            }
+        }
+        None => text.push_str("# No effect was accepted: nothing to carry over.\n"),
+    }
+    text
+}
+
+fn process_name(job: &Job) -> &'static str {
+    match job.process {
+        crate::process::Process::Turning(_) => "turning",
+        crate::process::Process::Generating(_) => "generating",
+        crate::process::Process::Milling(_) => "milling",
+    }
+}
+
+fn term_names(terms: Terms) -> Vec<String> {
+    let mut names = vec!["piston".to_string(), "tilt".to_string()];
+    if terms.power {
+        names.push("power".into());
+    }
+    if terms.shift {
+        names.push("axis position (decentre)".into());
+    }
+    names
+}
+
+/// The one sentence first, then what to do.
+fn verdict(
+    check: &FitCheck,
+    fit: Option<&Fit>,
+    before: &ResidualInfo,
+    after: &ResidualInfo,
+    alternatives: &[String],
+    held: Option<&HeldOut>,
+) -> Verdict {
+    if !check.fits {
+        let why: Vec<&str> = check
+            .findings
+            .iter()
+            .filter(|f| f.severity == "severe")
+            .map(|f| f.message.as_str())
+            .collect();
+        return Verdict {
+            status: "does_not_fit".into(),
+            sentence: format!("The measurement does not fit this job, so no effect is claimed: {}.", why.join("; ")),
+            advice: vec!["check the units, the part and the job before diagnosing".into()],
+        };
+    }
+    let shrink = format!(
+        "from {:.0} nm to {:.0} nm PV ({:.1} → {:.1} nm RMS)",
+        before.pv_nm, after.pv_nm, before.rms_nm, after.rms_nm
+    );
+    match fit {
+        Some(f) => {
+            let parts: Vec<String> = (0..f.set.len())
+                .map(|i| {
+                    let (v, s) = f.values_of(i);
+                    f.set[i].describe(v, s)
+                })
+                .collect();
+            let mut sentence = capitalise(&parts.join("; "));
+            let which = if f.set.len() == 1 { "correcting it" } else { "correcting them" };
+            sentence.push_str(&format!("; {which} cuts the residual {shrink}."));
+            if !alternatives.is_empty() {
+                sentence.push_str(&format!(
+                    " The data cannot tell this from: {}.",
+                    alternatives.join(", ")
+                ));
+            }
+            if let Some(h) = held {
+                sentence.push_str(&format!(
+                    " On the {} held-out points it cuts the residual from {:.1} to {:.1} nm RMS.",
+                    h.points, h.before_rms_nm, h.after_rms_nm
+                ));
+            }
+            Verdict {
+                status: "effects_found".into(),
+                sentence,
+                advice: (0..f.set.len()).map(|i| f.set[i].advice(f.values_of(i).0)).collect(),
+            }
+        }
+        None => {
+            let noise = after.white_noise_nm;
+            if after.rms_nm <= 2.0 * noise.max(1e-3) || after.correlation_length_points < 3.0 {
+                Verdict {
+                    status: "no_effect_beyond_noise".into(),
+                    sentence: format!(
+                        "No modelled effect explains the residual beyond noise: it is {:.1} nm RMS ({:.0} nm PV) against a noise level of {:.1} nm.",
+                        after.rms_nm, after.pv_nm, noise
+                    ),
+                    advice: vec!["nothing to correct from this measurement".into()],
+                }
+            } else {
+                let zone = before
+                    .zones
+                    .iter()
+                    .max_by(|a, b| a.share.total_cmp(&b.share))
+                    .map_or(String::new(), |z| format!("; most of it in the {} ({:.0} %)", z.name, 100.0 * z.share));
+                let band = before
+                    .bands
+                    .iter()
+                    .max_by(|a, b| a.share.total_cmp(&b.share))
+                    .map_or(String::new(), |b| format!(" and the {} band ({:.0} %)", b.name, 100.0 * b.share));
+                Verdict {
+                    status: "unexplained_residual".into(),
+                    sentence: format!(
+                        "No modelled effect explains the residual: {:.1} nm RMS ({:.0} nm PV) remains, well above the noise level of {:.1} nm{zone}{band}.",
+                        after.rms_nm, after.pv_nm, noise
+                    ),
+                    advice: vec!["look for a cause outside the model (material, measurement, machine dynamics)".into()],
+                }
+            }
+        }
+    }
+}
+
+fn capitalise(text: &str) -> String {
+    let mut chars = text.chars();
+    match chars.next() {
+        Some(c) => c.to_uppercase().chain(chars).collect(),
+        None => String::new(),
+    }
+}

@@ -1,0 +1,223 @@
+//! Registration as metrology software does it: the measured surface is compared with the
+//! simulated one after removing what the mounting adds — piston and tilt — and, when
+//! asked, power (for a file whose form was already removed); the part's axis is found in
+//! the measurement's frame by a lateral shift (a map's decentre, a profile's offset along
+//! its line). Linear terms are solved by least squares for each trial shift; the shift by
+//! a grid search and a golden-section refinement.
+
+use super::forward::SimulatedSurface;
+use super::measurement::Measurement;
+use crate::numeric::solve_linear;
+use glam::DVec2;
+
+/// What registration may remove besides piston and tilt.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct Terms {
+    /// A coefficient of r² (the measured file had its form removed, or the radius is
+    /// not to be judged).
+    pub power: bool,
+    /// The part's axis is searched for in the measurement's frame.
+    pub shift: bool,
+}
+
+/// Where to look for the axis: a square (line: a segment) of half-width `half_width_mm`
+/// around `start`, scanned every `step_mm` then refined.
+#[derive(Debug, Clone, Copy)]
+pub struct ShiftSearch {
+    pub start: DVec2,
+    pub half_width_mm: f64,
+    pub step_mm: f64,
+}
+
+/// What registration removed, in report units.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Registration {
+    pub piston_nm: f64,
+    /// Slope removed along the line (first value) or along X and Y (µrad).
+    pub tilt_urad: [f64; 2],
+    /// Coefficient of r² removed (nm/mm²), when power is a term.
+    pub power_nm_per_mm2: Option<f64>,
+    /// Where the part's axis lies in the measurement's frame (µm).
+    pub axis_at_um: [f64; 2],
+}
+
+#[derive(Debug, Clone)]
+pub struct Registered {
+    pub registration: Registration,
+    pub shift_mm: DVec2,
+    /// measured − (simulated + removed terms) per point (mm); NaN where the simulation
+    /// has no data.
+    pub residual_mm: Vec<f64>,
+    /// simulated + removed terms per point (mm).
+    pub model_mm: Vec<f64>,
+    /// Σ residual² over the points used (mm²).
+    pub rss: f64,
+    pub used: usize,
+}
+
+/// Registers `sim` to the measurement; `search` = None keeps the axis where the
+/// measurement puts it (or at a given shift).
+pub fn register(
+    m: &Measurement,
+    sim: &SimulatedSurface,
+    terms: Terms,
+    search: Option<ShiftSearch>,
+) -> Registered {
+    let Some(search) = search.filter(|_| terms.shift) else {
+        let shift = search.map_or(DVec2::ZERO, |s| s.start);
+        return fit_linear(m, &sim.sample(m, shift), shift, terms.power);
+    };
+    let direction = match m.shape {
+        super::measurement::Shape::Line { azimuth_rad } => Some(DVec2::from_angle(azimuth_rad)),
+        super::measurement::Shape::Raster { .. } => None,
+    };
+    // A subsample keeps the scan cheap on large maps.
+    let stride = (m.len() / 4000).max(1);
+    let coarse = m.subset(|i| i % stride == 0);
+    let rss_at = |points: &Measurement, shift: DVec2| {
+        let r = fit_linear(points, &sim.sample(points, shift), shift, terms.power);
+        if r.used < points.len() / 2 { f64::INFINITY } else { r.rss / r.used as f64 }
+    };
+    let steps = (search.half_width_mm / search.step_mm).ceil().max(1.0) as i64;
+    let offsets: Vec<f64> = (-steps..=steps).map(|k| k as f64 * search.step_mm).collect();
+    let mut best = (f64::INFINITY, search.start);
+    match direction {
+        Some(d) => {
+            for &a in &offsets {
+                let shift = search.start + a * d;
+                let value = rss_at(&coarse, shift);
+                if value < best.0 {
+                    best = (value, shift);
+                }
+            }
+            let centre = best.1;
+            let along = |a: f64| rss_at(m, centre + a * d);
+            let a = golden_section(&along, -search.step_mm, search.step_mm, 24);
+            best.1 = centre + a * d;
+        }
+        None => {
+            for &ax in &offsets {
+                for &ay in &offsets {
+                    let shift = search.start + DVec2::new(ax, ay);
+                    let value = rss_at(&coarse, shift);
+                    if value < best.0 {
+                        best = (value, shift);
+                    }
+                }
+            }
+            // Alternate refinements along X and Y.
+            let mut at = best.1;
+            let mut width = search.step_mm;
+            for _ in 0..3 {
+                let x = golden_section(&|a| rss_at(m, at + DVec2::new(a, 0.0)), -width, width, 20);
+                at.x += x;
+                let y = golden_section(&|a| rss_at(m, at + DVec2::new(0.0, a)), -width, width, 20);
+                at.y += y;
+                width *= 0.5;
+            }
+            best.1 = at;
+        }
+    }
+    fit_linear(m, &sim.sample(m, best.1), best.1, terms.power)
+}
+
+/// Least-squares piston, tilt (and power) of measured − simulated at a fixed shift,
+/// by the normal equations on centred coordinates (at most four well-scaled columns).
+pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool) -> Registered {
+    let raster = !m.is_line();
+    let width = 2 + usize::from(raster) + usize::from(power);
+    let used: Vec<usize> = (0..m.len()).filter(|&i| simulated[i].is_finite()).collect();
+    let n = used.len().max(1) as f64;
+    let centre = used.iter().fold([0.0, 0.0], |c, &i| {
+        let t = m.tilt_coordinates(i);
+        [c[0] + t[0] / n, c[1] + t[1] / n]
+    });
+    let columns = |i: usize| -> [f64; 4] {
+        let t = m.tilt_coordinates(i);
+        let mut row = [1.0, t[0] - centre[0], 0.0, 0.0];
+        let mut k = 2;
+        if raster {
+            row[k] = t[1] - centre[1];
+            k += 1;
+        }
+        if power {
+            row[k] = (m.xy_mm[i] - shift).length_squared();
+        }
+        row
+    };
+    let mut normal = vec![vec![0.0; width]; width];
+    let mut rhs = vec![0.0; width];
+    for &i in &used {
+        let row = columns(i);
+        let target = m.height_mm[i] - simulated[i];
+        for a in 0..width {
+            rhs[a] += row[a] * target;
+            for b in 0..width {
+                normal[a][b] += row[a] * row[b];
+            }
+        }
+    }
+    let coefficients = solve_linear(&normal, &rhs).unwrap_or_else(|| vec![0.0; width]);
+    let mut residual_mm = vec![f64::NAN; m.len()];
+    let mut model_mm = vec![f64::NAN; m.len()];
+    let mut rss = 0.0;
+    for &i in &used {
+        let row = columns(i);
+        let removed: f64 = (0..width).map(|a| row[a] * coefficients[a]).sum();
+        model_mm[i] = simulated[i] + removed;
+        residual_mm[i] = m.height_mm[i] - model_mm[i];
+        rss += residual_mm[i] * residual_mm[i];
+    }
+    // Piston at the measurement's origin (the centred columns moved it); slopes in
+    // mm/mm are 1e6 µrad.
+    let piston = coefficients[0]
+        - coefficients[1] * centre[0]
+        - if raster { coefficients[2] * centre[1] } else { 0.0 };
+    let tilt_urad = [
+        coefficients[1] * 1e6,
+        if raster { coefficients[2] * 1e6 } else { 0.0 },
+    ];
+    Registered {
+        registration: Registration {
+            piston_nm: piston * 1e6,
+            tilt_urad,
+            power_nm_per_mm2: power.then(|| coefficients[width - 1] * 1e6),
+            axis_at_um: (shift * 1e3).to_array(),
+        },
+        shift_mm: shift,
+        residual_mm,
+        model_mm,
+        rss,
+        used: used.len(),
+    }
+}
+
+/// Minimum of `f` on [lo, hi] by golden-section search (`steps` shrinkings).
+pub fn golden_section(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, steps: usize) -> f64 {
+    let ratio = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut b) = (lo, hi);
+    let mut c = b - ratio * (b - a);
+    let mut d = a + ratio * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..steps {
+        if fc <= fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - ratio * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + ratio * (b - a);
+            fd = f(d);
+        }
+    }
+    let mid = 0.5 * (a + b);
+    // The bracket's ends count too: the minimum may sit on the boundary.
+    [(f(lo), lo), (fc.min(fd), mid), (f(hi), hi)]
+        .into_iter()
+        .min_by(|x, y| x.0.total_cmp(&y.0))
+        .map_or(mid, |b| b.1)
+}

@@ -1,0 +1,548 @@
+//! What a diagnosis says: the `diagnosis.json` schema (stable: fields are only added,
+//! never renamed, under the same `schema` string), the Markdown report with the verdict
+//! first, the residual images and the effects fragment.
+
+use super::Outcome;
+use super::measurement::{Measurement, Shape};
+use super::register::Registration;
+use super::zones::{ZoneStats, gaussian_lowpass};
+use crate::io::atomic::write_bytes_atomically;
+use crate::io::colour::ColourMap;
+use crate::io::exr_io::{ExrImage, write_exr};
+use crate::io::plot::{LinePlot, PALETTE, Series, write_line_plot};
+use crate::io::png_out::{FalseColourPlot, write_false_colour_png};
+use std::collections::BTreeMap;
+use std::io;
+use std::path::{Path, PathBuf};
+
+pub const SCHEMA: &str = "toolmark.diagnosis/1";
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Diagnosis {
+    pub schema: &'static str,
+    pub toolmark_version: &'static str,
+    pub job: JobInfo,
+    pub measurement: MeasurementInfo,
+    pub registration: RegistrationInfo,
+    pub fit_check: FitCheck,
+    /// The residual against the job as given, and against it with the accepted effects.
+    pub residual_before: ResidualInfo,
+    pub residual_after: ResidualInfo,
+    /// Every candidate fitted alone, strongest evidence first.
+    pub candidates: Vec<CandidateResult>,
+    pub not_diagnosable: Vec<super::NotDiagnosable>,
+    /// The accepted effects, fitted together.
+    pub accepted: Vec<CandidateResult>,
+    /// The residual after each step of the greedy combination.
+    pub shrinkage: Vec<ShrinkageStep>,
+    /// Candidates that explain the data as well as the first (the data cannot tell them apart).
+    pub indistinguishable: Vec<String>,
+    pub held_out: Option<HeldOut>,
+    pub verdict: Verdict,
+    pub run: RunInfo,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct JobInfo {
+    pub name: String,
+    pub process: String,
+}
+
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct MeasurementInfo {
+    /// Filled by the caller that read the file.
+    pub file: String,
+    pub format: String,
+    pub lateral_unit: String,
+    pub height_unit: String,
+    pub notes: Vec<String>,
+    /// "profile" or "map".
+    pub shape: String,
+    pub points_in_file: usize,
+    pub valid_points: usize,
+    /// Valid points on the part (the rest lie beyond its aperture).
+    pub points_on_part: usize,
+    pub points_fitted: usize,
+    pub points_held_out: usize,
+    pub extent_mm: f64,
+    pub max_radius_mm: f64,
+    pub spacing_um: f64,
+    pub azimuth_deg: Option<f64>,
+    pub stylus_tip_um: Option<f64>,
+    pub pixel_averaging: bool,
+}
+
+impl MeasurementInfo {
+    pub fn of(on_part: &Measurement, all: &Measurement, fitted: &Measurement, held: Option<&Measurement>) -> Self {
+        Self {
+            shape: if all.is_line() { "profile" } else { "map" }.into(),
+            points_in_file: all.total_points,
+            valid_points: all.len(),
+            points_on_part: on_part.len(),
+            points_fitted: fitted.len(),
+            points_held_out: held.map_or(0, Measurement::len),
+            extent_mm: on_part.extent_mm(),
+            max_radius_mm: on_part.max_radius_mm(),
+            spacing_um: on_part.spacing_mm() * 1e3,
+            azimuth_deg: match all.shape {
+                Shape::Line { azimuth_rad } => Some(azimuth_rad.to_degrees()),
+                Shape::Raster { .. } => None,
+            },
+            stylus_tip_um: all.instrument.stylus_tip_mm.map(|t| t * 1e3),
+            pixel_averaging: all.instrument.pixel_averaging,
+            ..Default::default()
+        }
+    }
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RegistrationInfo {
+    /// What registration removes: piston, tilt, power, axis position.
+    pub terms: Vec<String>,
+    /// Removed against the job as given, and against the final model.
+    pub nominal: Registration,
+    pub fitted: Registration,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Finding {
+    /// "severe" (the measurement does not fit the job) or "note".
+    pub severity: &'static str,
+    pub message: String,
+}
+
+impl Finding {
+    pub fn severe(message: String) -> Self {
+        Self { severity: "severe", message }
+    }
+
+    pub fn note(message: String) -> Self {
+        Self { severity: "note", message }
+    }
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FitCheck {
+    pub fits: bool,
+    pub findings: Vec<Finding>,
+    /// RMS of the simulated part's form over the points, and of the measured heights,
+    /// after the registration terms (nm).
+    pub form_rms_nm: f64,
+    pub measured_rms_nm: f64,
+    pub mark_period_measured_um: Option<f64>,
+    pub mark_period_simulated_um: Option<f64>,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ResidualInfo {
+    pub pv_nm: f64,
+    pub rms_nm: f64,
+    /// Radial zones (from_mm/to_mm are radii).
+    pub zones: Vec<ZoneStats>,
+    /// Wavelength bands (from_mm/to_mm are wavelengths).
+    pub bands: Vec<ZoneStats>,
+    /// Maps: (order, share of the residual's energy).
+    pub azimuthal_orders: Vec<(String, f64)>,
+    /// The residual's white-noise level (from second differences) (nm).
+    pub white_noise_nm: f64,
+    /// Points over which the residual stays correlated (1 = independent).
+    pub correlation_length_points: f64,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ParameterValue {
+    pub name: String,
+    pub unit: String,
+    pub value: f64,
+    /// One standard deviation (correlated residuals accounted for).
+    pub sigma: f64,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CandidateResult {
+    /// The effect's kind in job files.
+    pub effect: String,
+    pub label: String,
+    /// Edge waviness: the harmonic order fitted.
+    pub order: Option<f64>,
+    pub parameters: Vec<ParameterValue>,
+    pub description: String,
+    pub advice: String,
+    /// 1 = most evidence (single candidates); 0 for accepted rows.
+    pub rank: usize,
+    pub accepted: bool,
+    /// Evidence the effect adds: BIC without it − BIC with it (> 10: very strong).
+    pub delta_bic: f64,
+    /// Share of the nominal residual's Σ r² it removes.
+    pub explained: f64,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ShrinkageStep {
+    pub model: String,
+    pub pv_nm: f64,
+    pub rms_nm: f64,
+    pub zones: Vec<ZoneStats>,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct HeldOut {
+    pub points: usize,
+    /// Where they lie (along the line, or X), in the file's frame (mm).
+    pub from_mm: f64,
+    pub to_mm: f64,
+    pub before_pv_nm: f64,
+    pub before_rms_nm: f64,
+    pub after_pv_nm: f64,
+    pub after_rms_nm: f64,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Verdict {
+    /// effects_found | no_effect_beyond_noise | unexplained_residual | does_not_fit
+    pub status: String,
+    pub sentence: String,
+    pub advice: Vec<String>,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RunInfo {
+    pub engine: String,
+    pub simulations: usize,
+    /// Seconds preparing the simulations (paths, grids) and removing material.
+    pub prepare_s: f64,
+    pub removal_s: f64,
+    pub total_s: f64,
+    /// The mark spacing the registration and bands used (µm).
+    pub mark_period_um: f64,
+}
+
+/// Writes diagnosis.json, report.md, effects.toml and the images into `dir`.
+pub fn write_outputs(dir: &Path, outcome: &Outcome) -> io::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)?;
+    let mut written = Vec::new();
+    let mut put = |name: &str, bytes: &[u8]| -> io::Result<()> {
+        let path = dir.join(name);
+        write_bytes_atomically(&path, bytes)?;
+        written.push(path);
+        Ok(())
+    };
+    let json = serde_json::to_string_pretty(&outcome.diagnosis).map_err(io::Error::other)?;
+    put("diagnosis.json", json.as_bytes())?;
+    put("effects.toml", outcome.effects_fragment.as_bytes())?;
+    let images = write_images(dir, outcome)?;
+    put("report.md", markdown(&outcome.diagnosis, &images).as_bytes())?;
+    written.extend(images.into_iter().map(|(_, p)| p));
+    Ok(written)
+}
+
+fn nm(values: &[f64]) -> Vec<f64> {
+    values.iter().map(|v| v * 1e6).collect()
+}
+
+/// The images: residual plots along a line, residual maps for a raster.
+fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
+    let m = &o.fitted;
+    let mut images = Vec::new();
+    match m.shape {
+        Shape::Line { .. } => {
+            let x = &m.along_mm;
+            let (before, after) = (nm(&o.residual_before_mm), nm(&o.residual_after_mm));
+            let path = dir.join("residual.png");
+            write_line_plot(
+                &path,
+                &LinePlot {
+                    title: "residual: measured − simulated (registered)",
+                    x_label: "position along the line from the axis (mm)",
+                    y_label: "residual (nm)",
+                    series: &[
+                        Series { label: "job as given", x, y: &before, colour: PALETTE[1] },
+                        Series { label: "with the fitted effects", x, y: &after, colour: PALETTE[0] },
+                    ],
+                },
+            )?;
+            images.push(("Residual before and after the fitted effects".into(), path));
+            // The surface with the part's form taken out the same way from all three.
+            let form = gaussian_lowpass(m, &o.model_before_mm, 0.25 * m.extent_mm());
+            let minus_form = |v: &[f64]| -> Vec<f64> {
+                v.iter().zip(&form).map(|(a, f)| (a - f) * 1e6).collect()
+            };
+            let (measured, model0, model1) = (
+                minus_form(&m.height_mm),
+                minus_form(&o.model_before_mm),
+                minus_form(&o.model_after_mm),
+            );
+            let path = dir.join("profile.png");
+            write_line_plot(
+                &path,
+                &LinePlot {
+                    title: "measured and simulated profile, the nominal form removed",
+                    x_label: "position along the line from the axis (mm)",
+                    y_label: "height (nm)",
+                    series: &[
+                        Series { label: "measured", x, y: &measured, colour: PALETTE[2] },
+                        Series { label: "job as given", x, y: &model0, colour: PALETTE[1] },
+                        Series { label: "with the fitted effects", x, y: &model1, colour: PALETTE[0] },
+                    ],
+                },
+            )?;
+            images.push(("Measured and simulated profiles".into(), path));
+            // The nominal residual coloured by zone.
+            let per_zone: Vec<(String, Vec<f64>, Vec<f64>)> = o
+                .zones
+                .bounds
+                .iter()
+                .enumerate()
+                .map(|(z, (name, _, _))| {
+                    let pick = |v: &[f64]| -> Vec<f64> {
+                        (0..m.len()).map(|i| if o.zone[i] == z { v[i] } else { f64::NAN }).collect()
+                    };
+                    (name.clone(), x.clone(), pick(&before))
+                })
+                .collect();
+            let series: Vec<Series> = per_zone
+                .iter()
+                .enumerate()
+                .map(|(z, (name, x, y))| Series {
+                    label: name,
+                    x,
+                    y,
+                    colour: PALETTE[z % PALETTE.len()],
+                })
+                .collect();
+            let path = dir.join("residual_zones.png");
+            write_line_plot(
+                &path,
+                &LinePlot {
+                    title: "residual against the job as given, by zone",
+                    x_label: "position along the line from the axis (mm)",
+                    y_label: "residual (nm)",
+                    series: &series,
+                },
+            )?;
+            images.push(("Residual by zone".into(), path));
+        }
+        Shape::Raster { nx, ny, pixel_mm } => {
+            let raster = |values: &[f64], scale: f64| -> Vec<f32> {
+                let mut out = vec![f32::NAN; nx * ny];
+                for (i, &k) in m.index.iter().enumerate() {
+                    out[k] = (values[i] * scale) as f32;
+                }
+                // Row 0 is the top of an image: +Y up.
+                let mut flipped = Vec::with_capacity(out.len());
+                for row in (0..ny).rev() {
+                    flipped.extend_from_slice(&out[row * nx..(row + 1) * nx]);
+                }
+                flipped
+            };
+            let before = raster(&o.residual_before_mm, 1e6);
+            let after = raster(&o.residual_after_mm, 1e6);
+            let zone_values: Vec<f64> = o.zone.iter().map(|z| *z as f64).collect();
+            let zone = raster(&zone_values, 1.0);
+            let mut attributes = BTreeMap::new();
+            attributes.insert("pixel_x_mm".into(), format!("{}", pixel_mm[0]));
+            attributes.insert("pixel_y_mm".into(), format!("{}", pixel_mm[1]));
+            attributes.insert("units".into(), "residuals in nm; zone = index into diagnosis.json zones".into());
+            let path = dir.join("residual.exr");
+            write_exr(
+                &path,
+                &ExrImage {
+                    width: nx,
+                    height: ny,
+                    channels: vec![
+                        ("residual_before_nm".into(), before.clone()),
+                        ("residual_after_nm".into(), after.clone()),
+                        ("zone".into(), zone.clone()),
+                    ],
+                    attributes,
+                },
+            )?;
+            images.push(("Residual maps (EXR: residual_before_nm, residual_after_nm, zone)".into(), path));
+            let limit = symmetric_limit(&before);
+            for (name, values, title) in [
+                ("residual_before.png", &before, "residual against the job as given"),
+                ("residual_after.png", &after, "residual with the fitted effects"),
+            ] {
+                let valid: Vec<bool> = values.iter().map(|v| v.is_finite()).collect();
+                let footer = format!(
+                    "RMS {:.1} nm  (same colour scale on both maps)",
+                    super::zones::rms(&values.iter().map(|v| *v as f64).collect::<Vec<_>>())
+                );
+                let path = dir.join(name);
+                write_false_colour_png(
+                    &path,
+                    &FalseColourPlot {
+                        values,
+                        valid: &valid,
+                        width: nx as u32,
+                        height: ny as u32,
+                        range: (-limit, limit),
+                        colour_map: ColourMap::Diverging,
+                        title,
+                        unit_label: "residual (nm)",
+                        footer: &footer,
+                    },
+                    &[],
+                )?;
+                images.push((title.to_string(), path));
+            }
+            let valid: Vec<bool> = zone.iter().map(|v| v.is_finite()).collect();
+            let path = dir.join("zones.png");
+            write_false_colour_png(
+                &path,
+                &FalseColourPlot {
+                    values: &zone,
+                    valid: &valid,
+                    width: nx as u32,
+                    height: ny as u32,
+                    range: (0.0, (o.zones.bounds.len() - 1) as f32),
+                    colour_map: ColourMap::Sequential,
+                    title: "radial zones: centre, annuli, rim",
+                    unit_label: "zone",
+                    footer: "0 = centre … last = rim",
+                },
+                &[],
+            )?;
+            images.push(("Zones".into(), path));
+        }
+    }
+    Ok(images)
+}
+
+/// ±(99th percentile of |v|), at least 1 nm.
+fn symmetric_limit(values: &[f32]) -> f32 {
+    let mut a: Vec<f32> = values.iter().filter(|v| v.is_finite()).map(|v| v.abs()).collect();
+    if a.is_empty() {
+        return 1.0;
+    }
+    a.sort_by(f32::total_cmp);
+    a[((a.len() - 1) as f64 * 0.99) as usize].max(1.0)
+}
+
+/// The readable report: the verdict first, then the tables and images.
+pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
+    let mut s = String::new();
+    let file = if d.measurement.file.is_empty() { "the measurement" } else { &d.measurement.file };
+    s += &format!("# Diagnosis: {} against {}\n\n", d.job.name, file);
+    s += &format!("**{}**\n\n", d.verdict.sentence);
+    if !d.verdict.advice.is_empty() {
+        s += "At the machine:\n";
+        for a in &d.verdict.advice {
+            s += &format!("- {a}\n");
+        }
+        s += "\n";
+    }
+    if !d.shrinkage.is_empty() {
+        s += "## How far the residual shrinks\n\n| model | PV (nm) | RMS (nm) |";
+        let zone_names: Vec<&str> = d.shrinkage[0].zones.iter().map(|z| z.name.as_str()).collect();
+        for z in &zone_names {
+            s += &format!(" {z} RMS (nm) |");
+        }
+        s += "\n|---|---|---|";
+        s += &"---|".repeat(zone_names.len());
+        s += "\n";
+        for step in &d.shrinkage {
+            s += &format!("| {} | {:.1} | {:.2} |", step.model, step.pv_nm, step.rms_nm);
+            for z in &step.zones {
+                s += &format!(" {:.2} |", z.rms_nm);
+            }
+            s += "\n";
+        }
+        s += "\n";
+    }
+    if let Some(h) = &d.held_out {
+        s += &format!(
+            "Held out from the fit: {} points at {:.4}–{:.4} mm. Residual {:.1} nm PV / {:.2} nm RMS against the job as given, {:.1} nm PV / {:.2} nm RMS with the fitted effects.\n\n",
+            h.points, h.from_mm, h.to_mm, h.before_pv_nm, h.before_rms_nm, h.after_pv_nm, h.after_rms_nm
+        );
+    }
+    if !d.candidates.is_empty() {
+        s += "## Candidates (each fitted alone)\n\n| rank | effect | fitted | explained | ΔBIC | accepted |\n|---|---|---|---|---|---|\n";
+        for c in &d.candidates {
+            let params: Vec<String> = c
+                .parameters
+                .iter()
+                .map(|p| format!("{} = {:.4} ± {:.4} {}", p.name, p.value, p.sigma, p.unit))
+                .collect();
+            s += &format!(
+                "| {} | {} | {} | {:.1} % | {:.1} | {} |\n",
+                c.rank,
+                c.label,
+                params.join(", "),
+                100.0 * c.explained,
+                c.delta_bic,
+                if c.accepted { "yes" } else { "no" }
+            );
+        }
+        s += "\nΔBIC is the evidence an effect adds (BIC on the effective number of independent points); above 10 is very strong. Only effects above the threshold that stand 3σ clear of zero are accepted.\n\n";
+    }
+    if !d.indistinguishable.is_empty() {
+        s += &format!("The data cannot tell the first candidate from: {}.\n\n", d.indistinguishable.join(", "));
+    }
+    for n in &d.not_diagnosable {
+        s += &format!("Not fitted: `{}` — {}.\n\n", n.effect, n.reason);
+    }
+    s += "## Where the residual lies (against the job as given)\n\n| zone | radii (mm) | points | PV (nm) | RMS (nm) | share |\n|---|---|---|---|---|---|\n";
+    for z in &d.residual_before.zones {
+        s += &format!(
+            "| {} | {:.4}–{:.4} | {} | {:.1} | {:.2} | {:.1} % |\n",
+            z.name, z.from_mm, z.to_mm, z.points, z.pv_nm, z.rms_nm, 100.0 * z.share
+        );
+    }
+    s += "\n| band | wavelengths (µm) | RMS (nm) | share |\n|---|---|---|---|\n";
+    for b in &d.residual_before.bands {
+        let to = if b.to_mm.is_finite() { format!("{:.1}", b.to_mm * 1e3) } else { "∞".into() };
+        s += &format!("| {} | {:.1}–{} | {:.2} | {:.1} % |\n", b.name, b.from_mm * 1e3, to, b.rms_nm, 100.0 * b.share);
+    }
+    if !d.residual_before.azimuthal_orders.is_empty() {
+        s += "\n| azimuthal order | share |\n|---|---|\n";
+        for (order, share) in &d.residual_before.azimuthal_orders {
+            s += &format!("| {order} | {:.1} % |\n", 100.0 * share);
+        }
+    }
+    s += &format!(
+        "\nNoise level (white, from second differences): {:.2} nm before, {:.2} nm after; residual correlation length {:.1} → {:.1} points.\n\n",
+        d.residual_before.white_noise_nm,
+        d.residual_after.white_noise_nm,
+        d.residual_before.correlation_length_points,
+        d.residual_after.correlation_length_points
+    );
+    let r = &d.registration;
+    s += &format!(
+        "## Registration\n\nRemoved: {}. Against the job as given: piston {:.1} nm, tilt {:.2} / {:.2} µrad{}, axis at ({:.2}, {:.2}) µm in the measurement's frame. With the fitted effects: axis at ({:.2}, {:.2}) µm.\n\n",
+        r.terms.join(", "),
+        r.nominal.piston_nm,
+        r.nominal.tilt_urad[0],
+        r.nominal.tilt_urad[1],
+        r.nominal.power_nm_per_mm2.map_or(String::new(), |p| format!(", power {p:.2} nm/mm²")),
+        r.nominal.axis_at_um[0],
+        r.nominal.axis_at_um[1],
+        r.fitted.axis_at_um[0],
+        r.fitted.axis_at_um[1]
+    );
+    let m = &d.measurement;
+    s += &format!(
+        "## Measurement\n\n{} ({}): {} points, {} valid, {} on the part, {} fitted; extent {:.4} mm, spacing {:.3} µm; lateral unit {}, height unit {}.\n",
+        m.shape, m.format, m.points_in_file, m.valid_points, m.points_on_part, m.points_fitted, m.extent_mm, m.spacing_um, m.lateral_unit, m.height_unit
+    );
+    for n in &m.notes {
+        s += &format!("- {n}\n");
+    }
+    for f in &d.fit_check.findings {
+        s += &format!("- fit check ({}): {}\n", f.severity, f.message);
+    }
+    s += "\n## Images\n\n";
+    for (title, path) in images {
+        let name = path.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned());
+        if name.ends_with(".png") {
+            s += &format!("![{title}]({name})\n\n");
+        } else {
+            s += &format!("- {title}: `{name}`\n");
+        }
+    }
+    s += &format!(
+        "\n---\n{} simulations on the {} engine, {:.1} s of removal, {:.1} s in all. Schema `{}`.\n",
+        d.run.simulations, d.run.engine, d.run.removal_s, d.run.total_s, d.schema
+    );
+    s
+}
