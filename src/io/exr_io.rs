@@ -123,8 +123,24 @@ fn sort_header_attributes(bytes: &mut [u8]) -> std::result::Result<(), String> {
 }
 
 /// Reads the first layer of the EXR file at `path`, converting all channels to f32.
-/// Channels come back sorted by name; only text attributes are returned.
+/// Channels come back sorted by name; text attributes are returned as they are, and
+/// numeric ones (`float`, `double`, `int`) as their decimal text.
 pub fn read_exr(path: &Path) -> io::Result<ExrImage> {
+    let bytes = std::fs::read(path).map_err(|e| {
+        io::Error::new(
+            e.kind(),
+            format!("reading EXR file {}: {e}", path.display()),
+        )
+    })?;
+    decode(&bytes).map_err(|e| to_io_error(path, "reading", e))
+}
+
+/// [`read_exr`] for a file already in memory; errors do not name a file.
+pub fn read_exr_bytes(bytes: &[u8]) -> io::Result<ExrImage> {
+    decode(bytes).map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("EXR: {e}")))
+}
+
+fn decode(bytes: &[u8]) -> exr::error::Result<ExrImage> {
     let result = catch_unwind(AssertUnwindSafe(|| {
         read()
             .no_deep_data()
@@ -132,13 +148,11 @@ pub fn read_exr(path: &Path) -> io::Result<ExrImage> {
             .all_channels()
             .first_valid_layer()
             .all_attributes()
-            .from_file(path)
+            .from_buffered(io::Cursor::new(bytes))
     }));
     // exr should never panic on a corrupt file, but a panic must not escape from here.
     let panicked = exr::error::Error::Invalid("the EXR decoder panicked".into());
-    let image = result
-        .unwrap_or(Err(panicked))
-        .map_err(|e| to_io_error(path, "reading", e))?;
+    let image = result.unwrap_or(Err(panicked))?;
 
     let layer = image.layer_data;
     let (width, height) = (layer.size.width(), layer.size.height());
@@ -146,16 +160,22 @@ pub fn read_exr(path: &Path) -> io::Result<ExrImage> {
     for channel in &layer.channel_data.list {
         let samples: Vec<f32> = channel.sample_data.values_as_f32().collect();
         if samples.len() != width * height {
-            let msg = format!("{}: subsampled channel {}", path.display(), channel.name);
-            return Err(io::Error::new(io::ErrorKind::InvalidData, msg));
+            let msg = format!("subsampled channel {}", channel.name);
+            return Err(exr::error::Error::Invalid(msg.into()));
         }
         channels.push((channel.name.to_string(), samples));
     }
     let others = image.attributes.other.iter().chain(&layer.attributes.other);
     let attributes = others
-        .filter_map(|(key, value)| match value {
-            AttributeValue::Text(text) => Some((key.to_string(), text_to_string(text))),
-            _ => None,
+        .filter_map(|(key, value)| {
+            let text = match value {
+                AttributeValue::Text(text) => text_to_string(text),
+                AttributeValue::F32(v) => v.to_string(),
+                AttributeValue::F64(v) => v.to_string(),
+                AttributeValue::I32(v) => v.to_string(),
+                _ => return None,
+            };
+            Some((key.to_string(), text))
         })
         .collect();
     Ok(ExrImage {

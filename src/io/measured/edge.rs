@@ -1,6 +1,5 @@
-//! Real measurement files turned into clean data: a diamond tool edge from a laser
-//! autofocus profiler (`X,Y,Z` CSV in mm after a `key,value` header) and a 1-D surface
-//! profile from a white-light interferometer (`X,Y,Slice` CSV, empty height = invalid).
+//! A diamond tool edge from a laser autofocus profiler (`X,Y,Z` CSV in mm after a
+//! `key,value` header), and the instrument's own radius from its result file.
 //!
 //! An edge file holds the whole tool tip: two straight flanks and the nose arc between
 //! them. The arc is found by fitting a line–arc–line model (flanks tangent to one circle);
@@ -9,65 +8,9 @@
 //! only an arc keeps all its points. Units are declared by the caller, never guessed.
 
 use std::f64::consts::PI;
-use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LengthUnit {
-    Millimetre,
-    Micrometre,
-    Nanometre,
-}
-
-impl LengthUnit {
-    /// Millimetres per unit.
-    pub fn in_mm(self) -> f64 {
-        match self {
-            LengthUnit::Millimetre => 1.0,
-            LengthUnit::Micrometre => 1e-3,
-            LengthUnit::Nanometre => 1e-6,
-        }
-    }
-}
-
-#[derive(Clone, Debug, PartialEq)]
-pub struct MeasuredError {
-    pub path: Option<PathBuf>,
-    /// 1-based line in the file, when the problem has one.
-    pub line: Option<usize>,
-    pub message: String,
-}
-
-impl fmt::Display for MeasuredError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if let Some(p) = &self.path {
-            write!(f, "{}: ", p.display())?;
-        }
-        if let Some(l) = self.line {
-            write!(f, "line {l}: ")?;
-        }
-        f.write_str(&self.message)
-    }
-}
-
-impl std::error::Error for MeasuredError {}
-
-fn fail<T>(line: Option<usize>, message: impl Into<String>) -> Result<T, MeasuredError> {
-    let message = message.into();
-    Err(MeasuredError {
-        path: None,
-        line,
-        message,
-    })
-}
-
-/// Sets the path on an error from reading `path`.
-fn in_file<T>(path: &Path, r: Result<T, MeasuredError>) -> Result<T, MeasuredError> {
-    r.map_err(|e| MeasuredError {
-        path: Some(path.to_path_buf()),
-        ..e
-    })
-}
+use super::{MeasuredError, fail, in_file, number, read_text};
 
 /// A tool edge measured as points in a plane (mm), with its least-squares circle.
 #[derive(Clone, Debug)]
@@ -137,16 +80,6 @@ impl MeasuredEdge {
 }
 
 /// A measured 1-D surface profile: positions and heights in mm, valid points only.
-#[derive(Clone, Debug)]
-pub struct MeasuredProfile {
-    pub x_mm: Vec<f64>,
-    pub height_mm: Vec<f64>,
-    /// Rows whose height cell was empty (or not finite): invalid pixels.
-    pub invalid_rows: usize,
-    /// Median X step over all rows (the upper one for an even count), in mm.
-    pub spacing_mm: f64,
-}
-
 pub fn read_edge_csv(path: &Path) -> Result<MeasuredEdge, MeasuredError> {
     in_file(path, read_text(path).and_then(|t| read_edge_csv_str(&t)))
 }
@@ -196,141 +129,6 @@ fn instrument_radius_um(text: &str) -> Result<f64, MeasuredError> {
         "mm" => Ok(value * 1e3),
         u => fail(Some(i + 1), format!("unknown radius unit `{u}`")),
     }
-}
-
-pub fn read_wli_profile_csv(
-    path: &Path,
-    x_unit: LengthUnit,
-    height_unit: LengthUnit,
-) -> Result<MeasuredProfile, MeasuredError> {
-    let text = read_text(path);
-    in_file(
-        path,
-        text.and_then(|t| read_wli_profile_str(&t, x_unit, height_unit)),
-    )
-}
-
-/// Rows `x, height[, label]` after an optional header line starting with `X`.
-pub fn read_wli_profile_str(
-    text: &str,
-    x_unit: LengthUnit,
-    height_unit: LengthUnit,
-) -> Result<MeasuredProfile, MeasuredError> {
-    let (mut all_x, mut x_mm, mut height_mm) = (Vec::new(), Vec::new(), Vec::new());
-    for (i, line) in text.lines().enumerate() {
-        let cells: Vec<&str> = line.split(',').map(str::trim).chain([""]).collect();
-        let header = all_x.is_empty() && cells[0].starts_with('X');
-        if line.trim().is_empty() || header {
-            continue;
-        }
-        let x = number(cells[0], i + 1)? * x_unit.in_mm();
-        if !x.is_finite() || all_x.last().is_some_and(|&prev| x <= prev) {
-            let why = format!("X `{}` is not finite and strictly increasing", cells[0]);
-            return fail(Some(i + 1), why);
-        }
-        all_x.push(x);
-        if !cells[1].is_empty() {
-            let h = number(cells[1], i + 1)? * height_unit.in_mm();
-            if h.is_finite() {
-                x_mm.push(x);
-                height_mm.push(h);
-            }
-        }
-    }
-    let mut steps: Vec<f64> = all_x.windows(2).map(|w| w[1] - w[0]).collect();
-    steps.sort_by(f64::total_cmp);
-    match (all_x.len(), x_mm.len()) {
-        (0, _) => fail(None, "no data rows"),
-        (n, 0) => fail(None, format!("no valid heights in {n} data rows")),
-        (1, _) => fail(None, "a single data row has no spacing"),
-        (n, valid) => Ok(MeasuredProfile {
-            x_mm,
-            height_mm,
-            invalid_rows: n - valid,
-            spacing_mm: steps[steps.len() / 2],
-        }),
-    }
-}
-
-/// A radial deviation profile: a CSV whose header names a `radius_mm` and a
-/// `deviation_nm` column (the layout of toolmark's `radial_profile.csv`; other columns
-/// and `#` lines are ignored). Radii must increase from ≥ 0. Returns (radius mm,
-/// deviation mm).
-pub fn read_radial_deviation_csv(path: &Path) -> Result<(Vec<f64>, Vec<f64>), MeasuredError> {
-    let text = read_text(path);
-    in_file(path, text.and_then(|t| read_radial_deviation_str(&t)))
-}
-
-pub fn read_radial_deviation_str(text: &str) -> Result<(Vec<f64>, Vec<f64>), MeasuredError> {
-    let mut columns: Option<(usize, usize)> = None;
-    let (mut radius, mut deviation) = (Vec::new(), Vec::new());
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-        let Some((r_col, d_col)) = columns else {
-            let find = |name: &str| cells.iter().position(|c| *c == name);
-            match (find("radius_mm"), find("deviation_nm")) {
-                (Some(r), Some(d)) => columns = Some((r, d)),
-                _ => {
-                    return fail(
-                        Some(i + 1),
-                        "the header must name the columns radius_mm and deviation_nm (units are read from the names)",
-                    );
-                }
-            }
-            continue;
-        };
-        let cell = |c: usize| cells.get(c).copied().unwrap_or("");
-        let r = number(cell(r_col), i + 1)?;
-        let d = number(cell(d_col), i + 1)?;
-        if !r.is_finite() || r < 0.0 || radius.last().is_some_and(|&prev| r <= prev) {
-            return fail(
-                Some(i + 1),
-                format!(
-                    "radius_mm `{}` is not finite, ≥ 0 and increasing",
-                    cell(r_col)
-                ),
-            );
-        }
-        if !d.is_finite() {
-            return fail(
-                Some(i + 1),
-                format!("deviation_nm `{}` is not finite", cell(d_col)),
-            );
-        }
-        radius.push(r);
-        deviation.push(d * 1e-6);
-    }
-    if radius.len() < 8 {
-        return fail(
-            None,
-            format!("{} data rows; at least 8 are needed", radius.len()),
-        );
-    }
-    Ok((radius, deviation))
-}
-
-/// UTF-8 (BOM stripped), or UTF-16LE with its BOM as the README says the result files are.
-fn read_text(path: &Path) -> Result<String, MeasuredError> {
-    let bytes = std::fs::read(path).or_else(|e| fail(None, e.to_string()))?;
-    if let Some(rest) = bytes.strip_prefix(&[0xFF, 0xFE]) {
-        let units = rest
-            .chunks_exact(2)
-            .map(|c| u16::from_le_bytes([c[0], c[1]]));
-        return Ok(char::decode_utf16(units)
-            .map(|c| c.unwrap_or('\u{FFFD}'))
-            .collect());
-    }
-    let utf8 = bytes.strip_prefix(&[0xEF, 0xBB, 0xBF]).unwrap_or(&bytes);
-    Ok(String::from_utf8_lossy(utf8).into_owned())
-}
-
-fn number(cell: &str, line: usize) -> Result<f64, MeasuredError> {
-    cell.parse()
-        .or_else(|_| fail(Some(line), format!("`{cell}` is not a number")))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -575,7 +373,9 @@ fn fit_edge(points: Vec<[f64; 2]>) -> Result<MeasuredEdge, MeasuredError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::measured::{LengthUnit, read_wli_profile_str};
     use LengthUnit::Micrometre;
+    use std::path::PathBuf;
 
     fn data(name: &str) -> PathBuf {
         Path::new(concat!(
@@ -683,18 +483,6 @@ mod tests {
         // The points at the tangent points belong to both; one arc step is 0.31°.
         assert!((e.span_rad.0 - a0).abs() < 0.01 && (e.span_rad.1 - a1).abs() < 0.01);
         assert!((399..=401).contains(&arc_count(&e)));
-    }
-
-    #[test]
-    fn wli_profile_reads() {
-        let p = read_wli_profile_csv(&data("1021-WLI-2D.csv"), Micrometre, Micrometre).unwrap();
-        assert_eq!((p.x_mm.len(), p.invalid_rows), (999, 144));
-        assert!((p.x_mm[0] - 0.06795).abs() < 5e-6);
-        let h = &p.height_mm;
-        let pv =
-            h.iter().fold(f64::MIN, |m, &v| m.max(v)) - h.iter().fold(f64::MAX, |m, &v| m.min(v));
-        assert!((pv - 1.259e-3).abs() < 5e-7, "PV {pv} mm");
-        assert!((p.spacing_mm - 0.871e-3).abs() < 5e-7);
     }
 
     #[test]
