@@ -41,6 +41,15 @@ enum Command {
     Correct(cli::correct::CorrectArgs),
     /// Print the closed-form references (seeds 000–004) for given parameters.
     Formulas(cli::formulas::FormulasArgs),
+    /// Diagnose the gap between a job and a measured surface: where it lies, which
+    /// unmodelled effect causes it, and how far it shrinks once that effect is added.
+    Diagnose(cli::diagnose::DiagnoseArgs),
+    /// Make measured-like data from a job plus effects the diagnosis is not told, with
+    /// the truth written apart.
+    Synth(cli::diagnose::SynthArgs),
+    /// The withheld benchmark: generate a suite of synthetic measurements with sealed
+    /// truth, diagnose them without it, then score.
+    BenchDiagnose(cli::diagnose::BenchDiagnoseArgs),
 }
 
 #[derive(clap::Args)]
@@ -82,6 +91,9 @@ fn main() -> ExitCode {
         Command::Compensate(args) => cli::compensate::compensate(args),
         Command::Correct(args) => cli::correct::correct(args),
         Command::Formulas(args) => cli::formulas::formulas(args),
+        Command::Diagnose(args) => cli::diagnose::diagnose_cmd(args),
+        Command::Synth(args) => cli::diagnose::synth_cmd(args),
+        Command::BenchDiagnose(args) => cli::diagnose::bench_diagnose_cmd(args),
         Command::Bench(args) => bench::run_benchmarks(
             args.engine != BenchEngines::Gpu,
             args.engine != BenchEngines::Cpu,

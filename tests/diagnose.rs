@@ -137,3 +137,55 @@ fn explore_sim_cost() {
         println!("samples {} pairs {} prepare {:.1} ms remove {:.1} ms", field.depth_mm.len(), scenes[0].pair_count(), t1 * 1e3, t2 * 1e3);
     }
 }
+
+#[test]
+fn explore_1021_scale() {
+    use toolmark::diagnose::files::{Placement, load_measurement};
+    use toolmark::diagnose::forward::ForwardModel;
+    use toolmark::diagnose::register::{ShiftSearch, Terms, register};
+    use toolmark::io::measured::{LengthUnit, ReadOptions};
+    let j = example("upm_1021_ideal.toml");
+    let read = ReadOptions { lateral_unit: Some(LengthUnit::Micrometre), height_unit: Some(LengthUnit::Micrometre), pixel_mm: None };
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/upm-spdt/1021-WLI-2D.csv");
+    let (m0, _) = load_measurement(&path, &read, &Placement::default(), Default::default()).unwrap();
+    let mut engine = CpuEngine;
+    let mut model = ForwardModel::new(&j, &m0, &mut engine).unwrap();
+    let sim = model.simulate(&|_| {}, &m0).unwrap();
+    for scale in [0.97, 0.98, 0.983, 0.985, 0.9875, 0.99, 1.0, 1.01, 1.02] {
+        let m = Measurement::line(&m0.along_mm.iter().map(|x| x * scale).collect::<Vec<_>>(), &m0.height_mm, 0.0, 0.0, Default::default());
+        let r = register(&m, &sim, Terms { power: true, shift: true }, Some(ShiftSearch { start: glam::DVec2::ZERO, half_width_mm: 0.04, step_mm: 0.002 }));
+        println!("scale {scale}: rms {:.1} nm shift {:.2} um", (r.rss / r.used as f64).sqrt() * 1e6, r.shift_mm.x * 1e3);
+    }
+    // Halves
+    for (a, b) in [(0.0, 0.5), (0.5, 1.0)] {
+        let m = m0.subset(|i| m0.along_mm[i] >= a && m0.along_mm[i] < b);
+        for scale in [0.98, 0.985, 0.99, 1.0] {
+            let ms = Measurement::line(&m.along_mm.iter().map(|x| x * scale).collect::<Vec<_>>(), &m.height_mm, 0.0, 0.0, Default::default());
+            let r = register(&ms, &sim, Terms { power: true, shift: true }, Some(ShiftSearch { start: glam::DVec2::ZERO, half_width_mm: 0.04, step_mm: 0.002 }));
+            println!("half {a}-{b} scale {scale}: rms {:.1} nm shift {:.2} um", (r.rss / r.used as f64).sqrt() * 1e6, r.shift_mm.x * 1e3);
+        }
+    }
+}
+
+#[test]
+fn explore_1021_chord() {
+    use toolmark::diagnose::files::{Placement, load_measurement};
+    use toolmark::diagnose::forward::ForwardModel;
+    use toolmark::diagnose::register::{ShiftSearch, Terms, register};
+    use toolmark::io::measured::{LengthUnit, ReadOptions};
+    let j = example("upm_1021_ideal.toml");
+    let read = ReadOptions { lateral_unit: Some(LengthUnit::Micrometre), height_unit: Some(LengthUnit::Micrometre), pixel_mm: None };
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/upm-spdt/1021-WLI-2D.csv");
+    let (m0, _) = load_measurement(&path, &read, &Placement::default(), Default::default()).unwrap();
+    let mut engine = CpuEngine;
+    let mut model = ForwardModel::new(&j, &m0, &mut engine).unwrap();
+    let sim = model.simulate(&|_| {}, &m0).unwrap();
+    for c in [-0.04, -0.02, 0.0, 0.02, 0.04] {
+    for y0 in [0.0, 0.03, 0.06, 0.08, 0.1, 0.12, 0.15, 0.2] {
+        let s: Vec<f64> = m0.along_mm.iter().map(|x| ((x - c) * (x - c) + y0 * y0).sqrt()).collect();
+        let m = Measurement::line(&s, &m0.height_mm, 0.0, 0.0, Default::default());
+        let r = register(&m, &sim, Terms { power: true, shift: true }, Some(ShiftSearch { start: glam::DVec2::ZERO, half_width_mm: 0.004, step_mm: 0.001 }));
+        let half = |a: f64, b: f64| { let v: Vec<f64> = (0..m.len()).filter(|&i| m0.along_mm[i] >= a && m0.along_mm[i] < b).map(|i| r.residual_mm[i]).filter(|v| v.is_finite()).collect(); (v.iter().map(|x| x*x).sum::<f64>() / v.len() as f64).sqrt() * 1e6 };
+        println!("c {c} y0 {y0}: rms {:.1} nm (halves {:.1} {:.1}) shift {:.2} um", (r.rss / r.used as f64).sqrt() * 1e6, half(0.0, 0.5), half(0.5, 1.0), r.shift_mm.x * 1e3);
+    }}
+}

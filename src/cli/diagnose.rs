@@ -266,8 +266,7 @@ struct MeasurementFile {
 pub fn synth_cmd(args: SynthArgs) -> Result<(), Failure> {
     let public = load_job(Some(&args.job))?;
     let truth_job = match &args.effects {
-        Some(fragment) => toolmark::io::job::Job::load_with_effects(&args.job, fragment)
-            .map_err(|e| Failure::Input(e.to_string()))?,
+        Some(fragment) => job_with_fragment(&args.job, fragment)?,
         None => public.clone(),
     };
     let text = std::fs::read_to_string(&args.measurement)
@@ -366,4 +365,12 @@ pub fn bench_diagnose_cmd(args: BenchDiagnoseArgs) -> Result<(), Failure> {
         }
     }
     Ok(())
+}
+
+/// The job with an effects fragment's tables added (TODO: the shared loader).
+fn job_with_fragment(job: &Path, fragment: &Path) -> Result<toolmark::io::job::Job, Failure> {
+    let read = |p: &Path| std::fs::read_to_string(p).map_err(|e| Failure::Input(format!("{}: {e}", p.display())));
+    let text = format!("{}\n{}", read(job)?, read(fragment)?);
+    let base = job.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    toolmark::io::job::Job::from_toml_in(&text, "synth", base).map_err(|e| Failure::Input(format!("{}: {e}", fragment.display())))
 }

@@ -3,6 +3,7 @@
 pub mod compare;
 pub mod compensate;
 pub mod correct;
+pub mod diagnose;
 pub mod formulas;
 pub mod run;
 

@@ -91,6 +91,7 @@ fn unit_text(unit: LengthUnit, source: UnitSource) -> String {
         LengthUnit::Millimetre => "mm",
         LengthUnit::Micrometre => "µm",
         LengthUnit::Nanometre => "nm",
+        LengthUnit::Metre => "m",
     };
     let from = match source {
         UnitSource::FromFile => "from the file",

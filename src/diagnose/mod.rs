@@ -13,11 +13,13 @@
 //!    and — when part of the data was held out — on the part the fit never saw.
 
 pub mod candidates;
+pub mod files;
 pub mod fit;
 pub mod forward;
 pub mod measurement;
 pub mod register;
 pub mod report;
+pub mod withheld;
 pub mod zones;
 
 use crate::analysis::profile_stats::profile_stats;
@@ -491,15 +493,18 @@ fn fit_check(m: &Measurement, nominal: &Registered, job: &Job, terms: Terms, per
             100.0 * (1.0 - used)
         )));
     }
-    // Form: the simulated surface's own variation against what registration leaves.
+    // Form: the simulated surface's smooth variation (marks filtered out) against the
+    // smooth part of what registration leaves.
+    let smooth = |values: &[f64]| gaussian_lowpass(m, values, 5.0 * period);
     let detrend = |values: &[f64]| -> Vec<f64> {
         let zero = vec![0.0; values.len()];
         let flat = Measurement { height_mm: values.to_vec(), ..m.clone() };
         register::fit_linear(&flat, &zero, nominal.shift_mm, terms.power).residual_mm
     };
-    let form_rms = rms(&detrend(model));
+    let form_rms = rms(&smooth(&detrend(model)));
     let measured_rms = rms(&detrend(&measured));
-    let residual_rms = rms(&nominal.residual_mm);
+    let measured_smooth_rms = rms(&smooth(&detrend(&measured)));
+    let residual_rms = rms(&smooth(&nominal.residual_mm));
     let (mut mark_measured_um, mut mark_simulated_um) = (None, None);
     if m.is_line() && job.process.pass_spacing_mm().is_some() && m.extent_mm() > 6.0 * period {
         let high_pass = |values: &[f64]| -> Vec<f64> {
@@ -531,18 +536,28 @@ fn fit_check(m: &Measurement, nominal: &Registered, job: &Job, terms: Terms, per
         }
     }
     let noise = white_noise_mm(m, &nominal.residual_mm);
-    if form_rms > 5.0 * noise.max(1e-7) && residual_rms > 0.5 * form_rms {
-        let hint = if terms.power {
-            ""
-        } else {
-            " — if the file's form was removed before export, diagnose with --remove power"
-        };
-        findings.push(Finding::severe(format!(
-            "the measured surface does not follow the part's form: {:.1} nm RMS left against {:.1} nm RMS of form (measured {:.1} nm RMS): another part, or heights in the wrong unit{hint}",
-            residual_rms * 1e6,
-            form_rms * 1e6,
-            measured_rms * 1e6
-        )));
+    let hint = if terms.power {
+        ""
+    } else {
+        " — if the file's form was removed before export, diagnose with --remove power"
+    };
+    // Judged only where the part has a form to follow (well above the noise).
+    if form_rms > 5.0 * noise.max(1e-7) {
+        if measured_smooth_rms > 30.0 * form_rms {
+            findings.push(Finding::severe(format!(
+                "the measured form varies {:.0}× as much as the simulated part's ({:.1} nm against {:.1} nm RMS): heights in the wrong unit, or another part",
+                measured_smooth_rms / form_rms,
+                measured_smooth_rms * 1e6,
+                form_rms * 1e6
+            )));
+        } else if form_rms > 0.2 * measured_rms && residual_rms > 0.5 * form_rms {
+            findings.push(Finding::severe(format!(
+                "the measured surface does not follow the part's form: {:.1} nm RMS of smooth residual against {:.1} nm RMS of form (measured {:.1} nm RMS): another part, or heights in the wrong unit{hint}",
+                residual_rms * 1e6,
+                form_rms * 1e6,
+                measured_rms * 1e6
+            )));
+        }
     }
     FitCheck {
         fits: findings.iter().all(|f| f.severity != "severe"),
