@@ -5,13 +5,14 @@ use crate::analysis::{
     default_zone_radius_mm,
 };
 use crate::engine::generating_scene::ToothMotion;
+use crate::engine::milling_scene::ToothStamps;
 use crate::engine::{
     EngineError, EngineInfo, GeneratingScene, MillingScene, Progress, RemovalEngine, Scene,
     TurningScene,
 };
 use crate::field::{DexelField, Layout, PolarGrid};
 use crate::io::job::Job;
-use crate::process::{GeneratingProcess, Process, TurningProcess};
+use crate::process::{GeneratingProcess, MillingProcess, Process, TurningProcess};
 use std::time::Instant;
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
@@ -99,39 +100,50 @@ pub fn prepare_scenes(job: &Job) -> Vec<Scene> {
         Process::Generating(generating) => {
             vec![Scene::Generating(generating_scene(generating, grid))]
         }
-        Process::Milling(milling) => {
-            let setup = &milling.setup;
-            let path = setup.plan(&job.surface);
-            vec![Scene::Milling(MillingScene::new(
-                grid,
-                setup.tool,
-                path,
-                setup.stock_allowance_mm,
-                setup.stock_allowance_mm - setup.depth_of_cut_mm,
-                setup.profile_radius_mm(),
-                if setup.teeth > 0 {
-                    setup.feed_per_tooth_mm
-                } else {
-                    0.0
-                },
-            ))]
-        }
+        Process::Milling(milling) => vec![Scene::Milling(milling_scene(job, milling, grid))],
     }
+}
+
+/// The milling scene: the path planned with the nominal tool, then what the machine
+/// runs with the job's effects (moved poses, the real tool, displaced teeth).
+fn milling_scene(job: &Job, milling: &MillingProcess, grid: PolarGrid) -> MillingScene {
+    let (setup, effects) = (&milling.setup, &milling.effects);
+    let mut path = setup.plan(&job.surface);
+    effects.apply_to_path(&mut path);
+    let stamps = ToothStamps {
+        feed_per_tooth_mm: if setup.teeth > 0 {
+            setup.feed_per_tooth_mm
+        } else {
+            0.0
+        },
+        offsets_mm: effects.tooth_offsets_mm(setup.teeth),
+    };
+    MillingScene::new(
+        grid,
+        effects.cutting_tool(&setup.tool),
+        path,
+        setup.stock_allowance_mm,
+        setup.stock_allowance_mm - setup.depth_of_cut_mm,
+        effects.profile_radius_mm(setup),
+        stamps,
+        effects.extra_reach_mm(&setup.tool),
+    )
 }
 
 fn turning_scenes(job: &Job, turning: &TurningProcess, grid: PolarGrid) -> Vec<TurningScene> {
     let meridian = job.meridian();
     let edge = turning.effects.edge_model(&turning.tool);
     let extra_reach = turning.effects.extra_reach_mm(&edge);
-    turning
+    let mut passes = turning
         .path
-        .pose_tables(&job.surface, &meridian, &turning.tool)
+        .pose_tables(&job.surface, &meridian, &turning.tool);
+    for poses in &mut passes {
+        turning.correction.apply(poses, &job.surface, &meridian);
+    }
+    turning.effects.apply_to_passes(&mut passes);
+    passes
         .into_iter()
-        .map(|mut poses| {
-            turning
-                .correction
-                .apply(&mut poses, &job.surface, &meridian);
-            turning.effects.apply_to_poses(&mut poses);
+        .map(|poses| {
             TurningScene::new(
                 grid.clone(),
                 poses,

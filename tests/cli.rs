@@ -456,3 +456,226 @@ fn formulas_prints_the_seeds_worked_numbers_and_refuses_bad_parameters() {
     assert_eq!(output.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&output.stderr).contains("--depth-mm 9"));
 }
+
+/// Writes `text` to `name` in `dir` (created) and returns the path as a string.
+fn write_file(dir: &Path, name: &str, text: &str) -> String {
+    std::fs::create_dir_all(dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path.to_str().unwrap().to_string()
+}
+
+/// The flat-facing example with an X decentre of its own.
+fn facing_with_a_decentre() -> String {
+    let base = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/flat_facing.toml"),
+    )
+    .unwrap();
+    format!("{base}\n[[effects]]\nkind = \"x_decentre\"\noffset_mm = 0.001\n")
+}
+
+const DRIFT_FRAGMENT: &str = "# the machine's drift, measured on the last part\n[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 0.0005\n";
+
+#[test]
+fn an_effects_file_changes_the_part_exactly_as_the_same_tables_in_the_job() {
+    let files = out_dir("fragment-files");
+    let job = write_file(&files, "job.toml", &facing_with_a_decentre());
+    let fragment = write_file(&files, "drift.toml", DRIFT_FRAGMENT);
+    let inline = write_file(
+        &files,
+        "inline.toml",
+        &format!("{}\n{DRIFT_FRAGMENT}", facing_with_a_decentre()),
+    );
+    let (with_file, with_tables, without) = (
+        out_dir("fragment-a"),
+        out_dir("fragment-b"),
+        out_dir("fragment-c"),
+    );
+    let run = |args: &[&str]| {
+        let output = toolmark(args, &[]);
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+    };
+    let cpu = ["--engine", "cpu", "--out"];
+    run(&[
+        &["run", &job, "--effects", &fragment],
+        &cpu[..],
+        &[with_file.to_str().unwrap()],
+    ]
+    .concat());
+    run(&[
+        &["run", &inline],
+        &cpu[..],
+        &[with_tables.to_str().unwrap()],
+    ]
+    .concat());
+    run(&[&["run", &job], &cpu[..], &[without.to_str().unwrap()]].concat());
+    // Same resolved job (both effects, in order), same hash, same maps byte for byte.
+    let (a, b, c) = (
+        summary(&with_file),
+        summary(&with_tables),
+        summary(&without),
+    );
+    assert_eq!(a["job"]["effects"], b["job"]["effects"]);
+    assert_eq!(a["job"]["effects"][1]["kind"], "axial_drift");
+    assert_eq!(a["job"]["effects"][1]["drift_mm"], 0.0005);
+    assert_eq!(a["job_hash"], b["job_hash"]);
+    assert_eq!(a["deviation"], b["deviation"]);
+    for file in [
+        "polar.exr",
+        "surface.exr",
+        "radial_profile.csv",
+        "job.resolved.toml",
+    ] {
+        assert_eq!(
+            std::fs::read(with_file.join(file)).unwrap(),
+            std::fs::read(with_tables.join(file)).unwrap(),
+            "{file} differs between --effects and the same tables in the job"
+        );
+    }
+    let resolved = std::fs::read_to_string(with_file.join("job.resolved.toml")).unwrap();
+    assert!(
+        resolved.contains("kind = \"axial_drift\"") && resolved.contains("kind = \"x_decentre\"")
+    );
+    // And the drift did what it says: at radius r it lifts the cut by
+    // d·(R_s − r)/(f·N) (N = R_s/f + 1 revolutions from R_s = 5.02 mm, the last a
+    // dwell), whose area-weighted mean over the Ø10 face is d·(R_s − 2a/3)/(f·N).
+    let lift =
+        a["deviation"]["mean_nm"].as_f64().unwrap() - c["deviation"]["mean_nm"].as_f64().unwrap();
+    let (start, feed, rim) = (5.02, 0.01, 5.0);
+    let expected = 0.0005e6 * (start - 2.0 * rim / 3.0) / (feed * (start / feed + 1.0));
+    println!("mean deviation with the drift file: +{lift:.2} nm (closed form {expected:.2} nm)");
+    assert!((lift / expected - 1.0).abs() < 0.01, "{lift} vs {expected}");
+}
+
+#[test]
+fn a_bad_effects_file_is_refused_with_its_path_and_table_index() {
+    let files = out_dir("fragment-bad");
+    let job = write_file(&files, "job.toml", &facing_with_a_decentre());
+    let out = files.join("out");
+    let refused = |fragment: &str, expected: &[&str]| {
+        let output = toolmark(
+            &[
+                "run",
+                &job,
+                "--effects",
+                fragment,
+                "--engine",
+                "cpu",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        println!("{stderr}");
+        assert_eq!(output.status.code(), Some(2), "{stderr}");
+        for fragment in expected {
+            assert!(stderr.contains(fragment), "missing {fragment:?}: {stderr}");
+        }
+    };
+    // The job has one table of its own; the file's second is its effects[1].
+    let bad_value = write_file(
+        &files,
+        "bad_value.toml",
+        "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 0.0001\n[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 0.3\n",
+    );
+    refused(
+        &bad_value,
+        &[
+            &format!("{bad_value}: effects[1].drift_mm"),
+            "out of range",
+            "[−0.25, 0.25]",
+        ],
+    );
+    let wrong_kind = write_file(
+        &files,
+        "wrong_kind.toml",
+        "[[effects]]\nkind = \"spindle_tram\"\ntilt_x_deg = 0.1\n",
+    );
+    refused(
+        &wrong_kind,
+        &[
+            &format!("{wrong_kind}: effects[0].kind"),
+            "milling effect",
+            "axial_drift",
+        ],
+    );
+    let more_than_effects = write_file(
+        &files,
+        "more.toml",
+        "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 0.0001\n[process]\nkind = \"turning\"\n",
+    );
+    refused(
+        &more_than_effects,
+        &[
+            &format!("{more_than_effects}: process"),
+            "only [[effects]] tables",
+        ],
+    );
+    let missing = files.join("no_such_file.toml");
+    refused(
+        missing.to_str().unwrap(),
+        &["no_such_file.toml", "cannot read"],
+    );
+    assert!(!out.exists(), "a refused run must not write outputs");
+}
+
+#[test]
+fn compensate_takes_an_effects_file_as_more_machine_errors() {
+    let files = out_dir("fragment-compensate");
+    let example = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/asphere_xz_with_errors.toml"),
+    )
+    .unwrap();
+    let fragment_text = "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = -0.0003\n";
+    let job = write_file(&files, "job.toml", &example);
+    let fragment = write_file(&files, "drift.toml", fragment_text);
+    let inline = write_file(
+        &files,
+        "inline.toml",
+        &format!("{example}\n{fragment_text}"),
+    );
+    let (with_file, with_tables) = (out_dir("fragment-comp-a"), out_dir("fragment-comp-b"));
+    for (args, dir) in [
+        (vec!["compensate", &job, "--effects", &fragment], &with_file),
+        (vec!["compensate", &inline], &with_tables),
+    ] {
+        let mut args = args;
+        args.extend([
+            "--cycles",
+            "1",
+            "--engine",
+            "cpu",
+            "--out",
+            dir.to_str().unwrap(),
+        ]);
+        let output = toolmark(&args, &[]);
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+    }
+    let (a, b) = (
+        json(&with_file.join("compensation.json")),
+        json(&with_tables.join("compensation.json")),
+    );
+    assert_eq!(a["job_hash"], b["job_hash"]);
+    assert_eq!(a["cycles"], b["cycles"]);
+    let compensated = std::fs::read_to_string(with_file.join("compensated.toml")).unwrap();
+    assert!(
+        compensated.contains("kind = \"axial_drift\""),
+        "{compensated}"
+    );
+    let bad = write_file(&files, "bad.toml", "version = 1\n");
+    let output = toolmark(
+        &["compensate", &job, "--effects", &bad, "--cycles", "1"],
+        &[],
+    );
+    assert_eq!(output.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&output.stderr).contains(&format!("{bad}: version")));
+}

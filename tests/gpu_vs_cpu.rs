@@ -126,6 +126,18 @@ harmonics = [{ order = 20, amplitude_mm = 0.00005 }, { order = 7, amplitude_mm =
 }
 
 #[test]
+fn axial_drift_on_the_asphere_gpu_matches_cpu() {
+    // The drift reaches the GPU kernel only through the pose table (Z per node).
+    compare(
+        "seed-002 asphere XZ with an axial drift of −2 µm (into the part)",
+        example_with(
+            "asphere_xz.toml",
+            "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = -0.002",
+        ),
+    );
+}
+
+#[test]
 fn nc_program_with_a_measured_edge_gpu_matches_cpu() {
     compare(
         "UPM cut 1021 with measured edge D906-3",

@@ -1,6 +1,6 @@
 //! `toolmark compensate`: the turning compensation loop in simulation.
 
-use super::{EngineChoice, Failure, load_job, open_engine, slug};
+use super::{EngineChoice, Failure, load_job_with_effects, open_engine, slug};
 use std::path::PathBuf;
 use toolmark::compensate::compensation_loop;
 use toolmark::io::plot::{LinePlot, PALETTE, Series, write_line_plot};
@@ -20,10 +20,14 @@ pub struct CompensateArgs {
     /// Output folder (default: toolmark-out/<job name>-compensation).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// An effects file (TOML with only [[effects]] tables) whose effects are added to
+    /// the job's own: more of the machine's errors the loop is not told.
+    #[arg(long, value_name = "FILE")]
+    pub effects: Option<PathBuf>,
 }
 
 pub fn compensate(args: CompensateArgs) -> Result<(), Failure> {
-    let job = load_job(Some(&args.job))?;
+    let job = load_job_with_effects(Some(&args.job), args.effects.as_ref())?;
     let Some(turning) = job.process.turning().cloned() else {
         return Err(Failure::Input(format!(
             "{}: compensate corrects a turning path along the normal; for a generating job use `toolmark correct`",

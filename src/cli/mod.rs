@@ -12,7 +12,7 @@ use std::path::PathBuf;
 use toolmark::engine::RemovalEngine;
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::engine::gpu::GpuEngine;
-use toolmark::io::job::Job;
+use toolmark::io::job::{EffectsFragment, FragmentError, Job, JobError};
 
 #[derive(Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
 pub enum EngineChoice {
@@ -36,6 +36,26 @@ pub fn load_job(path: Option<&PathBuf>) -> Result<Job, Failure> {
         }
         None => Ok(Job::default_job()),
     }
+}
+
+/// A job (`None`: the built-in default) with an effects fragment's tables appended to
+/// its own when one is given; errors name the file they are in.
+pub fn load_job_with_effects(
+    path: Option<&PathBuf>,
+    effects: Option<&PathBuf>,
+) -> Result<Job, Failure> {
+    let Some(fragment_path) = effects else {
+        return load_job(path);
+    };
+    let in_fragment = |err: JobError| Failure::Input(format!("{}: {err}", fragment_path.display()));
+    let fragment = EffectsFragment::load(fragment_path).map_err(in_fragment)?;
+    Job::load_with_fragment(path.map(PathBuf::as_path), &fragment).map_err(|err| match err {
+        FragmentError::Fragment(err) => in_fragment(err),
+        FragmentError::Job(err) => Failure::Input(match path {
+            Some(path) => format!("{}: {err}", path.display()),
+            None => format!("the built-in default job: {err}"),
+        }),
+    })
 }
 
 pub fn open_engine(choice: EngineChoice, job: &Job) -> Result<Box<dyn RemovalEngine>, Failure> {

@@ -1,6 +1,6 @@
 //! `toolmark run` and `toolmark check`.
 
-use super::{EngineChoice, Failure, load_job, open_engine, slug};
+use super::{EngineChoice, Failure, load_job, load_job_with_effects, open_engine, slug};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use toolmark::io::outputs::write_outputs;
@@ -17,6 +17,10 @@ pub struct RunArgs {
     /// Output folder (default: toolmark-out/<job name>).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// An effects file (TOML with only [[effects]] tables) whose effects are added to
+    /// the job's own, e.g. a machine's calibration carried from part to part.
+    #[arg(long, value_name = "FILE")]
+    pub effects: Option<PathBuf>,
 }
 
 pub fn check(path: PathBuf) -> Result<(), Failure> {
@@ -35,7 +39,7 @@ pub fn check(path: PathBuf) -> Result<(), Failure> {
 }
 
 pub fn run(args: RunArgs) -> Result<(), Failure> {
-    let job = load_job(args.job.as_ref())?;
+    let job = load_job_with_effects(args.job.as_ref(), args.effects.as_ref())?;
     if args.job.is_none() {
         println!(
             "no job file given: running the built-in default job ({})",

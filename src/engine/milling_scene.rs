@@ -13,14 +13,29 @@
 //! where the entry reaches the stock top, growing away from the tool), is minimised by
 //! golden-section search, after a coarse scan when the span is long. With teeth, the
 //! tool cuts only where a tooth passes (every `feed_per_tooth` of travel): the stamps
-//! around the continuous optimum are evaluated instead.
+//! around the continuous optimum are evaluated instead. When the teeth's sweeps are
+//! displaced from the axis (each by up to half a tooth's advance), a stamp farther
+//! along than its neighbours can still cut deepest where the displacement has a part
+//! across the feed, so then every stamp over the pass's span is evaluated.
 
 use super::generating_scene::golden_section_min_steps;
 use crate::field::{NO_PASS, PolarGrid};
 use crate::geometry::cutter::CutterPose;
 use crate::geometry::milling_tool::MillingTool;
-use crate::process::milling::MillingPath;
-use glam::DVec3;
+use crate::process::milling::{Interpolation, MillingPass, MillingPath};
+use glam::{DVec2, DVec3};
+use std::f64::consts::FRAC_PI_4;
+
+/// Where the teeth cut along the path: stamp k at arc length k·`feed_per_tooth_mm` from
+/// the path's start (0: the tool body sweeps continuously), cut by tooth k mod z whose
+/// sweep is displaced from the tool axis by `offsets_mm[k mod z]` in the frame (feed
+/// direction, its right-handed quarter turn about the axis); no offsets: every tooth
+/// on the axis.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ToothStamps {
+    pub feed_per_tooth_mm: f64,
+    pub offsets_mm: Vec<DVec2>,
+}
 
 #[derive(Debug, Clone)]
 pub struct MillingScene {
@@ -39,8 +54,8 @@ pub struct MillingScene {
     /// the sample: the dip below the stock top a profile of radius r_p allows across
     /// the pass, plus one node spacing.
     pub search_radius_mm: f64,
-    /// Advance per tooth (0: the tool body sweeps continuously).
-    pub feed_per_tooth_mm: f64,
+    /// Where the teeth cut (no feed per tooth: the tool body sweeps continuously).
+    pub stamps: ToothStamps,
     /// For a ball, how far a pass's cut can lie below its value at the node nearest the
     /// expected centre (half a node spacing of travel under the ball); `None` for other
     /// tools, whose cut need not be near that node (every candidate pass is searched).
@@ -170,7 +185,10 @@ pub struct PassCut {
 
 impl MillingScene {
     /// `lift_mm` is how far above the nominal the path's contacts sit (stock − depth),
-    /// `profile_radius_mm` the tool's profile radius across the passes.
+    /// `profile_radius_mm` the tool's profile radius across the passes; `extra_reach_mm`
+    /// widens the search for anything that moves a cutting pose off the planned one
+    /// (effects; 0 for a nominal job).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         grid: PolarGrid,
         tool: MillingTool,
@@ -178,7 +196,8 @@ impl MillingScene {
         stock_top_mm: f64,
         lift_mm: f64,
         profile_radius_mm: f64,
-        feed_per_tooth_mm: f64,
+        stamps: ToothStamps,
+        extra_reach_mm: f64,
     ) -> Self {
         let (centre_offset_mm, lateral) = tool.centre_offset_and_lateral_reach();
         // Node spacing: a cutting pose may lie between two nodes.
@@ -191,13 +210,25 @@ impl MillingScene {
                     .map(|w| (w[1].pose.centre - w[0].pose.centre).length())
             })
             .fold(0.0, f64::max);
-        let dip = (stock_top_mm.abs() + lift_mm.abs()).max(0.0);
-        let search_radius_mm =
-            (2.0 * profile_radius_mm.max(1e-3) * dip).sqrt() + dip + spacing + 1e-6;
+        let dip = (stock_top_mm.abs() + lift_mm.abs() + extra_reach_mm).max(0.0);
+        // Along a profile of radius r_p the tool dips within √(2 r_p dip); no centre
+        // farther than the tool's own size from a cutting one can cut (a face that may
+        // stand square has r_p = ∞).
+        let across = (2.0 * profile_radius_mm.max(1e-3) * dip)
+            .sqrt()
+            .min(2.0 * tool.reach_mm());
+        let search_radius_mm = across + dip + spacing + 1e-6;
         let bins = NodeBins::new(&path, search_radius_mm + lateral);
         let is_ball = matches!(tool, MillingTool::EndMill(c) if c.major_radius_mm == 0.0);
-        let node_slack_mm =
-            is_ball.then(|| (0.5 * spacing).powi(2) / (2.0 * profile_radius_mm.max(1e-3)) + 1e-9);
+        // A displaced tooth can cut up to its displacement below the undisplaced sweep.
+        let displacement = stamps
+            .offsets_mm
+            .iter()
+            .map(|o| o.length())
+            .fold(0.0, f64::max);
+        let node_slack_mm = is_ball.then(|| {
+            (0.5 * spacing).powi(2) / (2.0 * profile_radius_mm.max(1e-3)) + 1e-9 + displacement
+        });
         let mut scene = Self {
             grid,
             tool,
@@ -206,7 +237,7 @@ impl MillingScene {
             centre_offset_mm,
             lateral_mm: lateral,
             search_radius_mm,
-            feed_per_tooth_mm,
+            stamps,
             node_slack_mm,
             bins,
             pairs: 0,
@@ -321,13 +352,29 @@ impl MillingScene {
     ) -> Option<PassCut> {
         let pass = &self.path.passes[pass as usize];
         let nodes = &pass.nodes;
-        let from = nodes[(first as usize).saturating_sub(1)].arc_mm;
-        let to = nodes[(last as usize + 1).min(nodes.len() - 1)].arc_mm;
+        let (start, end) = (
+            &nodes[(first as usize).saturating_sub(1)],
+            &nodes[(last as usize + 1).min(nodes.len() - 1)],
+        );
+        let (from, to) = (start.arc_mm, end.arc_mm);
+        let pitch = self.stamps.feed_per_tooth_mm;
+        if pitch > 0.0 && !self.stamps.offsets_mm.is_empty() {
+            // Displaced teeth: every stamp over the span.
+            let stamps = (from / pitch).ceil() as i64..=(to / pitch).floor() as i64;
+            return self.best_stamp(pass, stamps, origin, normal);
+        }
         let entry_at = |arc: f64| self.extended_entry(&pass.pose_at(arc), origin, normal);
         // Scan spans longer than the search radius (tight spiral turns), then refine the
         // best bracket.
         let scan = 0.5 * (self.search_radius_mm + self.lateral_mm);
-        let steps = (((to - from) / scan).ceil() as usize).max(2);
+        let mut steps = (((to - from) / scan).ceil() as usize).max(2);
+        if pass.interpolation == Interpolation::Polar {
+            // On a tight turn at most 45° of it between scan points, so the best
+            // bracket (two steps) spans less than the half turn over which the entry
+            // can only fall and then rise.
+            let turned = (end.polar.y - start.polar.y).abs();
+            steps = steps.max((turned / FRAC_PI_4).ceil() as usize);
+        }
         let at = |i: usize| from + (to - from) * i as f64 / steps as f64;
         let best = (0..=steps)
             .map(|i| (i, entry_at(at(i))))
@@ -335,25 +382,62 @@ impl MillingScene {
             .map_or(0, |b| b.0);
         let (lo, hi) = (at(best.saturating_sub(1)), at((best + 1).min(steps)));
         // 40 steps shrink the bracket (a few node spacings) to 4e-9 of it.
-        let mut arc = golden_section_min_steps(&entry_at, lo, hi, 40);
-        let mut depth = entry_at(arc);
-        if self.feed_per_tooth_mm > 0.0 {
+        let arc = golden_section_min_steps(&entry_at, lo, hi, 40);
+        if pitch > 0.0 {
             // Only the tooth positions cut: the stamps around the optimum.
-            let pitch = self.feed_per_tooth_mm;
-            let nearest = (arc / pitch).floor();
-            let stamps = (-1..=2)
-                .map(|k| (nearest + k as f64) * pitch)
-                .filter(|s| (pass.start_arc()..=pass.end_arc()).contains(s));
-            (arc, depth) = stamps
-                .map(|s| (s, entry_at(s)))
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-                .unwrap_or((arc, f64::INFINITY));
+            let nearest = (arc / pitch).floor() as i64;
+            return self.best_stamp(pass, nearest - 1..=nearest + 2, origin, normal);
         }
+        let depth = entry_at(arc);
         (depth < self.stock_top_mm).then(|| PassCut {
             depth_mm: depth,
             arc_mm: arc,
             pose: pass.pose_at(arc),
         })
+    }
+
+    /// The lowest cut on the ray of the stamps `stamps` that lie on the pass.
+    fn best_stamp(
+        &self,
+        pass: &MillingPass,
+        stamps: std::ops::RangeInclusive<i64>,
+        origin: DVec3,
+        normal: DVec3,
+    ) -> Option<PassCut> {
+        let pitch = self.stamps.feed_per_tooth_mm;
+        stamps
+            .filter(|&k| (pass.start_arc()..=pass.end_arc()).contains(&(k as f64 * pitch)))
+            .map(|k| {
+                let arc = k as f64 * pitch;
+                let pose = self.stamp_pose(pass, k, arc);
+                (arc, pose, self.extended_entry(&pose, origin, normal))
+            })
+            .min_by(|a, b| a.2.total_cmp(&b.2))
+            .filter(|cut| cut.2 < self.stock_top_mm)
+            .map(|(arc, pose, depth)| PassCut {
+                depth_mm: depth,
+                arc_mm: arc,
+                pose,
+            })
+    }
+
+    /// The pose of stamp `k` (at path arc length `arc`): the tool at that point of the
+    /// pass, its centre moved by tooth k mod z's displacement.
+    fn stamp_pose(&self, pass: &MillingPass, k: i64, arc: f64) -> CutterPose {
+        let pose = pass.pose_at(arc);
+        let offsets = &self.stamps.offsets_mm;
+        if offsets.is_empty() {
+            return pose;
+        }
+        let offset = offsets[k.rem_euclid(offsets.len() as i64) as usize];
+        let feed = pass.feed_direction_at(arc);
+        let along = (feed - feed.dot(pose.axis) * pose.axis)
+            .normalize_or(pose.axis.any_orthonormal_vector());
+        let across = pose.axis.cross(along);
+        CutterPose::new(
+            pose.centre + offset.x * along + offset.y * across,
+            pose.axis,
+        )
     }
 }
 
@@ -423,4 +507,110 @@ pub fn milling_dexel(scene: &MillingScene, ring: usize, azimuth: u32) -> (f64, u
         }
     }
     best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::Scene;
+    use crate::io::job::Job;
+
+    /// A ball raster over a plane, passes 0.5 mm apart, with a runout (ε, φ).
+    fn runout_scene(teeth: u32, feed_mm: f64, offset_mm: f64, phase_deg: f64) -> MillingScene {
+        let job = Job::from_toml_str(
+            &format!(
+                r#"version = 1
+[surface]
+kind = "plane"
+aperture_diameter_mm = 1.0
+[tool]
+kind = "ball_end"
+diameter_mm = 1.0
+teeth = {teeth}
+[process]
+kind = "milling"
+path = "raster"
+stepover_mm = 0.5
+feed_per_tooth_mm = {feed_mm}
+stock_allowance_mm = 0.01
+[grid]
+pitch_um = 5.0
+azimuths = 12
+[[effects]]
+kind = "radial_runout"
+offset_mm = {offset_mm}
+phase_deg = {phase_deg}
+"#
+            ),
+            "runout",
+        )
+        .expect("valid job");
+        match crate::run::prepare_scenes(&job).remove(0) {
+            Scene::Milling(scene) => scene,
+            _ => panic!("a milling scene"),
+        }
+    }
+
+    #[test]
+    fn tooth_zero_at_a_quarter_turn_sits_to_the_left_of_the_feed() {
+        // Right-handed about the (vertical) axis, a quarter turn from +X is +Y.
+        let scene = runout_scene(2, 0.05, 0.01, 90.0);
+        let pass = scene
+            .path
+            .passes
+            .iter()
+            .find(|p| p.nodes[1].pose.centre.x > p.nodes[0].pose.centre.x)
+            .expect("a pass feeding along +X");
+        let k = (pass.start_arc() / 0.05).ceil() as i64 + 2;
+        let arc = k as f64 * 0.05;
+        let nominal = pass.pose_at(arc).centre;
+        let even = 2 * k.div_euclid(2);
+        let shift = scene.stamp_pose(pass, even, arc).centre - nominal;
+        assert!(
+            (shift - DVec3::new(0.0, 0.01, 0.0)).length() < 1e-12,
+            "{shift}"
+        );
+        let shift = scene.stamp_pose(pass, even + 1, arc).centre - nominal;
+        assert!(
+            (shift - DVec3::new(0.0, -0.01, 0.0)).length() < 1e-12,
+            "{shift}"
+        );
+    }
+
+    #[test]
+    fn displaced_teeth_cut_as_deep_as_every_stamp_of_every_pass_allows() {
+        // The largest runout allowed (f/2), across the feed, on 6 teeth: near the cusps
+        // between passes (0.25 mm off them) the tooth displaced toward a sample cuts it
+        // deepest even three stamps from the nearest (2bε > 9f² + ε²), beyond the 4
+        // stamps around the continuous optimum. The engine's candidate passes and stamps
+        // against all stamps of all passes, at every sample.
+        let scene = runout_scene(6, 0.01, 0.005, 90.0);
+        let pitch = scene.stamps.feed_per_tooth_mm;
+        let rings = scene.grid.ring_count();
+        let mut worst = 0.0f64;
+        for s in 0..scene.grid.sample_count() {
+            let (ring, azimuth) = (s % rings, (s / rings) as u32);
+            let (origin, normal) = scene.sample_ray(ring, azimuth);
+            let brute = scene
+                .path
+                .passes
+                .iter()
+                .flat_map(|pass| {
+                    let first = (pass.start_arc() / pitch).ceil() as i64;
+                    let last = (pass.end_arc() / pitch).floor() as i64;
+                    (first..=last).map(move |k| (pass, k))
+                })
+                .map(|(pass, k)| {
+                    let pose = scene.stamp_pose(pass, k, k as f64 * pitch);
+                    scene
+                        .tool
+                        .ray_entry(&pose, origin, normal)
+                        .unwrap_or(f64::INFINITY)
+                })
+                .fold(scene.stock_top_mm, f64::min);
+            let (depth, _) = milling_dexel(&scene, ring, azimuth);
+            worst = worst.max((depth - brute).abs());
+        }
+        assert!(worst < 1e-12, "{worst}");
+    }
 }

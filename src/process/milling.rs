@@ -20,7 +20,7 @@ use crate::geometry::SurfaceOfRevolution;
 use crate::geometry::cutter::CutterPose;
 use crate::geometry::milling_tool::MillingTool;
 use glam::{DVec2, DVec3};
-use std::f64::consts::TAU;
+use std::f64::consts::{PI, TAU};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -86,6 +86,18 @@ pub struct PathNode {
     pub polar: DVec3,
 }
 
+impl PathNode {
+    /// Moves the pose centre by `offset`, keeping the polar form (and its unwrapped
+    /// angle) in step.
+    pub fn translate(&mut self, offset: DVec3) {
+        let centre = self.pose.centre + offset;
+        let turn = centre.y.atan2(centre.x) - self.pose.centre.y.atan2(self.pose.centre.x);
+        let turn = (turn + PI).rem_euclid(TAU) - PI;
+        self.polar = DVec3::new(centre.truncate().length(), self.polar.y + turn, centre.z);
+        self.pose.centre = centre;
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct MillingPass {
     pub interpolation: Interpolation,
@@ -101,8 +113,9 @@ impl MillingPass {
         self.nodes[self.nodes.len() - 1].arc_mm
     }
 
-    /// The pose at path arc length `arc` (clamped to the pass).
-    pub fn pose_at(&self, arc: f64) -> CutterPose {
+    /// The nodes either side of path arc length `arc` (clamped to the pass) and the
+    /// fraction of the way between them.
+    fn segment_at(&self, arc: f64) -> (&PathNode, &PathNode, f64) {
         let nodes = &self.nodes;
         let i = nodes
             .partition_point(|n| n.arc_mm <= arc)
@@ -114,6 +127,12 @@ impl MillingPass {
         } else {
             0.0
         };
+        (a, b, t)
+    }
+
+    /// The pose at path arc length `arc` (clamped to the pass).
+    pub fn pose_at(&self, arc: f64) -> CutterPose {
+        let (a, b, t) = self.segment_at(arc);
         let centre = match self.interpolation {
             Interpolation::Linear => a.pose.centre.lerp(b.pose.centre, t),
             Interpolation::Polar => {
@@ -122,6 +141,26 @@ impl MillingPass {
             }
         };
         CutterPose::new(centre, a.pose.axis.lerp(b.pose.axis, t).normalize())
+    }
+
+    /// The unit direction of travel of the pose centre at path arc length `arc` (the
+    /// derivative of the interpolation; zero where the centre stands still).
+    pub fn feed_direction_at(&self, arc: f64) -> DVec3 {
+        let (a, b, t) = self.segment_at(arc);
+        let velocity = match self.interpolation {
+            Interpolation::Linear => b.pose.centre - a.pose.centre,
+            Interpolation::Polar => {
+                let p = a.polar.lerp(b.polar, t);
+                let d = b.polar - a.polar;
+                let (sin, cos) = p.y.sin_cos();
+                DVec3::new(
+                    d.x * cos - p.x * d.y * sin,
+                    d.x * sin + p.x * d.y * cos,
+                    d.z,
+                )
+            }
+        };
+        velocity.normalize_or_zero()
     }
 }
 

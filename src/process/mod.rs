@@ -14,7 +14,7 @@ pub use nc_path::{NcPath, NcReference};
 pub use pose_table::{PoseTable, ToolPose};
 pub use turning::{FeedAlong, TurningMode, TurningSpiral};
 
-use crate::effects::{GeneratingEffects, TurningEffects};
+use crate::effects::{GeneratingEffects, MillingEffects, TurningEffects};
 use crate::geometry::{ArcNoseTool, MeridianArcLength, SurfaceOfRevolution};
 
 /// A job's machining process.
@@ -40,6 +40,7 @@ pub struct TurningProcess {
 #[derive(Debug, Clone, PartialEq)]
 pub struct MillingProcess {
     pub setup: MillingSetup,
+    pub effects: MillingEffects,
 }
 
 /// Lens generating with a cup wheel.

@@ -1,5 +1,9 @@
 //! The `[[effects]]` tables of a job (and of an effects fragment file): parsing and
-//! validation into [`TurningEffects`]. Lengths in mm, angles in degrees.
+//! validation into [`TurningEffects`], [`GeneratingEffects`] and [`MillingEffects`].
+//! Lengths in mm, angles in degrees. Values of one kind add up across tables (a
+//! runout's as vectors); each table and each total must lie within the kind's range.
+//!
+//! Turning jobs:
 //!
 //! ```toml
 //! [[effects]]
@@ -17,6 +21,11 @@
 //! [[effects]]
 //! kind = "edge_waviness"
 //! harmonics = [{ order = 40, amplitude_mm = 0.00005, phase_deg = 0.0 }]
+//!
+//! [[effects]]
+//! kind = "axial_drift"
+//! drift_mm = 0.0005          # Z drift at the end of the cut, + = away from the part;
+//!                            #   linear in the spindle angle turned
 //! ```
 //!
 //! Generating jobs (cup wheel) take their own effects:
@@ -34,14 +43,41 @@
 //! kind = "plunge_error"
 //! error_mm = 0.001           # + = the wheel stops short along the plunge axis
 //! ```
+//!
+//! Milling jobs:
+//!
+//! ```toml
+//! [[effects]]
+//! kind = "axial_drift"
+//! drift_mm = 0.001           # Z drift at the end of the path, + = away from the part;
+//!                            #   linear in path arc length
+//!
+//! [[effects]]
+//! kind = "tool_radius_error"
+//! error_mm = 0.002           # actual − nominal ball/corner radius, tool set at its tip
+//!                            #   (ball_end and bull_nose; |e| < r/2)
+//!
+//! [[effects]]
+//! kind = "spindle_tram"
+//! tilt_x_deg = 0.02          # the axis leaning toward +X (bull_nose, flat_end; ≤ 1°)
+//! tilt_y_deg = -0.01         # … and toward +Y (each defaults to 0; give at least one)
+//!
+//! [[effects]]
+//! kind = "radial_runout"
+//! offset_mm = 0.002          # ε: each tooth's sweep off the axis (|ε| ≤ feed_per_tooth/2,
+//! phase_deg = 30.0           #   teeth ≥ 2); tooth 0's at φ from the feed (default 0),
+//!                            #   tooth j's at φ + 360°·j/teeth, right-handed about the axis
+//! ```
 
-use super::{JobError, ToolSpec};
-use crate::effects::{GeneratingEffects, TurningEffects, WAVINESS_SAMPLES};
+use super::{JobError, ProcessKind, ToolSpec};
+use crate::effects::{GeneratingEffects, MillingEffects, TurningEffects, WAVINESS_SAMPLES};
 use crate::geometry::ArcNoseTool;
+use crate::geometry::milling_tool::MillingTool;
 use crate::geometry::tool::AngleTable;
 use crate::io::measured::read_edge_csv;
-use crate::process::GeneratingSetup;
 use crate::process::TurningMode;
+use crate::process::{GeneratingSetup, MillingSetup};
+use glam::DVec2;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -55,9 +91,27 @@ pub enum EffectKind {
     CutterDisplacement,
     InclinationError,
     PlungeError,
+    AxialDrift,
+    ToolRadiusError,
+    SpindleTram,
+    RadialRunout,
 }
 
 impl EffectKind {
+    pub const ALL: [EffectKind; 11] = [
+        EffectKind::CentreHeight,
+        EffectKind::XDecentre,
+        EffectKind::NoseRadiusError,
+        EffectKind::EdgeWaviness,
+        EffectKind::CutterDisplacement,
+        EffectKind::InclinationError,
+        EffectKind::PlungeError,
+        EffectKind::AxialDrift,
+        EffectKind::ToolRadiusError,
+        EffectKind::SpindleTram,
+        EffectKind::RadialRunout,
+    ];
+
     /// The name used in job files.
     pub fn name(self) -> &'static str {
         match self {
@@ -68,28 +122,52 @@ impl EffectKind {
             EffectKind::CutterDisplacement => "cutter_displacement",
             EffectKind::InclinationError => "inclination_error",
             EffectKind::PlungeError => "plunge_error",
+            EffectKind::AxialDrift => "axial_drift",
+            EffectKind::ToolRadiusError => "tool_radius_error",
+            EffectKind::SpindleTram => "spindle_tram",
+            EffectKind::RadialRunout => "radial_runout",
         }
     }
 
-    fn is_turning(self) -> bool {
-        matches!(
-            self,
-            EffectKind::CentreHeight
-                | EffectKind::XDecentre
-                | EffectKind::NoseRadiusError
-                | EffectKind::EdgeWaviness
-        )
-    }
-
-    /// The parameter field each kind takes.
-    fn parameter(self) -> &'static str {
+    /// The processes whose jobs take this kind.
+    pub fn processes(self) -> &'static [ProcessKind] {
         match self {
-            EffectKind::CentreHeight => "height_mm",
-            EffectKind::XDecentre | EffectKind::CutterDisplacement => "offset_mm",
-            EffectKind::NoseRadiusError | EffectKind::PlungeError => "error_mm",
-            EffectKind::EdgeWaviness => "harmonics",
-            EffectKind::InclinationError => "error_deg",
+            EffectKind::CentreHeight
+            | EffectKind::XDecentre
+            | EffectKind::NoseRadiusError
+            | EffectKind::EdgeWaviness => &[ProcessKind::Turning],
+            EffectKind::CutterDisplacement
+            | EffectKind::InclinationError
+            | EffectKind::PlungeError => &[ProcessKind::Generating],
+            EffectKind::AxialDrift => &[ProcessKind::Turning, ProcessKind::Milling],
+            EffectKind::ToolRadiusError | EffectKind::SpindleTram | EffectKind::RadialRunout => {
+                &[ProcessKind::Milling]
+            }
         }
+    }
+
+    /// The parameter fields each kind takes.
+    fn parameters(self) -> &'static [&'static str] {
+        match self {
+            EffectKind::CentreHeight => &["height_mm"],
+            EffectKind::XDecentre | EffectKind::CutterDisplacement => &["offset_mm"],
+            EffectKind::NoseRadiusError | EffectKind::PlungeError | EffectKind::ToolRadiusError => {
+                &["error_mm"]
+            }
+            EffectKind::EdgeWaviness => &["harmonics"],
+            EffectKind::InclinationError => &["error_deg"],
+            EffectKind::AxialDrift => &["drift_mm"],
+            EffectKind::SpindleTram => &["tilt_x_deg", "tilt_y_deg"],
+            EffectKind::RadialRunout => &["offset_mm", "phase_deg"],
+        }
+    }
+}
+
+fn process_name(process: ProcessKind) -> &'static str {
+    match process {
+        ProcessKind::Turning => "turning",
+        ProcessKind::Generating => "generating",
+        ProcessKind::Milling => "milling",
     }
 }
 
@@ -117,48 +195,57 @@ pub struct EffectSpec {
     pub harmonics: Option<Vec<HarmonicSpec>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drift_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt_x_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt_y_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub phase_deg: Option<f64>,
 }
 
 impl EffectSpec {
     /// Each parameter field and whether it is given.
-    fn given(&self) -> [(&'static str, bool); 5] {
+    fn given(&self) -> [(&'static str, bool); 9] {
         [
             ("height_mm", self.height_mm.is_some()),
             ("offset_mm", self.offset_mm.is_some()),
             ("error_mm", self.error_mm.is_some()),
             ("harmonics", self.harmonics.is_some()),
             ("error_deg", self.error_deg.is_some()),
+            ("drift_mm", self.drift_mm.is_some()),
+            ("tilt_x_deg", self.tilt_x_deg.is_some()),
+            ("tilt_y_deg", self.tilt_y_deg.is_some()),
+            ("phase_deg", self.phase_deg.is_some()),
         ]
     }
 
-    /// Checks the table gives only its kind's parameter, and that the kind belongs to
+    /// Checks the table gives only its kind's parameters, and that the kind belongs to
     /// the job's process.
-    fn check_fields(&self, index: usize, turning: bool) -> Result<(), JobError> {
+    fn check_fields(&self, index: usize, process: ProcessKind) -> Result<(), JobError> {
         let field = |name: &str| format!("effects[{index}].{name}");
-        if self.kind.is_turning() != turning {
-            let (this, other, allowed) = if turning {
-                (
-                    "generating",
-                    "turning",
-                    "centre_height, x_decentre, nose_radius_error, edge_waviness",
-                )
-            } else {
-                (
-                    "turning",
-                    "generating",
-                    "cutter_displacement, inclination_error, plunge_error",
-                )
-            };
+        let owners = self.kind.processes();
+        if !owners.contains(&process) {
+            let owners: Vec<&str> = owners.iter().map(|&p| process_name(p)).collect();
+            let allowed: Vec<&str> = EffectKind::ALL
+                .iter()
+                .filter(|kind| kind.processes().contains(&process))
+                .map(|kind| kind.name())
+                .collect();
             return Err(error(
                 field("kind"),
                 format!(
-                    "\"{}\" is a {this} effect and this is a {other} job; allowed: {allowed}",
-                    self.kind.name()
+                    "\"{}\" is a {} effect and this is a {} job; allowed: {}",
+                    self.kind.name(),
+                    owners.join(" and "),
+                    process_name(process),
+                    allowed.join(", ")
                 ),
             ));
         }
         for (name, given) in self.given() {
-            if given && name != self.kind.parameter() {
+            if given && !self.kind.parameters().contains(&name) {
                 return Err(error(
                     field(name),
                     format!("is not a parameter of kind = \"{}\"", self.kind.name()),
@@ -191,6 +278,42 @@ fn bounded(field: String, value: Option<f64>, limit: f64) -> Result<f64, JobErro
     }
 }
 
+/// A running total of one kind's values over the tables, which must stay within the
+/// same range as each table (checked at the last table that added to it).
+struct Total {
+    sum: f64,
+    last: Option<String>,
+}
+
+impl Total {
+    fn new() -> Self {
+        Total {
+            sum: 0.0,
+            last: None,
+        }
+    }
+
+    fn add(&mut self, field: String, value: f64) {
+        self.sum += value;
+        self.last = Some(field);
+    }
+
+    /// The total, or an error when several tables add up beyond `within`'s range
+    /// (`within` tells whether a value is allowed and how the range reads).
+    fn check(&self, within: impl Fn(f64) -> bool, range: &str) -> Result<f64, JobError> {
+        match &self.last {
+            Some(field) if !within(self.sum) => Err(error(
+                field.clone(),
+                format!(
+                    "the tables of this kind add up to {}, out of range; allowed in total: {range}",
+                    self.sum
+                ),
+            )),
+            _ => Ok(self.sum),
+        }
+    }
+}
+
 /// Combines the effect tables into one set of turning effects (waviness adds up).
 /// `nose_radius_mm` bounds the effects that only make sense below the tool's size.
 pub fn turning_effects(
@@ -201,7 +324,7 @@ pub fn turning_effects(
     let mut harmonics = Vec::new();
     for (index, spec) in specs.iter().enumerate() {
         let field = |name: &str| format!("effects[{index}].{name}");
-        spec.check_fields(index, true)?;
+        spec.check_fields(index, ProcessKind::Turning)?;
         match spec.kind {
             EffectKind::CentreHeight => {
                 effects.centre_height_mm +=
@@ -214,6 +337,10 @@ pub fn turning_effects(
             EffectKind::NoseRadiusError => {
                 effects.radius_error_mm +=
                     bounded(field("error_mm"), spec.error_mm, 0.5 * nose_radius_mm)?;
+            }
+            EffectKind::AxialDrift => {
+                effects.axial_drift_mm +=
+                    bounded(field("drift_mm"), spec.drift_mm, 0.5 * nose_radius_mm)?;
             }
             EffectKind::EdgeWaviness => {
                 let list = spec
@@ -259,7 +386,7 @@ pub fn generating_effects(
     let edge_radius = setup.wheel.edge_radius_mm;
     let max_tilt_deg = 0.1 * setup.inclination_rad.to_degrees();
     for (index, spec) in specs.iter().enumerate() {
-        spec.check_fields(index, false)?;
+        spec.check_fields(index, ProcessKind::Generating)?;
         let field = |name: &str| format!("effects[{index}].{name}");
         match spec.kind {
             EffectKind::CutterDisplacement => {
@@ -278,6 +405,172 @@ pub fn generating_effects(
         }
     }
     Ok(effects)
+}
+
+/// Largest spindle tram per direction (degrees): the effect is a small-angle error.
+const MAX_TRAM_DEG: f64 = 1.0;
+
+/// Combines the effect tables of a milling job (values of a kind add up; runouts as
+/// vectors) and fills the defaulted parameters into `resolved`. Bounds: a drift within
+/// half the tool's radius; a radius error below half the ball / corner radius (ball and
+/// bull-nose only); a tram of at most 1° each way, on tools it changes (bull-nose, flat
+/// end); a runout within half the feed per tooth, on a tool with two or more teeth and a
+/// feed per tooth.
+pub fn milling_effects(
+    specs: &[EffectSpec],
+    setup: &MillingSetup,
+    resolved: &mut [EffectSpec],
+) -> Result<MillingEffects, JobError> {
+    let (tool_name, tool_radius, corner_radius) = match setup.tool {
+        MillingTool::EndMill(cutter) => {
+            let name = if cutter.major_radius_mm == 0.0 {
+                "ball_end"
+            } else if cutter.corner_radius_mm == 0.0 {
+                "flat_end"
+            } else {
+                "bull_nose"
+            };
+            (name, cutter.radius_mm(), cutter.corner_radius_mm)
+        }
+        MillingTool::Disc(disc) => ("disc", 0.5 * disc.diameter_mm, 0.0),
+    };
+    let (mut drift, mut radius_error) = (Total::new(), Total::new());
+    let (mut tram_x, mut tram_y) = (Total::new(), Total::new());
+    let (mut runout, mut runout_field) = (DVec2::ZERO, None);
+    for (index, spec) in specs.iter().enumerate() {
+        spec.check_fields(index, ProcessKind::Milling)?;
+        let field = |name: &str| format!("effects[{index}].{name}");
+        match spec.kind {
+            EffectKind::AxialDrift => {
+                let limit = 0.5 * tool_radius;
+                drift.add(
+                    field("drift_mm"),
+                    bounded(field("drift_mm"), spec.drift_mm, limit)?,
+                );
+            }
+            EffectKind::ToolRadiusError => {
+                if corner_radius == 0.0 {
+                    return Err(error(
+                        field("kind"),
+                        format!(
+                            "\"tool_radius_error\" changes a ball or corner radius, and tool.kind = \"{tool_name}\" has none; allowed with tool.kind = \"ball_end\" or \"bull_nose\""
+                        ),
+                    ));
+                }
+                let limit = 0.5 * corner_radius;
+                let e = strictly_within(field("error_mm"), spec.error_mm, limit)?;
+                radius_error.add(field("error_mm"), e);
+            }
+            EffectKind::SpindleTram => {
+                let reason = match setup.tool {
+                    MillingTool::EndMill(cutter) if cutter.major_radius_mm == 0.0 => Some(
+                        "has no effect on a ball end mill (a ball turned about its centre is the same ball)",
+                    ),
+                    MillingTool::Disc(_) => Some("is not modelled for disc cutters"),
+                    MillingTool::EndMill(_) => None,
+                };
+                if let Some(reason) = reason {
+                    return Err(error(
+                        field("kind"),
+                        format!(
+                            "\"spindle_tram\" {reason}; allowed for bull-nose and flat-end tools (tool.kind = \"bull_nose\" or \"flat_end\")"
+                        ),
+                    ));
+                }
+                if spec.tilt_x_deg.is_none() && spec.tilt_y_deg.is_none() {
+                    return Err(error(
+                        field("tilt_x_deg"),
+                        format!(
+                            "missing: give tilt_x_deg, tilt_y_deg or both (each defaults to 0); allowed: a finite number in [−{MAX_TRAM_DEG}, {MAX_TRAM_DEG}]"
+                        ),
+                    ));
+                }
+                let x = bounded(
+                    field("tilt_x_deg"),
+                    spec.tilt_x_deg.or(Some(0.0)),
+                    MAX_TRAM_DEG,
+                )?;
+                let y = bounded(
+                    field("tilt_y_deg"),
+                    spec.tilt_y_deg.or(Some(0.0)),
+                    MAX_TRAM_DEG,
+                )?;
+                tram_x.add(field("tilt_x_deg"), x);
+                tram_y.add(field("tilt_y_deg"), y);
+                resolved[index].tilt_x_deg = Some(x);
+                resolved[index].tilt_y_deg = Some(y);
+            }
+            EffectKind::RadialRunout => {
+                let at = field("offset_mm");
+                if setup.teeth < 2 {
+                    return Err(error(
+                        at,
+                        format!(
+                            "radial runout shows between teeth: it needs tool.teeth ≥ 2 (the job has {})",
+                            setup.teeth
+                        ),
+                    ));
+                }
+                let feed = setup.feed_per_tooth_mm;
+                if feed <= 0.0 {
+                    return Err(error(
+                        at,
+                        "radial runout acts at each tooth's cut: it needs process.feed_per_tooth_mm > 0 (the job sweeps continuously)",
+                    ));
+                }
+                let offset = bounded(at.clone(), spec.offset_mm, 0.5 * feed)?;
+                let phase = bounded(field("phase_deg"), spec.phase_deg.or(Some(0.0)), 360.0)?;
+                runout += offset * DVec2::from_angle(phase.to_radians());
+                runout_field = Some(at);
+                resolved[index].phase_deg = Some(phase);
+            }
+            _ => unreachable!("check_fields admits milling kinds only"),
+        }
+    }
+    let drift_limit = 0.5 * tool_radius;
+    let tram_range = format!("[−{MAX_TRAM_DEG}, {MAX_TRAM_DEG}]");
+    let effects = MillingEffects {
+        axial_drift_mm: drift.check(
+            |v| v.abs() <= drift_limit,
+            &format!("[−{drift_limit}, {drift_limit}]"),
+        )?,
+        tool_radius_error_mm: radius_error.check(
+            |v| v.abs() < 0.5 * corner_radius,
+            &format!("(−{0}, {0})", 0.5 * corner_radius),
+        )?,
+        tram_x_rad: tram_x
+            .check(|v| v.abs() <= MAX_TRAM_DEG, &tram_range)?
+            .to_radians(),
+        tram_y_rad: tram_y
+            .check(|v| v.abs() <= MAX_TRAM_DEG, &tram_range)?
+            .to_radians(),
+        radial_runout_mm: runout,
+    };
+    if let Some(field) = runout_field
+        && runout.length() > 0.5 * setup.feed_per_tooth_mm
+    {
+        return Err(error(
+            field,
+            format!(
+                "the radial_runout tables add up to |ε| = {:.6}, out of range; allowed in total: at most feed_per_tooth/2 = {}",
+                runout.length(),
+                0.5 * setup.feed_per_tooth_mm
+            ),
+        ));
+    }
+    Ok(effects)
+}
+
+/// A required finite value strictly within ±limit.
+fn strictly_within(field: String, value: Option<f64>, limit: f64) -> Result<f64, JobError> {
+    let range = format!("allowed: a finite number in (−{limit}, {limit})");
+    match value {
+        None => Err(error(field, format!("missing; {range}"))),
+        Some(v) if !v.is_finite() || v.abs() >= limit => {
+            Err(error(field, format!("{v} is out of range; {range}")))
+        }
+        Some(v) => Ok(v),
+    }
 }
 
 /// Samples of a measured edge's deviation table.

@@ -1,6 +1,7 @@
 //! The milling process (`process.kind = "milling"`) with an end mill (`ball_end`,
 //! `bull_nose`, `flat_end`) or a disc cutter (`disc`).
 
+use super::effects::milling_effects;
 use super::surface::{self, usable_at};
 use super::{
     Aperture, JobError, JobFile, ToolKind, ToolSpec, check, error, reject_unused, required,
@@ -309,10 +310,11 @@ pub fn validate_milling(
     if matches!(tool, MillingTool::Disc(_)) {
         resolved.process.turn_deg = Some(turn.to_degrees());
     }
+    let effects = milling_effects(&file.effects, &setup, &mut resolved.effects)?;
     Ok((
         surface,
         aperture,
-        Process::Milling(MillingProcess { setup }),
+        Process::Milling(MillingProcess { setup, effects }),
     ))
 }
 

@@ -13,7 +13,9 @@ mod milling;
 mod process;
 mod surface;
 
-pub use effects::{EffectKind, EffectSpec, HarmonicSpec, generating_effects, turning_effects};
+pub use effects::{
+    EffectKind, EffectSpec, HarmonicSpec, generating_effects, milling_effects, turning_effects,
+};
 pub use surface::MAX_SLOPE_DEG;
 
 use crate::geometry::surface::EVEN_TERMS;
@@ -323,6 +325,44 @@ pub struct OutputSpec {
     pub map_pixels: Option<u32>,
 }
 
+/// An effects fragment: a TOML file holding only `[[effects]]` tables (and comments),
+/// whose effects a run appends to its job's own (`toolmark run JOB --effects FILE`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EffectsFragment {
+    #[serde(default)]
+    pub effects: Vec<EffectSpec>,
+}
+
+impl EffectsFragment {
+    pub fn from_toml_str(text: &str) -> Result<Self, JobError> {
+        let table: toml::Table =
+            toml::from_str(text).map_err(|err| error("effects", err.to_string()))?;
+        if let Some(key) = table.keys().find(|key| *key != "effects") {
+            return Err(error(
+                key,
+                "an effects file holds only [[effects]] tables (and comments); remove it",
+            ));
+        }
+        toml::from_str(text).map_err(|err| error("effects", err.to_string()))
+    }
+
+    pub fn load(path: &Path) -> Result<Self, JobError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|err| error("effects", format!("cannot read {}: {err}", path.display())))?;
+        Self::from_toml_str(&text)
+    }
+}
+
+/// Where a job run with an effects fragment went wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FragmentError {
+    /// In the job itself (or its own effects).
+    Job(JobError),
+    /// In one of the fragment's tables (`effects[i]` counting within the fragment).
+    Fragment(JobError),
+}
+
 /// A job error: the field (dotted path) and what is wrong with it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JobError {
@@ -417,14 +457,44 @@ impl Job {
     }
 
     pub fn load(path: &Path) -> Result<Job, JobError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|err| error("job", format!("cannot read {}: {err}", path.display())))?;
-        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
-        let base_dir = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        Job::from_toml_in(&text, stem.as_deref().unwrap_or("job"), base_dir)
+        let (text, name, base_dir) = read_job_file(path)?;
+        Job::from_toml_in(&text, &name, base_dir)
+    }
+
+    /// Loads a job (`None`: the built-in default job) with an effects fragment's tables
+    /// appended to its own, before validation: a calibration carried from one part to the
+    /// next. The resolved job lists them all. An error in one of the fragment's tables is
+    /// reported against the fragment, `effects[i]` counting within it.
+    pub fn load_with_fragment(
+        path: Option<&Path>,
+        fragment: &EffectsFragment,
+    ) -> Result<Job, FragmentError> {
+        let (text, name, base_dir) = match path {
+            Some(path) => read_job_file(path).map_err(FragmentError::Job)?,
+            None => (
+                DEFAULT_JOB_TOML.to_string(),
+                "default".into(),
+                Path::new("."),
+            ),
+        };
+        let mut file: JobFile = toml::from_str(&text)
+            .map_err(|err| FragmentError::Job(error("job", err.to_string())))?;
+        let own = file.effects.len();
+        file.effects.extend(fragment.effects.iter().cloned());
+        Job::from_file(file, &name, base_dir).map_err(|err| {
+            let index = err
+                .field
+                .strip_prefix("effects[")
+                .and_then(|rest| rest.split_once(']'))
+                .and_then(|(index, rest)| Some((index.parse::<usize>().ok()?, rest)));
+            match index {
+                Some((index, rest)) if index >= own => FragmentError::Fragment(JobError {
+                    field: format!("effects[{}]{rest}", index - own),
+                    message: err.message,
+                }),
+                _ => FragmentError::Job(err),
+            }
+        })
     }
 
     pub fn default_job() -> Job {
@@ -575,6 +645,19 @@ impl Job {
         }
         format!("{hash:016x}")
     }
+}
+
+/// A job file's text, its default name (the file's stem) and the folder its file names
+/// resolve against.
+fn read_job_file(path: &Path) -> Result<(String, String, &Path), JobError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|err| error("job", format!("cannot read {}: {err}", path.display())))?;
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+    let base_dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    Ok((text, stem.unwrap_or_else(|| "job".into()), base_dir))
 }
 
 /// Rejects fields given in a table that the chosen kind does not use.
