@@ -54,11 +54,15 @@ pub fn least_squares(a: &[Vec<f64>], y: &[f64]) -> Option<Vec<f64>> {
 /// pivoting; `None` when A is singular (a pivot below 1e-300 or 1e-14 of the largest).
 pub fn solve_linear(a: &[Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
     let n = b.len();
-    let mut m: Vec<Vec<f64>> = a.iter().zip(b).map(|(row, bi)| {
-        let mut r = row.clone();
-        r.push(*bi);
-        r
-    }).collect();
+    let mut m: Vec<Vec<f64>> = a
+        .iter()
+        .zip(b)
+        .map(|(row, bi)| {
+            let mut r = row.clone();
+            r.push(*bi);
+            r
+        })
+        .collect();
     let scale = a.iter().flatten().fold(0.0_f64, |s, v| s.max(v.abs()));
     for k in 0..n {
         let pivot = (k..n).max_by(|&i, &j| m[i][k].abs().total_cmp(&m[j][k].abs()))?;
@@ -66,10 +70,12 @@ pub fn solve_linear(a: &[Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
             return None;
         }
         m.swap(k, pivot);
-        for i in k + 1..n {
-            let factor = m[i][k] / m[k][k];
-            for j in k..=n {
-                m[i][j] -= factor * m[k][j];
+        let (upper, lower) = m.split_at_mut(k + 1);
+        let pivot_row = &upper[k];
+        for row in lower.iter_mut() {
+            let factor = row[k] / pivot_row[k];
+            for (value, p) in row[k..=n].iter_mut().zip(&pivot_row[k..=n]) {
+                *value -= factor * p;
             }
         }
     }
@@ -91,7 +97,11 @@ pub fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
         })
         .collect();
     let columns = columns?;
-    Some((0..n).map(|i| (0..n).map(|j| columns[j][i]).collect()).collect())
+    Some(
+        (0..n)
+            .map(|i| (0..n).map(|j| columns[j][i]).collect())
+            .collect(),
+    )
 }
 
 #[cfg(test)]
@@ -133,16 +143,28 @@ mod tests {
     #[test]
     fn small_systems_solve_and_invert() {
         // A 3×3 system with the exact solution (1, −2, 3).
-        let a = vec![vec![4.0, -2.0, 1.0], vec![-2.0, 4.0, -2.0], vec![1.0, -2.0, 4.0]];
-        let b = [4.0 * 1.0 - 2.0 * -2.0 + 3.0, -2.0 - 8.0 - 6.0, 1.0 + 4.0 + 12.0];
+        let a = vec![
+            vec![4.0, -2.0, 1.0],
+            vec![-2.0, 4.0, -2.0],
+            vec![1.0, -2.0, 4.0],
+        ];
+        let b = [
+            4.0 * 1.0 - 2.0 * -2.0 + 3.0,
+            -2.0 - 8.0 - 6.0,
+            1.0 + 4.0 + 12.0,
+        ];
         let x = solve_linear(&a, &b).unwrap();
         for (xi, ti) in x.iter().zip([1.0, -2.0, 3.0]) {
             assert!((xi - ti).abs() < 1e-12, "{x:?}");
         }
         let inv = invert(&a).unwrap();
-        for i in 0..3 {
+        for (i, row) in a.iter().enumerate() {
             for j in 0..3 {
-                let p: f64 = (0..3).map(|k| a[i][k] * inv[k][j]).sum();
+                let p: f64 = row
+                    .iter()
+                    .zip(&inv)
+                    .map(|(x, inv_row)| x * inv_row[j])
+                    .sum();
                 assert!((p - f64::from(u8::from(i == j))).abs() < 1e-12);
             }
         }

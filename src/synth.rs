@@ -97,7 +97,9 @@ impl MeasurementModel {
             if v.is_finite() && v >= lo && v <= hi {
                 Ok(())
             } else {
-                Err(format!("measurement.{name}: {v} is out of range; allowed: {lo} to {hi}"))
+                Err(format!(
+                    "measurement.{name}: {v} is out of range; allowed: {lo} to {hi}"
+                ))
             }
         };
         finite("spacing_um", self.spacing_um, 0.01, 1e4)?;
@@ -111,7 +113,12 @@ impl MeasurementModel {
         }
         let outer = job.aperture.outer_radius_mm;
         for (i, d) in self.decentre_um.iter().enumerate() {
-            finite(&format!("decentre_um[{i}]"), *d, -100.0 * outer, 100.0 * outer)?;
+            finite(
+                &format!("decentre_um[{i}]"),
+                *d,
+                -100.0 * outer,
+                100.0 * outer,
+            )?;
         }
         if let Some(tip) = self.stylus_tip_um {
             finite("stylus_tip_um", tip, 0.01, 1e4)?;
@@ -120,14 +127,20 @@ impl MeasurementModel {
             MeasurementKind::Profile => {
                 let (from, to) = self.line_span(job);
                 if !(from.is_finite() && to.is_finite() && to > from) {
-                    return Err(format!("measurement.from_mm/to_mm: {from}–{to} is empty; allowed: from < to"));
+                    return Err(format!(
+                        "measurement.from_mm/to_mm: {from}–{to} is empty; allowed: from < to"
+                    ));
                 }
                 if ((to - from) / (self.spacing_um * 1e-3)) > 2e6 {
-                    return Err("measurement.spacing_um: more than 2 million points along the line".into());
+                    return Err(
+                        "measurement.spacing_um: more than 2 million points along the line".into(),
+                    );
                 }
             }
             MeasurementKind::Map => {
-                let pixels = self.pixels.ok_or("measurement.pixels: missing; give [nx, ny]")?;
+                let pixels = self
+                    .pixels
+                    .ok_or("measurement.pixels: missing; give [nx, ny]")?;
                 let pitch = self.pixel_um.ok_or("measurement.pixel_um: missing")?;
                 finite("pixel_um", pitch, 0.01, 1e4)?;
                 if pixels[0] < 4 || pixels[1] < 4 || pixels[0] * pixels[1] > 4_000_000 {
@@ -162,7 +175,13 @@ impl MeasurementModel {
                 let count = ((to - from) / step).floor() as usize + 1;
                 let positions: Vec<f64> = (0..count).map(|i| from + i as f64 * step).collect();
                 let zeros = vec![0.0; count];
-                let m = Measurement::line(&positions, &zeros, self.azimuth_deg.to_radians(), 0.0, self.instrument());
+                let m = Measurement::line(
+                    &positions,
+                    &zeros,
+                    self.azimuth_deg.to_radians(),
+                    0.0,
+                    self.instrument(),
+                );
                 (m, positions, DVec2::ZERO, 0.0, [0, 0])
             }
             MeasurementKind::Map => {
@@ -170,7 +189,14 @@ impl MeasurementModel {
                 let pitch = self.pixel_um.unwrap_or(1.0) * 1e-3;
                 let origin = -0.5 * DVec2::new((nx - 1) as f64, (ny - 1) as f64) * pitch;
                 let zeros = vec![0.0; nx * ny];
-                let m = Measurement::raster((nx, ny), origin, [pitch, pitch], &zeros, DVec2::ZERO, self.instrument());
+                let m = Measurement::raster(
+                    (nx, ny),
+                    origin,
+                    [pitch, pitch],
+                    &zeros,
+                    DVec2::ZERO,
+                    self.instrument(),
+                );
                 (m, Vec::new(), origin, pitch, [nx, ny])
             }
         }
@@ -221,7 +247,9 @@ pub fn synthesize(
 /// which gives equal power per octave.
 fn noise(m: &Measurement, model: &MeasurementModel, rng: &mut Rng) -> Vec<f64> {
     let n = m.len();
-    let white: Vec<f64> = (0..n).map(|_| model.white_noise_nm * 1e-6 * rng.normal()).collect();
+    let white: Vec<f64> = (0..n)
+        .map(|_| model.white_noise_nm * 1e-6 * rng.normal())
+        .collect();
     if model.pink_noise_nm <= 0.0 {
         return white;
     }
@@ -256,10 +284,18 @@ fn noise(m: &Measurement, model: &MeasurementModel, rng: &mut Rng) -> Vec<f64> {
 /// Gaussian smoothing (σ in points) along X, then Y, of an nx × ny raster (a line: ny = 1).
 fn smooth_separable(values: &[f64], nx: usize, ny: usize, sigma: f64) -> Vec<f64> {
     let half = (3.0 * sigma).ceil() as i64;
-    let kernel: Vec<f64> = (-half..=half).map(|k| (-0.5 * (k as f64 / sigma).powi(2)).exp()).collect();
+    let kernel: Vec<f64> = (-half..=half)
+        .map(|k| (-0.5 * (k as f64 / sigma).powi(2)).exp())
+        .collect();
     let pass = |input: &[f64], along_x: bool| -> Vec<f64> {
         let (len, lines) = if along_x { (nx, ny) } else { (ny, nx) };
-        let at = |line: usize, k: usize| if along_x { line * nx + k } else { k * nx + line };
+        let at = |line: usize, k: usize| {
+            if along_x {
+                line * nx + k
+            } else {
+                k * nx + line
+            }
+        };
         let mut out = vec![0.0; input.len()];
         for line in 0..lines {
             for k in 0..len {
@@ -291,7 +327,8 @@ fn drop_out(heights: &mut [f64], model: &MeasurementModel, rng: &mut Rng) {
     for h in heights.iter_mut() {
         if remaining == 0 && rng.uniform() < start_probability {
             let u = rng.uniform().max(1e-12);
-            remaining = 1 + (u.ln() / (1.0 - 1.0 / model.dropout_run).max(1e-12).ln()).floor() as usize;
+            remaining =
+                1 + (u.ln() / (1.0 - 1.0 / model.dropout_run).max(1e-12).ln()).floor() as usize;
         }
         if remaining > 0 {
             *h = f64::NAN;

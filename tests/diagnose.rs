@@ -1,12 +1,19 @@
-//! The diagnosis on synthetic measurements whose effects are known.
+//! The diagnosis on synthetic measurements whose effects are known: `synth` makes the
+//! measured-like data from the job plus effects the diagnosis is not told, and each
+//! test checks what the diagnosis finds against those effects (the truth is the
+//! independent source), within stated tolerances.
 
 mod common;
 use common::*;
 use toolmark::diagnose::measurement::Measurement;
-use toolmark::diagnose::{Options, diagnose};
+use toolmark::diagnose::withheld;
+use toolmark::diagnose::{DiagnoseError, Options, Outcome, diagnose};
+use toolmark::engine::RemovalEngine;
 use toolmark::engine::cpu::CpuEngine;
-use toolmark::synth::{MeasurementModel, MeasurementKind, synthesize};
+use toolmark::io::job::Job;
+use toolmark::synth::{MeasurementModel, synthesize};
 
+/// The turned convex sphere R8, Ø3 mm, 10 µm/rev (the suite's turning base at 1 µm).
 const SPHERE: &str = r#"version = 1
 name = "diag sphere"
 [surface]
@@ -28,9 +35,8 @@ pitch_um = 1.0
 azimuths = 8
 "#;
 
-fn profile_model(seed: u64) -> MeasurementModel {
-    toml::from_str(&format!(
-        r#"kind = "profile"
+/// A stylus profile through the axis with a mount of known tilt, piston and offset.
+const PROFILE: &str = r#"kind = "profile"
 spacing_um = 1.0
 stylus_tip_um = 2.0
 tilt_urad = [35.0, 0.0]
@@ -39,153 +45,385 @@ decentre_um = [6.0, 0.0]
 white_noise_nm = 1.5
 pink_noise_nm = 1.0
 dropout_fraction = 0.01
-seed = {seed}
-"#
-    ))
-    .unwrap()
+seed = 3
+"#;
+
+fn model(text: &str) -> MeasurementModel {
+    toml::from_str(text).unwrap()
 }
 
-fn measure(truth_effects: &str, seed: u64) -> Measurement {
-    let truth = job(&format!("{SPHERE}\n{truth_effects}"));
-    let model = profile_model(seed);
-    let data = synthesize(&truth, &model, &mut CpuEngine).unwrap();
-    Measurement::line(&data.positions_mm, &data.height_mm, 0.0, 0.0, model.instrument())
+/// Synthesizes `truth_effects` on `base` as `measurement` describes, and returns the
+/// measured line as the diagnosis reads it (no truth).
+fn measure(base: &str, truth_effects: &str, measurement: &MeasurementModel) -> Measurement {
+    let truth = job(&format!("{base}\n{truth_effects}"));
+    let data = synthesize(&truth, measurement, &mut CpuEngine).unwrap();
+    Measurement::line(
+        &data.positions_mm,
+        &data.height_mm,
+        measurement.azimuth_deg.to_radians(),
+        0.0,
+        measurement.instrument(),
+    )
+}
+
+fn run(base: &str, m: &Measurement, engine: &mut dyn RemovalEngine, options: &Options) -> Outcome {
+    diagnose(&job(base), m, engine, options, &|_| {})
+        .unwrap_or_else(|e| panic!("diagnosis failed: {e}"))
+}
+
+/// The accepted effect's fitted parameter values.
+fn accepted(outcome: &Outcome, effect: &str) -> Vec<(f64, f64)> {
+    let d = &outcome.diagnosis;
+    let found = d
+        .accepted
+        .iter()
+        .find(|c| c.effect == effect)
+        .unwrap_or_else(|| {
+            panic!(
+                "{effect} not accepted; verdict: {}; candidates: {:?}",
+                d.verdict.sentence,
+                d.candidates
+                    .iter()
+                    .map(|c| (&c.effect, c.delta_bic))
+                    .collect::<Vec<_>>()
+            )
+        });
+    found
+        .parameters
+        .iter()
+        .map(|p| (p.value, p.sigma))
+        .collect()
 }
 
 #[test]
-fn explore_centre_height() {
-    for effects in [
-        "[[effects]]\nkind = \"centre_height\"\nheight_mm = 0.003\n",
+fn registration_reports_the_mount_it_removed_and_a_clean_part_shows_no_effect() {
+    let m = measure(SPHERE, "", &model(PROFILE));
+    let outcome = run(SPHERE, &m, &mut CpuEngine, &Options::default());
+    let d = &outcome.diagnosis;
+    let reg = &d.registration.nominal;
+    println!("registration: {reg:?}; verdict: {}", d.verdict.sentence);
+    // The mount: piston 3 µm, tilt 35 µrad, axis 6 µm along the line. The 1/f noise's
+    // longest waves are part of what piston and tilt absorb: bounds of 20 nm, 3 µrad.
+    assert!(
+        (reg.piston_nm - 3000.0).abs() < 20.0,
+        "piston {} nm",
+        reg.piston_nm
+    );
+    assert!(
+        (reg.tilt_urad[0] - 35.0).abs() < 3.0,
+        "tilt {} µrad",
+        reg.tilt_urad[0]
+    );
+    assert!(
+        (reg.axis_at_um[0] - 6.0).abs() < 0.2,
+        "axis {} µm",
+        reg.axis_at_um[0]
+    );
+    assert_eq!(
+        d.verdict.status, "no_effect_beyond_noise",
+        "{}",
+        d.verdict.sentence
+    );
+    assert!(d.accepted.is_empty());
+    // What remains is the instrument's noise: 1.5 nm white + 1 nm 1/f.
+    assert!(
+        d.residual_before.rms_nm < 3.0,
+        "{} nm RMS",
+        d.residual_before.rms_nm
+    );
+}
+
+#[test]
+fn single_turning_effects_are_ranked_first_sized_and_removed() {
+    for (table, effect, truth) in [
+        (
+            "kind = \"centre_height\"\nheight_mm = 0.003",
+            "centre_height",
+            3.0,
+        ),
+        (
+            "kind = \"x_decentre\"\noffset_mm = 0.004",
+            "x_decentre",
+            4.0,
+        ),
+        (
+            "kind = \"nose_radius_error\"\nerror_mm = 0.005",
+            "nose_radius_error",
+            5.0,
+        ),
+    ] {
+        let m = measure(SPHERE, &format!("[[effects]]\n{table}\n"), &model(PROFILE));
+        let outcome = run(SPHERE, &m, &mut CpuEngine, &Options::default());
+        let d = &outcome.diagnosis;
+        println!("{effect}: {}", d.verdict.sentence);
+        assert_eq!(d.verdict.status, "effects_found");
+        assert_eq!(d.candidates[0].effect, effect, "ranked first");
+        assert_eq!(d.accepted[0].effect, effect, "accepted first");
+        let (value, _) = accepted(&outcome, effect)[0];
+        assert!(
+            (value / truth - 1.0).abs() < 0.05,
+            "{effect}: {value} µm against {truth} µm"
+        );
+        let shrink = d.residual_after.rms_nm / d.residual_before.rms_nm;
+        assert!(
+            shrink < 0.2,
+            "{effect}: RMS {} → {} nm",
+            d.residual_before.rms_nm,
+            d.residual_after.rms_nm
+        );
+    }
+}
+
+/// The suite's generating base (seed 000's wheel on a concave R53.5).
+const GENERATED: &str = r#"version = 1
+name = "generated sphere"
+[surface]
+kind = "sphere"
+form = "concave"
+radius_mm = 53.5
+aperture_diameter_mm = 4.0
+[tool]
+kind = "cup_wheel"
+cutting_radius_mm = 10.0
+edge_radius_mm = 3.5
+[process]
+kind = "generating"
+plunge_axis = "z"
+tool_rpm = 3000.0
+workpiece_rpm = 10.0
+spark_out_revolutions = 2.0
+stock_allowance_mm = 0.01
+[grid]
+pitch_um = 2.0
+azimuths = 8
+"#;
+
+#[test]
+fn a_displaced_wheel_is_told_from_an_inclination_error_by_its_pip() {
+    // Both change the generated radius; only the displacement leaves a pip on the axis.
+    let measurement = model(
+        "kind = \"profile\"\nspacing_um = 2.0\ntilt_urad = [20.0, 0.0]\ndecentre_um = [8.0, 0.0]\nwhite_noise_nm = 1.0\npink_noise_nm = 1.0\nseed = 5\n",
+    );
+    let m = measure(
+        GENERATED,
+        "[[effects]]\nkind = \"cutter_displacement\"\noffset_mm = 0.02\n",
+        &measurement,
+    );
+    let outcome = run(GENERATED, &m, &mut CpuEngine, &Options::default());
+    println!("{}", outcome.diagnosis.verdict.sentence);
+    assert_eq!(
+        outcome.diagnosis.candidates[0].effect,
+        "cutter_displacement"
+    );
+    let (value, _) = accepted(&outcome, "cutter_displacement")[0];
+    assert!((value - 20.0).abs() < 1.0, "{value} µm against 20 µm");
+}
+
+/// The suite's feed-mark base: a two-flute ball-end mill along X over a flat.
+const FEED_MARKS: &str = r#"version = 1
+name = "feed marks on a flat"
+[surface]
+kind = "plane"
+aperture_diameter_mm = 1.0
+[tool]
+kind = "ball_end"
+diameter_mm = 2.0
+teeth = 2
+[process]
+kind = "milling"
+path = "raster"
+stepover_mm = 0.1
+feed_per_tooth_mm = 0.02
+spindle_rpm = 20000.0
+stock_allowance_mm = 0.005
+[grid]
+pitch_um = 0.5
+azimuths = 8
+"#;
+
+#[test]
+fn runout_is_sized_along_the_feed_and_its_unseen_component_is_said_so() {
+    // ε = 2 µm at 30°: (1.732, 1.0) µm along and across the feed. A profile along the
+    // feed sees the mark spacing alternate by 2·ε·cos φ, never the across component.
+    let measurement = model(
+        "kind = \"profile\"\nspacing_um = 0.5\nstylus_tip_um = 2.0\ntilt_urad = [15.0, 0.0]\nwhite_noise_nm = 1.5\npink_noise_nm = 1.0\nseed = 9\n",
+    );
+    let m = measure(
+        FEED_MARKS,
+        "[[effects]]\nkind = \"radial_runout\"\noffset_mm = 0.002\nphase_deg = 30.0\n",
+        &measurement,
+    );
+    let outcome = run(FEED_MARKS, &m, &mut CpuEngine, &Options::default());
+    let d = &outcome.diagnosis;
+    println!("{}", d.verdict.sentence);
+    let values = accepted(&outcome, "radial_runout");
+    assert!(
+        (values[0].0 / 1.732 - 1.0).abs() < 0.05,
+        "along the feed: {:?}",
+        values[0]
+    );
+    assert!(
+        values[1].1.is_infinite() && values[1].0 == 0.0,
+        "across: {:?}",
+        values[1]
+    );
+    assert!(
+        d.verdict.sentence.contains("not seen"),
+        "{}",
+        d.verdict.sentence
+    );
+}
+
+/// The reason a diagnosis refused the data, or a panic when it gave a verdict.
+fn refusal(result: Result<Outcome, DiagnoseError>) -> String {
+    match result {
+        Err(DiagnoseError::DoesNotFit(reason)) => reason,
+        Err(other) => panic!("expected 'does not fit', got the error {other}"),
+        Ok(outcome) => {
+            let v = &outcome.diagnosis.verdict;
+            assert_eq!(
+                v.status, "does_not_fit",
+                "a verdict on data that does not fit: {}",
+                v.sentence
+            );
+            assert!(outcome.diagnosis.accepted.is_empty());
+            v.sentence.clone()
+        }
+    }
+}
+
+#[test]
+fn data_that_does_not_fit_the_job_is_refused_plainly() {
+    let clean = model(PROFILE);
+    let m = measure(SPHERE, "", &clean);
+    let nominal = job(SPHERE);
+    let try_it =
+        |m: &Measurement| diagnose(&nominal, m, &mut CpuEngine, &Options::default(), &|_| {});
+    let rescaled = |lateral: f64, height: f64| {
+        Measurement::line(
+            &m.along_mm.iter().map(|x| x * lateral).collect::<Vec<_>>(),
+            &m.height_mm.iter().map(|z| z * height).collect::<Vec<_>>(),
+            0.0,
+            0.0,
+            clean.instrument(),
+        )
+    };
+    // Positions in µm read as mm: the profile lies mostly off the Ø3 mm part.
+    let reason = refusal(try_it(&rescaled(1000.0, 1.0)));
+    println!("µm read as mm: {reason}");
+    // Positions in mm read as µm: 3 µm of profile, the marks 1000× too close.
+    let reason = refusal(try_it(&rescaled(0.001, 1.0)));
+    println!("mm read as µm: {reason}");
+    // Heights in µm read as nm: a thousandth of the form and of the marks.
+    let reason = refusal(try_it(&rescaled(1.0, 0.001)));
+    println!("heights µm read as nm: {reason}");
+    assert!(
+        reason.contains("unit") || reason.contains("another part"),
+        "{reason}"
+    );
+    // Another part: the concave sphere of the same radius.
+    let other = measure(&SPHERE.replace("\"convex\"", "\"concave\""), "", &clean);
+    let reason = refusal(try_it(&other));
+    println!("another part: {reason}");
+    // Empty: no valid point.
+    let empty = Measurement::line(
+        &[0.0, 0.1],
+        &[f64::NAN, f64::NAN],
+        0.0,
+        0.0,
+        clean.instrument(),
+    );
+    let reason = refusal(try_it(&empty));
+    assert!(reason.contains("valid points"), "{reason}");
+}
+
+#[test]
+fn the_suite_is_diagnosed_without_its_truth_and_scored_after() {
+    let dir = std::env::temp_dir().join(format!("toolmark-suite-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let ids = withheld::generate(&dir, &mut CpuEngine, &|_| {}).unwrap();
+    assert!(ids.len() >= 48, "{} cases", ids.len());
+    // What a diagnosis may read holds no effect: the jobs are the bases as given.
+    for id in &ids {
+        let job = std::fs::read_to_string(dir.join("cases").join(id).join("job.toml")).unwrap();
+        assert!(
+            !job.contains("[[effects]]"),
+            "{id}: the public job carries effects"
+        );
+    }
+    // Seal the truth away while diagnosing: the diagnosis cannot open it.
+    let sealed = dir.join("sealed");
+    let away = std::env::temp_dir().join(format!("toolmark-sealed-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&away);
+    std::fs::rename(&sealed, &away).unwrap();
+    // One case per process and a control (the whole suite runs in `bench-diagnose`).
+    let chosen: Vec<String> = ["021-", "029-", "031-"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let runs = withheld::diagnose_suite(&dir, &mut CpuEngine, &chosen, &|_| {}).unwrap();
+    assert_eq!(runs.len(), 3);
+    assert!(
+        withheld::score(&dir, &chosen).is_err(),
+        "scoring needs the truth"
+    );
+    std::fs::rename(&away, &sealed).unwrap();
+    let scores = withheld::score(&dir, &chosen).unwrap();
+    println!("{}", withheld::scores_markdown(&scores));
+    assert_eq!(scores.cases.len(), 3);
+    assert_eq!((scores.singles, scores.controls), (2, 1));
+    assert_eq!(scores.singles_ranked_first, 2);
+    assert_eq!(scores.singles_parameter_within_10_percent, 2);
+    assert_eq!(scores.controls_false_claims, 0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn gpu_diagnosis_agrees_with_the_cpu_one() {
+    let m = measure(
+        SPHERE,
         "[[effects]]\nkind = \"x_decentre\"\noffset_mm = 0.004\n",
+        &model(PROFILE),
+    );
+    let options = Options {
+        only: vec!["x_decentre".into()],
+        ..Options::default()
+    };
+    let cpu = accepted(&run(SPHERE, &m, &mut CpuEngine, &options), "x_decentre")[0];
+    let mut gpu_engine = gpu_engine();
+    let gpu_outcome = run(SPHERE, &m, &mut gpu_engine, &options);
+    let gpu = accepted(&gpu_outcome, "x_decentre")[0];
+    println!(
+        "x decentre: CPU {:.4} ± {:.4} µm, GPU {:.4} ± {:.4} µm",
+        cpu.0, cpu.1, gpu.0, gpu.1
+    );
+    assert!(
+        gpu_outcome.diagnosis.run.engine.contains("gpu"),
+        "{}",
+        gpu_outcome.diagnosis.run.engine
+    );
+    // The engines agree to 0.5 nm on a part; the fitted offset to 0.5 %.
+    assert!((gpu.0 / cpu.0 - 1.0).abs() < 0.005);
+    assert!((gpu.0 / 4.0 - 1.0).abs() < 0.05);
+}
+
+#[test]
+fn fitted_effects_change_the_job_as_the_fit_says() {
+    // The fragment the diagnosis writes, added to the job, reproduces the fitted model.
+    let m = measure(
+        SPHERE,
         "[[effects]]\nkind = \"nose_radius_error\"\nerror_mm = 0.005\n",
-        "",
-    ] {
-        let m = measure(effects, 3);
-        let started = std::time::Instant::now();
-        let outcome = diagnose(&job(SPHERE), &m, &mut CpuEngine, &Options::default(), &|s| eprintln!("  {s}")).unwrap();
-        let d = &outcome.diagnosis;
-        println!("truth: {effects}");
-        println!("{}", d.verdict.sentence);
-        for c in &d.candidates {
-            println!("  {} {:?} dBIC {:.1} explained {:.3}", c.label, c.parameters.iter().map(|p| (p.value, p.sigma)).collect::<Vec<_>>(), c.delta_bic, c.explained);
-        }
-        println!("  sims {} in {:.1}s (prepare {:.1}s removal {:.1}s), reg {:?}", d.run.simulations, started.elapsed().as_secs_f64(), d.run.prepare_s, d.run.removal_s, d.registration.nominal);
-    }
-}
-
-#[test]
-fn explore_control_mismatch() {
-    for (label, model) in [
-        ("clean", r#"kind = "profile"
-spacing_um = 1.0
-"#),
-        ("stylus", r#"kind = "profile"
-spacing_um = 1.0
-stylus_tip_um = 2.0
-"#),
-        ("decentre", r#"kind = "profile"
-spacing_um = 1.0
-decentre_um = [6.0, 0.0]
-"#),
-    ] {
-        let model: MeasurementModel = toml::from_str(model).unwrap();
-        let truth = job(SPHERE);
-        let data = synthesize(&truth, &model, &mut CpuEngine).unwrap();
-        let m = Measurement::line(&data.positions_mm, &data.height_mm, 0.0, 0.0, model.instrument());
-        let options = Options { only: vec!["centre_height".into()], ..Options::default() };
-        let outcome = diagnose(&job(SPHERE), &m, &mut CpuEngine, &options, &|_| {}).unwrap();
-        let d = &outcome.diagnosis;
-        println!("{label}: before {:.2} nm RMS {:.1} PV, reg {:?}, bands {:?}", d.residual_before.rms_nm, d.residual_before.pv_nm, d.registration.nominal, d.residual_before.bands.iter().map(|b| (b.rms_nm, b.share)).collect::<Vec<_>>());
-        // Print the residual along the line every 50 points.
-        let r = &outcome.residual_before_mm;
-        let line: Vec<String> = (0..r.len()).step_by(100).map(|i| format!("{:.2}:{:.2}", outcome.fitted.along_mm[i], r[i] * 1e6)).collect();
-        println!("  {}", line.join(" "));
-    }
-}
-
-#[test]
-fn explore_centre_scan() {
-    use toolmark::diagnose::candidates::Candidate;
-    use toolmark::diagnose::fit::Problem;
-    use toolmark::diagnose::forward::ForwardModel;
-    use toolmark::diagnose::register::{ShiftSearch, Terms};
-    let m = measure("[[effects]]\nkind = \"centre_height\"\nheight_mm = 0.003\n", 3);
-    let j = job(SPHERE);
-    let mut engine = CpuEngine;
-    let model = ForwardModel::new(&j, &m, &mut engine).unwrap();
-    let mut p = Problem::new(&m, model, Terms { power: false, shift: true }, ShiftSearch { start: glam::DVec2::new(0.006, 0.0), half_width_mm: 0.0025, step_mm: 0.0025 });
-    for h in [0.0, 1.0, 2.0, 2.5, 3.0, 3.5, 4.0, 6.0, -3.0] {
-        let e = p.evaluate(&[Candidate::CentreHeight], &[h]).unwrap();
-        let r = &e.registered;
-        let near: Vec<String> = (0..m.len()).filter(|&i| m.along_mm[i].abs() < 0.012 + 0.006 && m.along_mm[i] > -0.012 + 0.006).map(|i| format!("{:.0}", r.residual_mm[i]*1e6)).collect();
-        println!("h {h}: rss {:.4e} shift {:.3} um  centre residuals {}", e.rss(), r.shift_mm.x * 1e3, near.join(" "));
-    }
-}
-
-#[test]
-fn explore_sim_cost() {
-    use toolmark::run::{prepare_scenes, remove_all};
-    let mut j = job(SPHERE);
-    j.azimuths = 2;
-    j.aperture.outer_radius_mm = 1.45;
-    for _ in 0..3 {
-        let t = std::time::Instant::now();
-        let scenes = prepare_scenes(&j);
-        let t1 = t.elapsed().as_secs_f64();
-        let field = remove_all(&scenes, &mut CpuEngine, &|_, _| {}).unwrap();
-        let t2 = t.elapsed().as_secs_f64() - t1;
-        println!("samples {} pairs {} prepare {:.1} ms remove {:.1} ms", field.depth_mm.len(), scenes[0].pair_count(), t1 * 1e3, t2 * 1e3);
-    }
-}
-
-#[test]
-fn explore_1021_scale() {
-    use toolmark::diagnose::files::{Placement, load_measurement};
-    use toolmark::diagnose::forward::ForwardModel;
-    use toolmark::diagnose::register::{ShiftSearch, Terms, register};
-    use toolmark::io::measured::{LengthUnit, ReadOptions};
-    let j = example("upm_1021_ideal.toml");
-    let read = ReadOptions { lateral_unit: Some(LengthUnit::Micrometre), height_unit: Some(LengthUnit::Micrometre), pixel_mm: None };
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/upm-spdt/1021-WLI-2D.csv");
-    let (m0, _) = load_measurement(&path, &read, &Placement::default(), Default::default()).unwrap();
-    let mut engine = CpuEngine;
-    let mut model = ForwardModel::new(&j, &m0, &mut engine).unwrap();
-    let sim = model.simulate(&|_| {}, &m0).unwrap();
-    for scale in [0.97, 0.98, 0.983, 0.985, 0.9875, 0.99, 1.0, 1.01, 1.02] {
-        let m = Measurement::line(&m0.along_mm.iter().map(|x| x * scale).collect::<Vec<_>>(), &m0.height_mm, 0.0, 0.0, Default::default());
-        let r = register(&m, &sim, Terms { power: true, shift: true }, Some(ShiftSearch { start: glam::DVec2::ZERO, half_width_mm: 0.04, step_mm: 0.002 }));
-        println!("scale {scale}: rms {:.1} nm shift {:.2} um", (r.rss / r.used as f64).sqrt() * 1e6, r.shift_mm.x * 1e3);
-    }
-    // Halves
-    for (a, b) in [(0.0, 0.5), (0.5, 1.0)] {
-        let m = m0.subset(|i| m0.along_mm[i] >= a && m0.along_mm[i] < b);
-        for scale in [0.98, 0.985, 0.99, 1.0] {
-            let ms = Measurement::line(&m.along_mm.iter().map(|x| x * scale).collect::<Vec<_>>(), &m.height_mm, 0.0, 0.0, Default::default());
-            let r = register(&ms, &sim, Terms { power: true, shift: true }, Some(ShiftSearch { start: glam::DVec2::ZERO, half_width_mm: 0.04, step_mm: 0.002 }));
-            println!("half {a}-{b} scale {scale}: rms {:.1} nm shift {:.2} um", (r.rss / r.used as f64).sqrt() * 1e6, r.shift_mm.x * 1e3);
-        }
-    }
-}
-
-#[test]
-fn explore_1021_chord() {
-    use toolmark::diagnose::files::{Placement, load_measurement};
-    use toolmark::diagnose::forward::ForwardModel;
-    use toolmark::diagnose::register::{ShiftSearch, Terms, register};
-    use toolmark::io::measured::{LengthUnit, ReadOptions};
-    let j = example("upm_1021_ideal.toml");
-    let read = ReadOptions { lateral_unit: Some(LengthUnit::Micrometre), height_unit: Some(LengthUnit::Micrometre), pixel_mm: None };
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/upm-spdt/1021-WLI-2D.csv");
-    let (m0, _) = load_measurement(&path, &read, &Placement::default(), Default::default()).unwrap();
-    let mut engine = CpuEngine;
-    let mut model = ForwardModel::new(&j, &m0, &mut engine).unwrap();
-    let sim = model.simulate(&|_| {}, &m0).unwrap();
-    for c in [-0.04, -0.02, 0.0, 0.02, 0.04] {
-    for y0 in [0.0, 0.03, 0.06, 0.08, 0.1, 0.12, 0.15, 0.2] {
-        let s: Vec<f64> = m0.along_mm.iter().map(|x| ((x - c) * (x - c) + y0 * y0).sqrt()).collect();
-        let m = Measurement::line(&s, &m0.height_mm, 0.0, 0.0, Default::default());
-        let r = register(&m, &sim, Terms { power: true, shift: true }, Some(ShiftSearch { start: glam::DVec2::ZERO, half_width_mm: 0.004, step_mm: 0.001 }));
-        let half = |a: f64, b: f64| { let v: Vec<f64> = (0..m.len()).filter(|&i| m0.along_mm[i] >= a && m0.along_mm[i] < b).map(|i| r.residual_mm[i]).filter(|v| v.is_finite()).collect(); (v.iter().map(|x| x*x).sum::<f64>() / v.len() as f64).sqrt() * 1e6 };
-        println!("c {c} y0 {y0}: rms {:.1} nm (halves {:.1} {:.1}) shift {:.2} um", (r.rss / r.used as f64).sqrt() * 1e6, half(0.0, 0.5), half(0.5, 1.0), r.shift_mm.x * 1e3);
-    }}
+        &model(PROFILE),
+    );
+    let outcome = run(SPHERE, &m, &mut CpuEngine, &Options::default());
+    let fragment = &outcome.effects_fragment;
+    let with: Job = job(&format!("{SPHERE}\n{fragment}"));
+    let toolmark::process::Process::Turning(t) = &with.process else {
+        panic!("a turning job")
+    };
+    let (value, _) = accepted(&outcome, "nose_radius_error")[0];
+    assert!(
+        (t.effects.radius_error_mm * 1e3 - value).abs() < 1e-6,
+        "{fragment}"
+    );
 }

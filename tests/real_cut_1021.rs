@@ -112,3 +112,94 @@ fn cut_1021_simulated_with_ideal_and_measured_edges_against_the_wli_profile() {
         );
     }
 }
+
+/// The diagnosis of the gap on cut 1021: the units as the data README gives them fit;
+/// the profile read in the wrong lateral unit is refused. Calibrated on the first half
+/// (x < 0.5 mm), the second half is held out: its residual must not grow, and the
+/// counts of fitted and held-out points are those of the file.
+#[test]
+fn cut_1021_diagnosis_with_a_held_out_half() {
+    use toolmark::diagnose::files::{Placement, load_measurement};
+    use toolmark::diagnose::measurement::Instrument;
+    use toolmark::diagnose::{Options, diagnose, register::Terms};
+    use toolmark::engine::cpu::CpuEngine;
+    use toolmark::io::measured::ReadOptions;
+    let path = std::path::Path::new(DATA).join("1021-WLI-2D.csv");
+    let read = |lateral: LengthUnit| {
+        let options = ReadOptions {
+            lateral_unit: Some(lateral),
+            height_unit: Some(LengthUnit::Micrometre),
+            pixel_mm: None,
+        };
+        load_measurement(
+            &path,
+            &options,
+            &Placement::default(),
+            Instrument::default(),
+        )
+        .unwrap()
+        .0
+    };
+    let job = job_with_edge(None);
+    let mut options = Options {
+        terms: Terms {
+            power: true,
+            shift: true,
+        },
+        ..Options::default()
+    };
+    // Positions in µm declared as mm: a 1 m profile on a Ø2 mm part.
+    let wrong = diagnose(
+        &job,
+        &read(LengthUnit::Millimetre),
+        &mut CpuEngine,
+        &options,
+        &|_| {},
+    );
+    assert!(
+        wrong.is_err() || wrong.as_ref().unwrap().diagnosis.verdict.status == "does_not_fit",
+        "µm read as mm gave a verdict"
+    );
+
+    let measured =
+        read_wli_profile_csv(&path, LengthUnit::Micrometre, LengthUnit::Micrometre).unwrap();
+    let first_half = measured
+        .x_mm
+        .iter()
+        .zip(&measured.height_mm)
+        .filter(|(x, h)| **x < 0.5 && h.is_finite())
+        .count();
+    let second_half = measured
+        .x_mm
+        .iter()
+        .zip(&measured.height_mm)
+        .filter(|(x, h)| **x >= 0.5 && h.is_finite())
+        .count();
+    options.calibrate_on_mm = Some((0.0, 0.5));
+    let outcome = diagnose(
+        &job,
+        &read(LengthUnit::Micrometre),
+        &mut CpuEngine,
+        &options,
+        &|_| {},
+    )
+    .unwrap();
+    let d = &outcome.diagnosis;
+    println!("{}", d.verdict.sentence);
+    assert!(d.fit_check.fits, "{:?}", d.fit_check.findings);
+    let held = d.held_out.as_ref().expect("the second half held out");
+    println!(
+        "fitted {} points: {:.1} → {:.1} nm RMS; held out {} points: {:.1} → {:.1} nm RMS",
+        d.measurement.points_fitted,
+        d.residual_before.rms_nm,
+        d.residual_after.rms_nm,
+        held.points,
+        held.before_rms_nm,
+        held.after_rms_nm
+    );
+    assert_eq!(
+        (d.measurement.points_fitted, held.points),
+        (first_half, second_half)
+    );
+    assert!(held.after_rms_nm <= held.before_rms_nm * 1.001);
+}

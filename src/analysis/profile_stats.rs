@@ -59,27 +59,19 @@ fn power(x: &[f64], y: &[f64], frequency: f64) -> f64 {
     re * re + im * im
 }
 
-/// Statistics of the profile (x, height in mm, x increasing) after removing a polynomial
-/// of `form_order`.
-pub fn profile_stats(x: &[f64], height: &[f64], form_order: usize) -> ProfileStats {
-    let residual = remove_form(x, height, form_order);
-    let (low, high) = residual
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(*v), b.max(*v))
-        });
-    let rms = (residual.iter().map(|v| v * v).sum::<f64>() / residual.len().max(1) as f64).sqrt();
+/// The period (mm) of the strongest periodogram peak between `shortest_mm` and
+/// `longest_mm`: frequencies scanned on a grid four times finer than the span resolves,
+/// the peak polished by a parabola. `None` when the band holds no frequency.
+pub fn dominant_period_mm(x: &[f64], y: &[f64], shortest_mm: f64, longest_mm: f64) -> Option<f64> {
     let span = x.last().copied().unwrap_or(0.0) - x.first().copied().unwrap_or(0.0);
-    let mut steps: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
-    steps.sort_by(f64::total_cmp);
-    let spacing = steps.get(steps.len() / 2).copied().unwrap_or(span);
-    // Scan frequency from 3 cycles over the span to a quarter of the sampling rate, on a
-    // grid four times finer than the span resolves, then polish the peak by a parabola.
-    let (f_low, f_high) = (3.0 / span.max(1e-300), 0.25 / spacing.max(1e-300));
+    let (f_low, f_high) = (1.0 / longest_mm.max(1e-300), 1.0 / shortest_mm.max(1e-300));
     let step = 0.25 / span.max(1e-300);
-    let count = ((f_high - f_low) / step).max(0.0) as usize + 1;
+    if f_high.is_nan() || f_low.is_nan() || f_high < f_low || !step.is_finite() {
+        return None;
+    }
+    let count = ((f_high - f_low) / step) as usize + 1;
     let powers: Vec<f64> = (0..count)
-        .map(|i| power(x, &residual, f_low + step * i as f64))
+        .map(|i| power(x, y, f_low + step * i as f64))
         .collect();
     let best = powers
         .iter()
@@ -98,17 +90,32 @@ pub fn profile_stats(x: &[f64], height: &[f64], form_order: usize) -> ProfileSta
         0.0
     };
     let frequency = f_low + step * (best as f64 + offset);
+    (frequency > 0.0).then(|| 1.0 / frequency)
+}
+
+/// Statistics of the profile (x, height in mm, x increasing) after removing a polynomial
+/// of `form_order`.
+pub fn profile_stats(x: &[f64], height: &[f64], form_order: usize) -> ProfileStats {
+    let residual = remove_form(x, height, form_order);
+    let (low, high) = residual
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let rms = (residual.iter().map(|v| v * v).sum::<f64>() / residual.len().max(1) as f64).sqrt();
+    let span = x.last().copied().unwrap_or(0.0) - x.first().copied().unwrap_or(0.0);
+    let mut steps: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    let spacing = steps.get(steps.len() / 2).copied().unwrap_or(span);
+    // From 3 cycles over the span to a quarter of the sampling rate.
+    let period = dominant_period_mm(x, &residual, 4.0 * spacing, span / 3.0);
     ProfileStats {
         points: x.len(),
         from_mm: x.first().copied().unwrap_or(0.0),
         to_mm: x.last().copied().unwrap_or(0.0),
         pv_nm: (high - low) * 1e6,
         rms_nm: rms * 1e6,
-        dominant_period_um: if count > 0 && frequency > 0.0 {
-            1e3 / frequency
-        } else {
-            0.0
-        },
+        dominant_period_um: period.map_or(0.0, |p| p * 1e3),
     }
 }
 

@@ -1,6 +1,6 @@
 //! `toolmark diagnose`, `toolmark synth` and `toolmark bench-diagnose`.
 
-use super::{EngineChoice, Failure, load_job, open_engine, slug};
+use super::{EngineChoice, Failure, load_job, load_job_with_effects, open_engine, slug};
 use clap::ValueEnum;
 use std::path::{Path, PathBuf};
 use toolmark::diagnose::files::{Placement, load_measurement, merge_source};
@@ -87,11 +87,18 @@ pub struct DiagnoseArgs {
     pub out: Option<PathBuf>,
 }
 
-fn read_options(lateral: Option<Unit>, height: Option<Unit>, pixel_um: &Option<Vec<f64>>) -> Result<ReadOptions, Failure> {
+fn read_options(
+    lateral: Option<Unit>,
+    height: Option<Unit>,
+    pixel_um: &Option<Vec<f64>>,
+) -> Result<ReadOptions, Failure> {
     let pixel_mm = match pixel_um.as_deref() {
         None => None,
         Some(values) => {
-            if values.iter().any(|v| !v.is_finite() || *v <= 0.0 || *v > 1e5) {
+            if values
+                .iter()
+                .any(|v| !v.is_finite() || *v <= 0.0 || *v > 1e5)
+            {
                 return Err(Failure::Input(format!(
                     "--pixel-um: {values:?} is out of range; allowed: positive numbers up to 100000 µm"
                 )));
@@ -128,9 +135,15 @@ pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
     };
     let placement = Placement {
         azimuth_deg: args.azimuth_deg,
-        axis_at_mm: args.axis_at_mm.as_ref().map(|v| [v[0], v.get(1).copied().unwrap_or(0.0)]),
+        axis_at_mm: args
+            .axis_at_mm
+            .as_ref()
+            .map(|v| [v[0], v.get(1).copied().unwrap_or(0.0)]),
     };
-    if placement.axis_at_mm.is_some_and(|a| a.iter().any(|v| !v.is_finite())) {
+    if placement
+        .axis_at_mm
+        .is_some_and(|a| a.iter().any(|v| !v.is_finite()))
+    {
         return Err(Failure::Input("--axis-at-mm: give finite numbers".into()));
     }
     let calibrate_on_mm = match &args.calibrate_on {
@@ -138,8 +151,8 @@ pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
         Some(text) => Some(parse_range(text)?),
     };
     let read = read_options(args.lateral_unit, args.height_unit, &args.pixel_um)?;
-    let (measurement, source) = load_measurement(&args.measured, &read, &placement, instrument)
-        .map_err(Failure::Input)?;
+    let (measurement, source) =
+        load_measurement(&args.measured, &read, &placement, instrument).map_err(Failure::Input)?;
     if !(1..=5).contains(&args.max_effects) {
         return Err(Failure::Input(format!(
             "--max-effects: {} is out of range; allowed: 1 to 5",
@@ -175,9 +188,9 @@ pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
     };
     let mut engine = open_engine(args.engine, &job)?;
     println!("engine: {} — {}", engine.info().kind, engine.info().adapter);
-    let out = args
-        .out
-        .unwrap_or_else(|| PathBuf::from("toolmark-out").join(format!("{}-diagnosis", slug(&job.name))));
+    let out = args.out.unwrap_or_else(|| {
+        PathBuf::from("toolmark-out").join(format!("{}-diagnosis", slug(&job.name)))
+    });
     let log = |s: &str| eprintln!("{s}");
     let mut outcome = match diagnose(&job, &measurement, engine.as_mut(), &options, &log) {
         Ok(outcome) => outcome,
@@ -199,7 +212,10 @@ pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
     }
     println!("\n  {:<34} {:>10} {:>10}", "model", "PV (nm)", "RMS (nm)");
     for step in &d.shrinkage {
-        println!("  {:<34} {:>10.1} {:>10.2}", step.model, step.pv_nm, step.rms_nm);
+        println!(
+            "  {:<34} {:>10.1} {:>10.2}",
+            step.model, step.pv_nm, step.rms_nm
+        );
     }
     if let Some(h) = &d.held_out {
         println!(
@@ -232,8 +248,15 @@ fn parse_range(text: &str) -> Result<(f64, f64), Failure> {
         ))
     };
     let (a, b) = text.split_once(':').ok_or_else(bad)?;
-    let (a, b): (f64, f64) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
-    if a.is_finite() && b.is_finite() && a < b { Ok((a, b)) } else { Err(bad()) }
+    let (a, b): (f64, f64) = (
+        a.trim().parse().map_err(|_| bad())?,
+        b.trim().parse().map_err(|_| bad())?,
+    );
+    if a.is_finite() && b.is_finite() && a < b {
+        Ok((a, b))
+    } else {
+        Err(bad())
+    }
 }
 
 #[derive(clap::Args)]
@@ -265,10 +288,7 @@ struct MeasurementFile {
 
 pub fn synth_cmd(args: SynthArgs) -> Result<(), Failure> {
     let public = load_job(Some(&args.job))?;
-    let truth_job = match &args.effects {
-        Some(fragment) => job_with_fragment(&args.job, fragment)?,
-        None => public.clone(),
-    };
+    let truth_job = load_job_with_effects(Some(&args.job), args.effects.as_ref())?;
     let text = std::fs::read_to_string(&args.measurement)
         .map_err(|e| Failure::Input(format!("{}: {e}", args.measurement.display())))?;
     let file: MeasurementFile = toml::from_str(&text)
@@ -284,7 +304,8 @@ pub fn synth_cmd(args: SynthArgs) -> Result<(), Failure> {
         );
     }
     let mut engine = open_engine(args.engine, &truth_job)?;
-    let data = synthesize(&truth_job, &model, engine.as_mut()).map_err(|e| Failure::Runtime(e.to_string()))?;
+    let data = synthesize(&truth_job, &model, engine.as_mut())
+        .map_err(|e| Failure::Runtime(e.to_string()))?;
     withheld::write_data(&args.out, &data).map_err(Failure::Runtime)?;
     let effects = match &args.effects {
         Some(p) => std::fs::read_to_string(p).unwrap_or_default(),
@@ -337,6 +358,10 @@ pub struct BenchDiagnoseArgs {
     pub dir: PathBuf,
     #[arg(long, value_enum, default_value_t = EngineChoice::Auto)]
     pub engine: EngineChoice,
+    /// Diagnose and score only the cases whose ids contain this (repeatable), e.g.
+    /// `--cases milling --cases 003-`.
+    #[arg(long = "cases")]
+    pub cases: Vec<String>,
 }
 
 pub fn bench_diagnose_cmd(args: BenchDiagnoseArgs) -> Result<(), Failure> {
@@ -349,28 +374,25 @@ pub fn bench_diagnose_cmd(args: BenchDiagnoseArgs) -> Result<(), Failure> {
     }
     if matches!(args.phase, Phase::All | Phase::Diagnose) {
         let mut engine = open_engine(args.engine, &default_job)?;
-        let runs = withheld::diagnose_suite(&args.dir, engine.as_mut(), &log).map_err(Failure::Runtime)?;
+        let runs = withheld::diagnose_suite(&args.dir, engine.as_mut(), &args.cases, &log)
+            .map_err(Failure::Runtime)?;
         let total: f64 = runs.iter().map(|r| r.seconds).sum();
         println!("diagnosed {} cases in {total:.0} s", runs.len());
     }
     if matches!(args.phase, Phase::All | Phase::Score) {
-        let scores = withheld::score(&args.dir).map_err(Failure::Runtime)?;
+        let scores = withheld::score(&args.dir, &args.cases).map_err(Failure::Runtime)?;
         let text = withheld::scores_markdown(&scores);
         println!("{text}");
-        let json = serde_json::to_string_pretty(&scores).map_err(|e| Failure::Runtime(e.to_string()))?;
-        for (name, bytes) in [("scores.md", text.as_bytes()), ("scores.json", json.as_bytes())] {
+        let json =
+            serde_json::to_string_pretty(&scores).map_err(|e| Failure::Runtime(e.to_string()))?;
+        for (name, bytes) in [
+            ("scores.md", text.as_bytes()),
+            ("scores.json", json.as_bytes()),
+        ] {
             let path = args.dir.join(name);
             write_bytes_atomically(&path, bytes)
                 .map_err(|e| Failure::Runtime(format!("{}: {e}", path.display())))?;
         }
     }
     Ok(())
-}
-
-/// The job with an effects fragment's tables added (TODO: the shared loader).
-fn job_with_fragment(job: &Path, fragment: &Path) -> Result<toolmark::io::job::Job, Failure> {
-    let read = |p: &Path| std::fs::read_to_string(p).map_err(|e| Failure::Input(format!("{}: {e}", p.display())));
-    let text = format!("{}\n{}", read(job)?, read(fragment)?);
-    let base = job.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    toolmark::io::job::Job::from_toml_in(&text, "synth", base).map_err(|e| Failure::Input(format!("{}: {e}", fragment.display())))
 }

@@ -3,9 +3,11 @@
 //! written back as `[[effects]]` tables, and how a result is said to a machinist.
 
 use crate::effects::WAVINESS_SAMPLES;
+use crate::geometry::milling_tool::MillingTool;
 use crate::geometry::tool::AngleTable;
 use crate::io::job::Job;
 use crate::process::{PlungeAxis, Process};
+use glam::DVec2;
 
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(rename_all = "snake_case", tag = "effect")]
@@ -20,6 +22,9 @@ pub enum Candidate {
     },
     CutterDisplacement,
     InclinationError,
+    ToolRadiusError,
+    SpindleTram,
+    RadialRunout,
 }
 
 /// One fitted parameter.
@@ -75,7 +80,46 @@ pub fn candidates_for(job: &Job) -> (Vec<Candidate>, Vec<NotDiagnosable>) {
                 }],
             )
         }
-        Process::Milling(_) => (Vec::new(), Vec::new()),
+        Process::Milling(m) => {
+            let setup = &m.setup;
+            let (mut fit, mut skip) = (vec![Candidate::AxialDrift], Vec::new());
+            let mut skip_because = |effect: &'static str, reason: &str| {
+                skip.push(NotDiagnosable {
+                    effect,
+                    reason: reason.to_string(),
+                })
+            };
+            match setup.tool {
+                MillingTool::EndMill(c) => {
+                    if c.corner_radius_mm > 0.0 {
+                        fit.push(Candidate::ToolRadiusError);
+                    } else {
+                        skip_because("tool_radius_error", "a flat end mill has no corner radius");
+                    }
+                    if c.major_radius_mm > 0.0 {
+                        fit.push(Candidate::SpindleTram);
+                    } else {
+                        skip_because(
+                            "spindle_tram",
+                            "a ball turned about its centre cuts the same part",
+                        );
+                    }
+                }
+                MillingTool::Disc(_) => {
+                    skip_because("tool_radius_error", "not modelled for disc cutters");
+                    skip_because("spindle_tram", "not modelled for disc cutters");
+                }
+            }
+            if setup.teeth >= 2 && setup.feed_per_tooth_mm > 0.0 {
+                fit.push(Candidate::RadialRunout);
+            } else {
+                skip_because(
+                    "radial_runout",
+                    "it shows only in feed marks: the job needs teeth ≥ 2 and feed_per_tooth_mm > 0",
+                );
+            }
+            (fit, skip)
+        }
     }
 }
 
@@ -90,6 +134,9 @@ impl Candidate {
             Candidate::EdgeWaviness { .. } => "edge_waviness",
             Candidate::CutterDisplacement => "cutter_displacement",
             Candidate::InclinationError => "inclination_error",
+            Candidate::ToolRadiusError => "tool_radius_error",
+            Candidate::SpindleTram => "spindle_tram",
+            Candidate::RadialRunout => "radial_runout",
         }
     }
 
@@ -103,35 +150,65 @@ impl Candidate {
         }
     }
 
+    /// The parameters, bounded as the job files bound them.
     pub fn parameters(&self, job: &Job) -> Vec<Parameter> {
-        let nose_um = job
-            .process
-            .turning()
-            .map_or(0.0, |t| t.tool.nose_radius_mm * 1e3);
-        match self {
-            Candidate::CentreHeight => vec![parameter("height", "µm", 1.0, 0.5 * nose_um)],
-            Candidate::XDecentre => vec![parameter("offset", "µm", 1.0, nose_um)],
-            Candidate::NoseRadiusError => vec![parameter("error", "µm", 1.0, 0.5 * nose_um)],
-            Candidate::AxialDrift => vec![parameter("drift", "nm", 10.0, 1e4)],
-            Candidate::EdgeWaviness { .. } => vec![
-                parameter("cos", "nm", 10.0, 1e4),
-                parameter("sin", "nm", 10.0, 1e4),
-            ],
-            Candidate::CutterDisplacement | Candidate::InclinationError => {
-                let g = &job.process.generating().expect("a generating job").setup;
+        match (&job.process, self) {
+            (Process::Turning(t), _) => {
+                let nose_um = t.tool.nose_radius_mm * 1e3;
                 match self {
-                    Candidate::CutterDisplacement => vec![parameter(
-                        "offset",
-                        "µm",
-                        10.0,
-                        0.5 * g.wheel.edge_radius_mm * 1e3,
-                    )],
-                    _ => vec![parameter(
-                        "error",
-                        "deg",
-                        0.002,
-                        0.1 * g.inclination_rad.to_degrees(),
-                    )],
+                    Candidate::CentreHeight => vec![parameter("height", "µm", 1.0, 0.5 * nose_um)],
+                    Candidate::XDecentre => vec![parameter("offset", "µm", 1.0, nose_um)],
+                    Candidate::NoseRadiusError => {
+                        vec![parameter("error", "µm", 1.0, 0.5 * nose_um)]
+                    }
+                    Candidate::AxialDrift => {
+                        vec![parameter("drift", "nm", 10.0, 0.5 * nose_um * 1e3)]
+                    }
+                    _ => vec![
+                        parameter("cos", "nm", 10.0, 1e4),
+                        parameter("sin", "nm", 10.0, 1e4),
+                    ],
+                }
+            }
+            (Process::Generating(g), Candidate::CutterDisplacement) => vec![parameter(
+                "offset",
+                "µm",
+                10.0,
+                0.5 * g.setup.wheel.edge_radius_mm * 1e3,
+            )],
+            (Process::Generating(g), _) => vec![parameter(
+                "error",
+                "deg",
+                0.002,
+                0.1 * g.setup.inclination_rad.to_degrees(),
+            )],
+            (Process::Milling(m), _) => {
+                let setup = &m.setup;
+                let (corner, outer) = match setup.tool {
+                    MillingTool::EndMill(c) => {
+                        (c.corner_radius_mm, c.radius_mm() + c.corner_radius_mm)
+                    }
+                    MillingTool::Disc(d) => (0.0, 0.5 * d.outer_radius_mm()),
+                };
+                match self {
+                    Candidate::AxialDrift => {
+                        vec![parameter("drift", "nm", 10.0, 0.5 * outer * 1e6)]
+                    }
+                    Candidate::ToolRadiusError => {
+                        vec![parameter("error", "µm", 1.0, 0.499 * corner * 1e3)]
+                    }
+                    Candidate::SpindleTram => vec![
+                        parameter("tilt_x", "deg", 0.005, 1.0),
+                        parameter("tilt_y", "deg", 0.005, 1.0),
+                    ],
+                    _ => {
+                        // Each component within f/(2√2): the runout stays within f/2.
+                        let bound = setup.feed_per_tooth_mm * 1e3 / 8f64.sqrt();
+                        vec![
+                            parameter("x", "µm", 0.5, bound),
+                            parameter("y", "µm", 0.5, bound),
+                        ]
+                    }
                 }
             }
         }
@@ -147,9 +224,12 @@ impl Candidate {
                     Candidate::XDecentre => e.x_decentre_mm += values[0] * 1e-3,
                     Candidate::NoseRadiusError => e.radius_error_mm += values[0] * 1e-3,
                     Candidate::AxialDrift => e.axial_drift_mm += values[0] * 1e-6,
-                    Candidate::EdgeWaviness { order } => {
-                        add_harmonic(&mut e.edge_deviation, *order, values[0] * 1e-6, values[1] * 1e-6)
-                    }
+                    Candidate::EdgeWaviness { order } => add_harmonic(
+                        &mut e.edge_deviation,
+                        *order,
+                        values[0] * 1e-6,
+                        values[1] * 1e-6,
+                    ),
                     _ => unreachable!("a turning candidate"),
                 }
             }
@@ -158,6 +238,21 @@ impl Candidate {
             }
             (Process::Generating(g), Candidate::InclinationError) => {
                 g.effects.inclination_error_rad += values[0].to_radians()
+            }
+            (Process::Milling(m), _) => {
+                let e = &mut m.effects;
+                match self {
+                    Candidate::AxialDrift => e.axial_drift_mm += values[0] * 1e-6,
+                    Candidate::ToolRadiusError => e.tool_radius_error_mm += values[0] * 1e-3,
+                    Candidate::SpindleTram => {
+                        e.tram_x_rad += values[0].to_radians();
+                        e.tram_y_rad += values[1].to_radians();
+                    }
+                    Candidate::RadialRunout => {
+                        e.radial_runout_mm += DVec2::new(values[0], values[1]) * 1e-3
+                    }
+                    _ => unreachable!("a milling candidate"),
+                }
             }
             _ => unreachable!("candidates come from candidates_for"),
         }
@@ -168,8 +263,24 @@ impl Candidate {
         let (key, value) = match self {
             Candidate::CentreHeight => ("height_mm", values[0] * 1e-3),
             Candidate::XDecentre | Candidate::CutterDisplacement => ("offset_mm", values[0] * 1e-3),
-            Candidate::NoseRadiusError => ("error_mm", values[0] * 1e-3),
+            Candidate::NoseRadiusError | Candidate::ToolRadiusError => {
+                ("error_mm", values[0] * 1e-3)
+            }
             Candidate::AxialDrift => ("drift_mm", values[0] * 1e-6),
+            Candidate::SpindleTram => {
+                return format!(
+                    "[[effects]]\nkind = \"spindle_tram\"\ntilt_x_deg = {:.6e}\ntilt_y_deg = {:.6e}\n",
+                    values[0], values[1]
+                );
+            }
+            Candidate::RadialRunout => {
+                let v = DVec2::new(values[0], values[1]);
+                return format!(
+                    "[[effects]]\nkind = \"radial_runout\"\noffset_mm = {:.6e}\nphase_deg = {:.3}\n",
+                    v.length() * 1e-3,
+                    v.y.atan2(v.x).to_degrees()
+                );
+            }
             Candidate::InclinationError => ("error_deg", values[0]),
             Candidate::EdgeWaviness { order } => {
                 let (amplitude, phase) = amplitude_phase(values);
@@ -179,7 +290,10 @@ impl Candidate {
                 );
             }
         };
-        format!("[[effects]]\nkind = \"{}\"\n{key} = {value:.6e}\n", self.kind())
+        format!(
+            "[[effects]]\nkind = \"{}\"\n{key} = {value:.6e}\n",
+            self.kind()
+        )
     }
 
     /// What the fit says, with its uncertainty, in a machinist's words.
@@ -207,11 +321,15 @@ impl Candidate {
             Candidate::AxialDrift => format!(
                 "the tool drifted {} nm along Z over the cut ({})",
                 pm(v.abs(), s),
-                if v >= 0.0 { "away from the part" } else { "into the part" }
+                if v >= 0.0 {
+                    "away from the part"
+                } else {
+                    "into the part"
+                }
             ),
             Candidate::EdgeWaviness { order } => {
                 let (amplitude, phase) = amplitude_phase(values);
-                let sigma = sigmas[0].hypot(sigmas[1]) / 2f64.sqrt();
+                let sigma = pair_sigma(sigmas);
                 format!(
                     "the edge carries waviness of order {order:.1}: {} nm amplitude (phase {phase:.0}°)",
                     pm(amplitude, sigma)
@@ -219,7 +337,11 @@ impl Candidate {
             }
             Candidate::CutterDisplacement => format!(
                 "the wheel's cutting circle {} the axis by {} µm",
-                if v >= 0.0 { "stops short of" } else { "runs past" },
+                if v >= 0.0 {
+                    "stops short of"
+                } else {
+                    "runs past"
+                },
                 pm(v.abs(), s)
             ),
             Candidate::InclinationError => format!(
@@ -227,6 +349,49 @@ impl Candidate {
                 pm_digits(v.abs(), s, 4),
                 if v >= 0.0 { "more" } else { "less" }
             ),
+            Candidate::ToolRadiusError => format!(
+                "the cutter's corner (ball) radius is {} µm {} than nominal",
+                pm(v.abs(), s),
+                if v >= 0.0 { "larger" } else { "smaller" }
+            ),
+            Candidate::SpindleTram if sigmas.iter().any(|s| s.is_infinite()) => {
+                let seen = if sigmas[0].is_finite() { 0 } else { 1 };
+                format!(
+                    "the spindle is out of tram by at least {}° (tilt {} {}°; the other tilt is not seen by this measurement)",
+                    pm_digits(values[seen].abs(), sigmas[seen], 4),
+                    if seen == 0 { "X" } else { "Y" },
+                    pm_digits(values[seen], sigmas[seen], 4)
+                )
+            }
+            Candidate::SpindleTram => {
+                let tilt = values[0].hypot(values[1]);
+                let sigma = pair_sigma(sigmas);
+                format!(
+                    "the spindle is out of tram by {}° toward {:.0}° (tilt X {:.4}°, Y {:.4}°)",
+                    pm_digits(tilt, sigma, 4),
+                    values[1].atan2(values[0]).to_degrees(),
+                    values[0],
+                    values[1]
+                )
+            }
+            Candidate::RadialRunout if sigmas.iter().any(|s| s.is_infinite()) => {
+                let seen = if sigmas[0].is_finite() { 0 } else { 1 };
+                format!(
+                    "the cutter runs out at least {} µm: the teeth's marks alternate by 2 × {} µm {} the feed (the other component is not seen by this measurement, nor which tooth cuts the longer mark unless the profile's position along the feed is known)",
+                    pm(values[seen].abs(), sigmas[seen]),
+                    pm(values[seen].abs(), sigmas[seen]),
+                    if seen == 0 { "along" } else { "across" },
+                )
+            }
+            Candidate::RadialRunout => {
+                let runout = values[0].hypot(values[1]);
+                let sigma = pair_sigma(sigmas);
+                format!(
+                    "the cutter runs out {} µm (tooth 0 at {:.0}° from the feed)",
+                    pm(runout, sigma),
+                    values[1].atan2(values[0]).to_degrees()
+                )
+            }
         }
     }
 
@@ -260,7 +425,30 @@ impl Candidate {
                 if v >= 0.0 { "toward the axis" } else { "away from the axis" }
             ),
             Candidate::InclinationError => format!("change the wheel's inclination by {:+.4}°", -v),
+            Candidate::ToolRadiusError => format!(
+                "enter the measured corner radius (nominal {v:+.2} µm) in the CAM tool table"
+            ),
+            Candidate::SpindleTram => format!(
+                "re-tram the spindle: {:.4}° back from {:.0}°",
+                values[0].hypot(values[1]),
+                values[1].atan2(values[0]).to_degrees()
+            ),
+            Candidate::RadialRunout => format!(
+                "re-seat the tool or clean the collet: {:.2} µm of runout",
+                values[0].hypot(values[1])
+            ),
         }
+    }
+}
+
+/// One uncertainty for a pair of components (their RMS), over the components the data
+/// sees (a component it does not see stays at zero with an infinite sigma).
+fn pair_sigma(sigmas: &[f64]) -> f64 {
+    let seen: Vec<f64> = sigmas.iter().copied().filter(|s| s.is_finite()).collect();
+    if seen.is_empty() {
+        f64::INFINITY
+    } else {
+        (seen.iter().map(|s| s * s).sum::<f64>() / seen.len() as f64).sqrt()
     }
 }
 
@@ -284,7 +472,10 @@ fn pm_digits(value: f64, sigma: f64, digits: usize) -> String {
 
 /// (amplitude, phase°) of a cos/sin pair: a cos kψ + b sin kψ = A cos(kψ + φ).
 fn amplitude_phase(values: &[f64]) -> (f64, f64) {
-    (values[0].hypot(values[1]), (-values[1]).atan2(values[0]).to_degrees())
+    (
+        values[0].hypot(values[1]),
+        (-values[1]).atan2(values[0]).to_degrees(),
+    )
 }
 
 /// Adds a·cos(kψ) + b·sin(kψ) (mm) to an edge deviation table (a new table over the

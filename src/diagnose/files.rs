@@ -44,7 +44,11 @@ pub fn load_measurement(
             let note = format!(
                 "profile along {:.1}° on the part; the axis taken at {axis:.4} mm in the file{}",
                 placement.azimuth_deg,
-                if placement.axis_at_mm.is_none() { " (its zero; set --axis-at-mm)" } else { "" }
+                if placement.axis_at_mm.is_none() {
+                    " (its zero; set --axis-at-mm)"
+                } else {
+                    ""
+                }
             );
             (m, &p.info, vec![note])
         }
@@ -68,7 +72,11 @@ pub fn load_measurement(
                 map.ny,
                 axis.x,
                 axis.y,
-                if placement.axis_at_mm.is_none() { " (the map's centre; set --axis-at-mm)" } else { "" }
+                if placement.axis_at_mm.is_none() {
+                    " (the map's centre; set --axis-at-mm)"
+                } else {
+                    ""
+                }
             );
             (m, &map.info, vec![note])
         }

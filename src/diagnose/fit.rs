@@ -17,6 +17,9 @@ use std::rc::Rc;
 
 /// Everything a fit needs: the points fitted, the forward model, what registration may
 /// remove and where it may look for the axis.
+/// Golden-section steps refining a scan (the bracket shrinks to 0.618^n).
+const GOLDEN_STEPS: usize = 10;
+
 pub struct Problem<'a, 'e> {
     pub measurement: &'a Measurement,
     pub model: ForwardModel<'e>,
@@ -64,7 +67,12 @@ pub struct Fit {
 impl Fit {
     /// Bayesian information criterion on the effective point count.
     pub fn bic(&self) -> f64 {
-        bic(self.evaluation.rss(), self.evaluation.registered.used, self.effective_points, self.values.len())
+        bic(
+            self.evaluation.rss(),
+            self.evaluation.registered.used,
+            self.effective_points,
+            self.values.len(),
+        )
     }
 
     /// The values and sigmas of one member of the set.
@@ -75,10 +83,20 @@ impl Fit {
     }
 }
 
+/// Adds every member of `set` at its values (concatenated) to the job's effects.
+pub fn apply_set(set: &[Candidate], values: &[f64], job: &mut crate::io::job::Job) {
+    let mut at = 0;
+    for c in set {
+        let n = width(c);
+        c.apply(&values[at..at + n], job);
+        at += n;
+    }
+}
+
 /// Parameters a candidate takes.
 pub fn width(candidate: &Candidate) -> usize {
     match candidate {
-        Candidate::EdgeWaviness { .. } => 2,
+        Candidate::EdgeWaviness { .. } | Candidate::SpindleTram | Candidate::RadialRunout => 2,
         _ => 1,
     }
 }
@@ -106,21 +124,24 @@ impl<'a, 'e> Problem<'a, 'e> {
         }
     }
 
+    /// Forgets the cached trials (after the axis search moved).
+    pub fn clear_cache(&mut self) {
+        self.cache.clear();
+    }
+
     /// Simulates `set` at `values` and registers it (cached by the exact values).
-    pub fn evaluate(&mut self, set: &[Candidate], values: &[f64]) -> Result<Rc<Evaluation>, ForwardError> {
+    pub fn evaluate(
+        &mut self,
+        set: &[Candidate],
+        values: &[f64],
+    ) -> Result<Rc<Evaluation>, ForwardError> {
         let key = cache_key(set, values);
         if let Some(hit) = self.cache.get(&key) {
             return Ok(hit.clone());
         }
-        let apply = |job: &mut crate::io::job::Job| {
-            let mut at = 0;
-            for c in set {
-                let n = width(c);
-                c.apply(&values[at..at + n], job);
-                at += n;
-            }
-        };
-        let sim = self.model.simulate(&apply, self.measurement)?;
+        let sim = self
+            .model
+            .simulate(&|job| apply_set(set, values, job), self.measurement)?;
         let registered = register(self.measurement, &sim, self.terms, Some(self.shift));
         let evaluation = Rc::new(Evaluation {
             values: values.to_vec(),
@@ -130,8 +151,9 @@ impl<'a, 'e> Problem<'a, 'e> {
         Ok(evaluation)
     }
 
-    /// Fits `set` starting from `start`: a scan along each parameter listed in `scan`,
-    /// then Levenberg–Marquardt on all of them.
+    /// Fits `set` starting from `start`: a scan along each parameter listed in `scan`
+    /// (the others re-adjusted linearly at every step, so a new effect can trade off
+    /// against those already there), then Levenberg–Marquardt on all of them.
     pub fn fit(
         &mut self,
         set: &[Candidate],
@@ -142,37 +164,91 @@ impl<'a, 'e> Problem<'a, 'e> {
             .iter()
             .flat_map(|c| c.parameters(self.model.base_job()))
             .collect();
+        let others: Vec<usize> = (0..start.len()).filter(|j| !scan.contains(j)).collect();
         let mut values = start;
         for &j in scan {
-            let mut trial = values.clone();
-            trial[j] = self.scan(set, &values, j, &parameters[j])?;
-            let (now, then) = (self.evaluate(set, &values)?.rss(), self.evaluate(set, &trial)?.rss());
-            if then < now {
-                values = trial;
-            }
+            values = self.scan(set, &parameters, &values, j, &others)?;
         }
-        let (values, jacobian) = self.levenberg_marquardt(set, &parameters, values)?;
-        Ok(self.finish(set, parameters, values, &jacobian)?)
+        let (values, jacobian) = self.levenberg_marquardt(set, &parameters, values, &[])?;
+        let fit = self.finish(set, parameters.clone(), values, &jacobian, &[])?;
+        // A component whose uncertainty exceeds its whole range is not seen by this
+        // measurement (runout across the feed on a profile along it): it goes back to
+        // zero, stays there, and is reported as not seen (σ = ∞).
+        let unseen: Vec<usize> = (0..fit.values.len())
+            .filter(|&j| fit.sigmas[j].is_nan() || fit.sigmas[j] > parameters[j].bound)
+            .collect();
+        if unseen.is_empty() || unseen.len() == fit.values.len() {
+            return Ok(fit);
+        }
+        let mut values = fit.values.clone();
+        for &j in &unseen {
+            values[j] = 0.0;
+        }
+        let (values, jacobian) = self.levenberg_marquardt(set, &parameters, values, &unseen)?;
+        self.finish(set, parameters, values, &jacobian, &unseen)
     }
 
-    /// The best value of parameter `j` along its axis (others held): outward from the
-    /// current value in ×3 steps of its scale, each way, while the residual falls; finer
-    /// steps when neither way helps.
-    fn scan(&mut self, set: &[Candidate], base: &[f64], j: usize, p: &Parameter) -> Result<f64, ForwardError> {
-        let at = |problem: &mut Self, v: f64| -> Result<f64, ForwardError> {
+    /// The best value of parameter `j` along its axis: outward from the current value
+    /// in ×3 steps of its scale, each way, while the residual falls (finer steps when
+    /// neither way helps). At each step the `others` are re-adjusted by least squares on
+    /// their Jacobian at the start. Returns all values at the best step.
+    fn scan(
+        &mut self,
+        set: &[Candidate],
+        parameters: &[Parameter],
+        base: &[f64],
+        j: usize,
+        others: &[usize],
+    ) -> Result<Vec<f64>, ForwardError> {
+        let start = self.evaluate(set, base)?;
+        let columns: Vec<Vec<f64>> = others
+            .iter()
+            .map(|&o| self.column(set, parameters, base, o, &start))
+            .collect::<Result<_, _>>()?;
+        // (rss, all values) at parameter j = v.
+        let at = |problem: &mut Self, v: f64| -> Result<(f64, Vec<f64>), ForwardError> {
             let mut trial = base.to_vec();
             trial[j] = v;
-            Ok(problem.evaluate(set, &trial)?.rss())
+            let r = problem.evaluate(set, &trial)?.residual();
+            if columns.is_empty() {
+                return Ok((dot(&r, &r), trial));
+            }
+            let rows: Vec<Vec<f64>> = (0..r.len())
+                .map(|i| columns.iter().map(|c| c[i]).collect())
+                .collect();
+            let target: Vec<f64> = r.iter().map(|v| -v).collect();
+            let Some(delta) = least_squares(&rows, &target) else {
+                return Ok((dot(&r, &r), trial));
+            };
+            let rss = (0..r.len())
+                .map(|i| {
+                    (r[i]
+                        + (0..columns.len())
+                            .map(|c| columns[c][i] * delta[c])
+                            .sum::<f64>())
+                    .powi(2)
+                })
+                .sum();
+            for (&o, d) in others.iter().zip(&delta) {
+                trial[o] = (trial[o] + d).clamp(-parameters[o].bound, parameters[o].bound);
+            }
+            Ok((rss, trial))
         };
+        let p = &parameters[j];
         let origin = base[j];
-        let mut best = (origin, at(self, origin)?);
+        let mut best = at(self, origin)?;
+        // Every value tried, to bracket the best afterwards.
+        let mut tried = vec![(origin, best.0)];
+
         for direction in [1.0, -1.0] {
-            let mut previous = best.1.max(at(self, origin)?);
+            let mut previous = best.0;
             for multiple in [1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0] {
                 let v = (origin + direction * multiple * p.scale).clamp(-p.bound, p.bound);
-                let rss = at(self, v)?;
-                if rss < best.1 {
-                    best = (v, rss);
+                let trial = at(self, v)?;
+                let rss = trial.0;
+                tried.push((v, rss));
+                if rss < best.0 {
+                    best = trial;
                 }
                 if rss >= previous || v.abs() >= p.bound {
                     break;
@@ -180,19 +256,83 @@ impl<'a, 'e> Problem<'a, 'e> {
                 previous = rss;
             }
         }
-        if best.0 == origin {
+        if best.1[j] == origin {
             for multiple in [0.3, -0.3, 0.1, -0.1] {
                 let v = origin + multiple * p.scale;
-                let rss = at(self, v)?;
-                if rss < best.1 {
-                    best = (v, rss);
+                let trial = at(self, v)?;
+                tried.push((v, trial.0));
+                if trial.0 < best.0 {
+                    best = trial;
                 }
             }
         }
-        Ok(best.0)
+        // Golden-section search between the best step's neighbours: features that
+        // move in whole grid steps (a centre cylinder's edge) leave the residual too
+        // rough for derivatives at the scale of one step.
+        tried.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let centre = best.1[j];
+        let below = tried.iter().rev().find(|t| t.0 < centre).map(|t| t.0);
+        let above = tried.iter().find(|t| t.0 > centre).map(|t| t.0);
+        if let (Some(mut a), Some(mut b)) = (below, above) {
+            let ratio = 0.5 * (5f64.sqrt() - 1.0);
+            let mut c = b - ratio * (b - a);
+            let mut d = a + ratio * (b - a);
+            let (mut fc, mut fd) = (at(self, c)?, at(self, d)?);
+            for _ in 0..GOLDEN_STEPS {
+                if fc.0 < fd.0 {
+                    b = d;
+                    d = c;
+                    fd = fc;
+                    c = b - ratio * (b - a);
+                    fc = at(self, c)?;
+                } else {
+                    a = c;
+                    c = d;
+                    fc = fd;
+                    d = a + ratio * (b - a);
+                    fd = at(self, d)?;
+                }
+            }
+            for candidate in [fc, fd] {
+                if candidate.0 < best.0 {
+                    best = candidate;
+                }
+            }
+        }
+        // The linear re-adjustment is a prediction: keep it only if it really helps.
+        let (now, then) = (
+            self.evaluate(set, base)?.rss(),
+            self.evaluate(set, &best.1)?.rss(),
+        );
+        Ok(if then < now { best.1 } else { base.to_vec() })
     }
 
-    /// Residual vectors' Jacobian by forward differences (toward the open side of a bound).
+    /// One column of the residual's Jacobian by a forward difference (toward the open
+    /// side of the bound).
+    fn column(
+        &mut self,
+        set: &[Candidate],
+        parameters: &[Parameter],
+        values: &[f64],
+        j: usize,
+        at: &Evaluation,
+    ) -> Result<Vec<f64>, ForwardError> {
+        let p = &parameters[j];
+        let mut h = (0.05 * values[j].abs()).max(0.2 * p.scale);
+        if values[j] + h > p.bound {
+            h = -h;
+        }
+        let mut trial = values.to_vec();
+        trial[j] += h;
+        let r1 = self.evaluate(set, &trial)?.residual();
+        Ok(r1
+            .iter()
+            .zip(at.residual())
+            .map(|(a, b)| (a - b) / h)
+            .collect())
+    }
+
+    /// The residual's Jacobian, column by column.
     fn jacobian(
         &mut self,
         set: &[Candidate],
@@ -200,19 +340,9 @@ impl<'a, 'e> Problem<'a, 'e> {
         values: &[f64],
         at: &Evaluation,
     ) -> Result<Vec<Vec<f64>>, ForwardError> {
-        let r0 = at.residual();
-        let mut columns = Vec::with_capacity(values.len());
-        for (j, p) in parameters.iter().enumerate() {
-            let mut h = (0.05 * values[j].abs()).max(0.2 * p.scale);
-            if values[j] + h > p.bound {
-                h = -h;
-            }
-            let mut trial = values.to_vec();
-            trial[j] += h;
-            let r1 = self.evaluate(set, &trial)?.residual();
-            columns.push(r1.iter().zip(&r0).map(|(a, b)| (a - b) / h).collect());
-        }
-        Ok(columns)
+        (0..values.len())
+            .map(|j| self.column(set, parameters, values, j, at))
+            .collect()
     }
 
     fn levenberg_marquardt(
@@ -220,40 +350,52 @@ impl<'a, 'e> Problem<'a, 'e> {
         set: &[Candidate],
         parameters: &[Parameter],
         mut values: Vec<f64>,
+        frozen: &[usize],
     ) -> Result<(Vec<f64>, Vec<Vec<f64>>), ForwardError> {
-        let k = values.len();
         let mut current = self.evaluate(set, &values)?;
         let mut jacobian = self.jacobian(set, parameters, &values, &current)?;
         let mut mu = 1e-3;
         for _ in 0..12 {
+            // Parameters the data does not see stay where they are.
+            let free = observable(&jacobian, frozen);
+            let k = free.len();
+            if k == 0 {
+                break;
+            }
             let r = current.residual();
-            let jtj: Vec<Vec<f64>> = (0..k)
-                .map(|a| (0..k).map(|b| dot(&jacobian[a], &jacobian[b])).collect())
+            let jtj: Vec<Vec<f64>> = free
+                .iter()
+                .map(|&a| {
+                    free.iter()
+                        .map(|&b| dot(&jacobian[a], &jacobian[b]))
+                        .collect()
+                })
                 .collect();
-            let jtr: Vec<f64> = (0..k).map(|a| dot(&jacobian[a], &r)).collect();
+            let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], &r)).collect();
             let mut improved = false;
             for _ in 0..8 {
                 let damped: Vec<Vec<f64>> = (0..k)
                     .map(|a| {
                         (0..k)
-                            .map(|b| jtj[a][b] + if a == b { mu * jtj[a][a].max(1e-300) } else { 0.0 })
+                            .map(|b| jtj[a][b] + if a == b { mu * jtj[a][a] } else { 0.0 })
                             .collect()
                     })
                     .collect();
-                let Some(step) = solve_linear(&damped, &jtr.iter().map(|v| -v).collect::<Vec<_>>()) else {
+                let Some(step) = solve_linear(&damped, &jtr) else {
                     mu *= 10.0;
                     continue;
                 };
-                let trial: Vec<f64> = values
-                    .iter()
-                    .zip(&step)
-                    .zip(parameters)
-                    .map(|((v, s), p)| (v + s).clamp(-p.bound, p.bound))
-                    .collect();
+                let mut trial = values.clone();
+                for (&j, s) in free.iter().zip(&step) {
+                    trial[j] = (values[j] + s).clamp(-parameters[j].bound, parameters[j].bound);
+                }
                 let evaluation = self.evaluate(set, &trial)?;
                 if evaluation.rss() < current.rss() {
                     let gain = 1.0 - evaluation.rss() / current.rss();
-                    let small = step.iter().zip(parameters).all(|(s, p)| s.abs() < 1e-4 * p.scale);
+                    let small = free
+                        .iter()
+                        .zip(&step)
+                        .all(|(&j, s)| s.abs() < 1e-4 * parameters[j].scale);
                     values = trial;
                     current = evaluation;
                     mu = (mu / 3.0).max(1e-9);
@@ -276,20 +418,28 @@ impl<'a, 'e> Problem<'a, 'e> {
         parameters: Vec<Parameter>,
         values: Vec<f64>,
         jacobian: &[Vec<f64>],
+        frozen: &[usize],
     ) -> Result<Fit, ForwardError> {
         let evaluation = self.evaluate(set, &values)?;
         let tau = correlation_length(self.measurement, &evaluation.registered.residual_mm);
         let used = evaluation.registered.used as f64;
-        let k = values.len();
-        let dof = (used - k as f64 - 4.0).max(1.0);
+        let free = observable(jacobian, frozen);
+        let dof = (used - free.len() as f64 - 4.0).max(1.0);
         let variance = evaluation.rss() / dof * tau;
-        let jtj: Vec<Vec<f64>> = (0..k)
-            .map(|a| (0..k).map(|b| dot(&jacobian[a], &jacobian[b])).collect())
+        let jtj: Vec<Vec<f64>> = free
+            .iter()
+            .map(|&a| {
+                free.iter()
+                    .map(|&b| dot(&jacobian[a], &jacobian[b]))
+                    .collect()
+            })
             .collect();
-        let sigmas = match invert(&jtj) {
-            Some(inv) => (0..k).map(|j| (inv[j][j] * variance).max(0.0).sqrt()).collect(),
-            None => vec![f64::INFINITY; k],
-        };
+        let mut sigmas = vec![f64::INFINITY; values.len()];
+        if let Some(inv) = invert(&jtj) {
+            for (i, &j) in free.iter().enumerate() {
+                sigmas[j] = (inv[i][i] * variance).max(0.0).sqrt();
+            }
+        }
         Ok(Fit {
             set: set.to_vec(),
             parameters,
@@ -302,8 +452,9 @@ impl<'a, 'e> Problem<'a, 'e> {
     }
 
     /// Picks the waviness order that best explains the residual left by `base` (the
-    /// accepted effects at `base_values`): for each order, the residual's projection on
-    /// the responses to a cosine and a sine harmonic. Returns (order, cos, sin) in nm.
+    /// accepted effects at `base_values`): for each order on the grid, the residual's
+    /// projection on the responses to a cosine and a sine harmonic; then the best order
+    /// refined between its grid neighbours. Returns (order, cos, sin) in nm.
     pub fn screen_waviness(
         &mut self,
         base: &[Candidate],
@@ -311,36 +462,85 @@ impl<'a, 'e> Problem<'a, 'e> {
         orders: &[f64],
         amplitude_nm: f64,
     ) -> Result<Option<(f64, f64, f64)>, ForwardError> {
-        let reference = self.evaluate(base, base_values)?;
-        let r0 = reference.residual();
+        let r0 = self.evaluate(base, base_values)?.residual();
         let mut best: Option<(f64, f64, f64, f64)> = None;
         for &order in orders {
-            let mut set = base.to_vec();
-            set.push(Candidate::EdgeWaviness { order });
-            let response = |problem: &mut Self, a: f64, b: f64| -> Result<Vec<f64>, ForwardError> {
-                let mut v = base_values.to_vec();
-                v.extend([a, b]);
-                // The change in the registered residual per nm.
-                let r = problem.evaluate(&set, &v)?.residual();
-                Ok(r.iter().zip(&r0).map(|(x, y)| (y - x) / amplitude_nm).collect())
-            };
-            let dc = response(self, amplitude_nm, 0.0)?;
-            let ds = response(self, 0.0, amplitude_nm)?;
-            let rows: Vec<Vec<f64>> = dc.iter().zip(&ds).map(|(c, s)| vec![*c, *s]).collect();
-            let Some(ab) = least_squares(&rows, &r0) else {
-                continue;
-            };
-            let rss: f64 = r0
-                .iter()
-                .zip(&rows)
-                .map(|(r, row)| (r - ab[0] * row[0] - ab[1] * row[1]).powi(2))
-                .sum();
-            if best.is_none_or(|b| rss < b.0) {
-                best = Some((rss, order, ab[0], ab[1]));
+            let (rss, a, b) = self.waviness_at(base, base_values, order, amplitude_nm, &r0)?;
+            if best.is_none_or(|x| rss < x.0) {
+                best = Some((rss, order, a, b));
             }
         }
-        Ok(best.map(|(_, order, a, b)| (order, a, b)))
+        let Some(mut best) = best else {
+            return Ok(None);
+        };
+        if orders.len() > 1 {
+            // Golden-section on the order between the grid neighbours.
+            let step = orders[1] - orders[0];
+            let ratio = 0.5 * (5f64.sqrt() - 1.0);
+            let (mut lo, mut hi) = ((best.1 - step).max(orders[0] * 0.5), best.1 + step);
+            for _ in 0..8 {
+                let (c, d) = (hi - ratio * (hi - lo), lo + ratio * (hi - lo));
+                let fc = self.waviness_at(base, base_values, c, amplitude_nm, &r0)?;
+                let fd = self.waviness_at(base, base_values, d, amplitude_nm, &r0)?;
+                for (order, f) in [(c, fc), (d, fd)] {
+                    if f.0 < best.0 {
+                        best = (f.0, order, f.1, f.2);
+                    }
+                }
+                if fc.0 <= fd.0 {
+                    hi = d;
+                } else {
+                    lo = c;
+                }
+            }
+        }
+        Ok(Some((best.1, best.2, best.3)))
     }
+
+    /// The least-squares cos/sin amplitudes (nm) of one waviness order against the
+    /// residual `r0`, from the responses to each at `amplitude_nm`; with the rss left.
+    fn waviness_at(
+        &mut self,
+        base: &[Candidate],
+        base_values: &[f64],
+        order: f64,
+        amplitude_nm: f64,
+        r0: &[f64],
+    ) -> Result<(f64, f64, f64), ForwardError> {
+        let mut set = base.to_vec();
+        set.push(Candidate::EdgeWaviness { order });
+        let mut response = |a: f64, b: f64| -> Result<Vec<f64>, ForwardError> {
+            let mut v = base_values.to_vec();
+            v.extend([a, b]);
+            // The residual removed per nm.
+            let r = self.evaluate(&set, &v)?.residual();
+            Ok(r.iter()
+                .zip(r0)
+                .map(|(x, y)| (y - x) / amplitude_nm)
+                .collect())
+        };
+        let dc = response(amplitude_nm, 0.0)?;
+        let ds = response(0.0, amplitude_nm)?;
+        let rows: Vec<Vec<f64>> = dc.iter().zip(&ds).map(|(c, s)| vec![*c, *s]).collect();
+        let Some(ab) = least_squares(&rows, r0) else {
+            return Ok((dot(r0, r0), 0.0, 0.0));
+        };
+        let rss = r0
+            .iter()
+            .zip(&rows)
+            .map(|(r, row)| (r - ab[0] * row[0] - ab[1] * row[1]).powi(2))
+            .sum();
+        Ok((rss, ab[0], ab[1]))
+    }
+}
+
+/// The parameters whose Jacobian column is not (numerically) zero: those the data sees.
+fn observable(jacobian: &[Vec<f64>], frozen: &[usize]) -> Vec<usize> {
+    let norms: Vec<f64> = jacobian.iter().map(|c| dot(c, c)).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    (0..norms.len())
+        .filter(|&j| norms[j] > 1e-12 * largest && norms[j] > 0.0 && !frozen.contains(&j))
+        .collect()
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {

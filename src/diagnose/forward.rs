@@ -54,9 +54,13 @@ impl<'e> ForwardModel<'e> {
         }
         let mut base = job.clone();
         let extent = measurement.extent_mm();
-        let room = SHIFT_ROOM * extent + 3.0 * job.pitch_mm + measurement.instrument.stylus_tip_mm.unwrap_or(0.0);
+        let room = SHIFT_ROOM * extent
+            + 3.0 * job.pitch_mm
+            + measurement.instrument.stylus_tip_mm.unwrap_or(0.0);
         let radii = measurement.xy_mm.iter().map(|p| p.length());
-        let (r_min, r_max) = radii.fold((f64::INFINITY, 0.0_f64), |(lo, hi), r| (lo.min(r), hi.max(r)));
+        let (r_min, r_max) = radii.fold((f64::INFINITY, 0.0_f64), |(lo, hi), r| {
+            (lo.min(r), hi.max(r))
+        });
         base.aperture.inner_radius_mm = job.aperture.inner_radius_mm.max(r_min - room).max(0.0);
         base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(r_max + room);
         let line_rows = match measurement.shape {
@@ -129,7 +133,12 @@ impl<'e> ForwardModel<'e> {
                 ring.height_mm + field.depth_mm[s] / ring.normal.y
             })
             .collect();
-        Ok(SimulatedSurface::new(grid, height_mm, self.line_rows, measurement))
+        Ok(SimulatedSurface::new(
+            grid,
+            height_mm,
+            self.line_rows,
+            measurement,
+        ))
     }
 }
 
@@ -188,7 +197,9 @@ impl SimulatedSurface {
             (x, z)
         });
         let pixel_mm = match measurement.shape {
-            Shape::Raster { pixel_mm, .. } if measurement.instrument.pixel_averaging => Some(pixel_mm),
+            Shape::Raster { pixel_mm, .. } if measurement.instrument.pixel_averaging => {
+                Some(pixel_mm)
+            }
             _ => None,
         };
         Self {
@@ -353,7 +364,11 @@ mod tests {
             } else {
                 -xi.abs() + tip * (2f64.sqrt() - 1.0)
             };
-            assert!((trace[i] - expected).abs() < 1e-12, "{xi}: {} vs {expected}", trace[i]);
+            assert!(
+                (trace[i] - expected).abs() < 1e-12,
+                "{xi}: {} vs {expected}",
+                trace[i]
+            );
         }
     }
 
@@ -368,7 +383,11 @@ mod tests {
         let trace = stylus_trace(&x, &z, tip);
         let lift = tip * ((1.0 + m * m).sqrt() - 1.0);
         for i in 1..199 {
-            assert!((trace[i] - z[i] - lift).abs() < 1e-15, "{} vs {lift}", trace[i] - z[i]);
+            assert!(
+                (trace[i] - z[i] - lift).abs() < 1e-15,
+                "{} vs {lift}",
+                trace[i] - z[i]
+            );
         }
     }
 }

@@ -22,11 +22,11 @@ pub mod report;
 pub mod withheld;
 pub mod zones;
 
-use crate::analysis::profile_stats::profile_stats;
+use crate::analysis::profile_stats::dominant_period_mm;
 use crate::engine::RemovalEngine;
 use crate::io::job::Job;
 use candidates::{Candidate, NotDiagnosable, candidates_for};
-use fit::{Fit, Problem, bic, width};
+use fit::{Fit, Problem, apply_set, bic, width};
 use forward::{ForwardError, ForwardModel, SHIFT_ROOM, SimulatedSurface};
 use glam::DVec2;
 use measurement::Measurement;
@@ -75,7 +75,9 @@ pub enum DiagnoseError {
 impl std::fmt::Display for DiagnoseError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            DiagnoseError::DoesNotFit(why) => write!(f, "the measurement does not fit the job: {why}"),
+            DiagnoseError::DoesNotFit(why) => {
+                write!(f, "the measurement does not fit the job: {why}")
+            }
             DiagnoseError::Forward(why) => f.write_str(why),
         }
     }
@@ -129,17 +131,14 @@ pub fn diagnose(
             start: DVec2::ZERO,
             half_width_mm: 0.8 * SHIFT_ROOM * fitted.extent_mm(),
             step_mm: 0.25 * period,
+            refine: 1,
         },
     );
     let nominal_sim = problem.model.simulate(&|_| {}, &fitted)?;
     let wide = wide_search(&fitted, period);
     let nominal = register(&fitted, &nominal_sim, options.terms, Some(wide));
     // Fits re-solve the axis only near where the nominal model put it.
-    problem.shift = ShiftSearch {
-        start: nominal.shift_mm,
-        half_width_mm: 0.25 * period,
-        step_mm: 0.25 * period,
-    };
+    problem.shift = local_search(nominal.shift_mm, period);
     let check = fit_check(&fitted, &nominal, job, options.terms, period);
     let zones = Zones::new(fitted.max_radius_mm());
 
@@ -148,50 +147,95 @@ pub fn diagnose(
         .into_iter()
         .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
         .collect();
-    let baseline = problem.evaluate(&[], &[])?;
-    let rss0 = baseline.rss();
-
     let mut singles: Vec<(Fit, f64)> = Vec::new();
-    let mut accepted: Vec<Fit> = Vec::new();
     let mut steps: Vec<Fit> = Vec::new();
+    let mut final_fit: Option<Fit> = None;
     if check.fits {
-        for c in &candidates {
-            log(&format!("fitting {}", c.label()));
-            let Some(fit) = fit_new(&mut problem, &[], &[], *c, job, &fitted)? else {
-                continue;
-            };
-            let evidence = bic(rss0, fit.evaluation.registered.used, fit.effective_points, 0) - fit.bic();
-            singles.push((fit, evidence));
+        let nominal_frame = problem.shift;
+        let mut fits = fit_singles(&mut problem, &candidates, job, &fitted, log)?;
+        // A strong effect the nominal model lacked can mislead the nominal registration
+        // by whole mark periods: register again with each single effect, and refit it
+        // around the axis it finds if that moved. Each effect is judged in its own
+        // frame; the combinations then start from the best one's.
+        let mut frames = vec![nominal_frame; fits.len()];
+        for (fit, frame) in fits.iter_mut().zip(frames.iter_mut()) {
+            let sim = problem
+                .model
+                .simulate(&|job| apply_set(&fit.set, &fit.values, job), &fitted)?;
+            let again = register(&fitted, &sim, options.terms, Some(wide));
+            if (again.shift_mm - nominal_frame.start).length() > 0.25 * period {
+                log(&format!(
+                    "{} moves the axis: registering again and refitting it",
+                    fit.set[0].label()
+                ));
+                problem.shift = local_search(again.shift_mm, period);
+                problem.clear_cache();
+                if let Some(refit) = fit_new(&mut problem, &[], &[], fit.set[0], job, &fitted)?
+                    && refit.evaluation.rss() < fit.evaluation.rss()
+                {
+                    *fit = refit;
+                    *frame = problem.shift;
+                }
+            }
         }
+        if let Some(best) = (0..fits.len()).min_by(|&a, &b| {
+            fits[a]
+                .evaluation
+                .rss()
+                .total_cmp(&fits[b].evaluation.rss())
+        }) {
+            problem.shift = frames[best];
+        } else {
+            problem.shift = nominal_frame;
+        }
+        problem.clear_cache();
+        let rss0 = problem.evaluate(&[], &[])?.rss();
+        let n_eff = common_effective_points(&fits, &*problem.evaluate(&[], &[])?, &fitted);
+        singles = fits
+            .into_iter()
+            .map(|fit| {
+                let e = evidence(rss0, 0, &fit, n_eff);
+                (fit, e)
+            })
+            .collect();
         singles.sort_by(|a, b| b.1.total_cmp(&a.1));
         // Greedy: the strongest, then whatever adds most to what is accepted.
         let mut current: Option<Fit> = None;
-        while accepted.len() < options.max_effects {
+        while current.as_ref().map_or(0, |c| c.set.len()) < options.max_effects {
             let taken: Vec<Candidate> = current.as_ref().map_or(Vec::new(), |f| f.set.clone());
-            let mut best: Option<(Fit, f64)> = None;
+            let mut round: Vec<Fit> = Vec::new();
             for (single, _) in &singles {
                 let c = single.set[0];
                 if taken.iter().any(|t| t.kind() == c.kind()) {
                     continue;
                 }
-                let fit = match &current {
-                    None => Some(single.clone()),
+                match &current {
+                    None => round.push(single.clone()),
                     Some(cur) => {
                         log(&format!("fitting {} with {}", c.label(), labels(&cur.set)));
-                        fit_new(&mut problem, &cur.set, &cur.values, c, job, &fitted)?
+                        if let Some(fit) =
+                            fit_new(&mut problem, &cur.set, &cur.values, c, job, &fitted)?
+                        {
+                            round.push(fit);
+                        }
                     }
-                };
-                let Some(fit) = fit else { continue };
-                let rss_before = current.as_ref().map_or(rss0, |f| f.evaluation.rss());
-                let k_before = current.as_ref().map_or(0, |f| f.values.len());
-                let evidence = bic(rss_before, fit.evaluation.registered.used, fit.effective_points, k_before) - fit.bic();
-                if best.as_ref().is_none_or(|b| evidence > b.1) {
-                    best = Some((fit, evidence));
                 }
             }
+            let (rss_before, k_before) = current
+                .as_ref()
+                .map_or((rss0, 0), |f| (f.evaluation.rss(), f.values.len()));
+            let n_eff = common_effective_points(&round, &*problem.evaluate(&[], &[])?, &fitted);
+            let best = round
+                .into_iter()
+                .map(|fit| {
+                    let e = evidence(rss_before, k_before, &fit, n_eff);
+                    (fit, e)
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1));
             match best {
-                Some((fit, evidence)) if evidence > options.min_evidence && significant(&fit, fit.set.len() - 1) => {
-                    accepted.push(fit.clone());
+                Some((fit, e))
+                    if e > options.min_evidence && significant(&fit, fit.set.len() - 1) =>
+                {
                     steps.push(fit.clone());
                     current = Some(fit);
                 }
@@ -201,28 +245,43 @@ pub fn diagnose(
         // One backward pass: an effect the others now explain is dropped.
         if let Some(cur) = current.clone().filter(|c| c.set.len() > 1) {
             for drop in 0..cur.set.len() {
-                let rest: Vec<Candidate> = cur.set.iter().enumerate().filter(|(i, _)| *i != drop).map(|(_, c)| *c).collect();
+                let rest: Vec<Candidate> = cur
+                    .set
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| *i != drop)
+                    .map(|(_, c)| *c)
+                    .collect();
                 let start: Vec<f64> = (0..cur.set.len())
                     .filter(|i| *i != drop)
                     .flat_map(|i| cur.values_of(i).0.to_vec())
                     .collect();
                 let reduced = problem.fit(&rest, start, &[])?;
-                let evidence = reduced.bic() - cur.bic();
-                if evidence < options.min_evidence {
-                    log(&format!("{} adds nothing beyond the others: dropped", cur.set[drop].label()));
+                let e = evidence(
+                    reduced.evaluation.rss(),
+                    reduced.values.len(),
+                    &cur,
+                    cur.effective_points,
+                );
+                if e < options.min_evidence {
+                    log(&format!(
+                        "{} adds nothing beyond the others: dropped",
+                        cur.set[drop].label()
+                    ));
                     steps.push(reduced.clone());
                     current = Some(reduced);
                     break;
                 }
             }
         }
-        if let Some(cur) = &current {
-            accepted = vec![cur.clone()];
-        }
+        final_fit = current;
     }
+    let baseline = problem.evaluate(&[], &[])?;
+    let rss0 = baseline.rss();
 
-    let final_fit = accepted.last().cloned();
-    let after = final_fit.as_ref().map_or(baseline.clone(), |f| f.evaluation.clone());
+    let after = final_fit
+        .as_ref()
+        .map_or(baseline.clone(), |f| f.evaluation.clone());
     let radii_fitted = radii(&fitted, nominal.shift_mm);
     let zone: Vec<usize> = radii_fitted.iter().map(|r| zones.of(*r)).collect();
     let residual_before = nominal.residual_mm.clone();
@@ -249,7 +308,9 @@ pub fn diagnose(
         .enumerate()
         .map(|(rank, (fit, evidence))| CandidateResult {
             rank: rank + 1,
-            accepted: final_fit.as_ref().is_some_and(|f| f.set.iter().any(|c| c.kind() == fit.set[0].kind())),
+            accepted: final_fit
+                .as_ref()
+                .is_some_and(|f| f.set.iter().any(|c| c.kind() == fit.set[0].kind())),
             delta_bic: *evidence,
             explained: 1.0 - fit.evaluation.rss() / rss0.max(1e-300),
             ..effect_result(fit, 0, rss0)
@@ -257,10 +318,19 @@ pub fn diagnose(
         .collect();
     let accepted_results: Vec<CandidateResult> = final_fit
         .as_ref()
-        .map(|f| (0..f.set.len()).map(|i| effect_result(f, i, rss0)).collect())
+        .map(|f| {
+            (0..f.set.len())
+                .map(|i| effect_result(f, i, rss0))
+                .collect()
+        })
         .unwrap_or_default();
 
-    let mut shrinkage = vec![shrink_step("nominal job", &residual_before, &radii(&fitted, nominal.shift_mm), &zones)];
+    let mut shrinkage = vec![shrink_step(
+        "nominal job",
+        &residual_before,
+        &radii(&fitted, nominal.shift_mm),
+        &zones,
+    )];
     for step in &steps {
         shrinkage.push(shrink_step(
             &format!("+ {}", labels(&step.set)),
@@ -282,7 +352,14 @@ pub fn diagnose(
         _ => None,
     };
     let fragment = effects_fragment(job, final_fit.as_ref());
-    let verdict = verdict(&check, final_fit.as_ref(), &before_info, &after_info, &indistinguishable, held.as_ref());
+    let verdict = verdict(
+        &check,
+        final_fit.as_ref(),
+        &before_info,
+        &after_info,
+        &indistinguishable,
+        held.as_ref(),
+    );
     let diagnosis = Diagnosis {
         schema: SCHEMA,
         toolmark_version: env!("CARGO_PKG_VERSION"),
@@ -342,12 +419,14 @@ fn fit_new(
     let mut start = base_values.to_vec();
     let first = start.len();
     match c {
-        Candidate::EdgeWaviness { .. } => {
+        // A waviness candidate not yet fitted: its order is screened first.
+        Candidate::EdgeWaviness { order: 0.0 } => {
             let orders = waviness_orders(job, fitted);
             if orders.is_empty() {
                 return Ok(None);
             }
-            let Some((order, a, b)) = problem.screen_waviness(base, base_values, &orders, 20.0)? else {
+            let Some((order, a, b)) = problem.screen_waviness(base, base_values, &orders, 20.0)?
+            else {
                 return Ok(None);
             };
             set.push(Candidate::EdgeWaviness { order });
@@ -363,15 +442,62 @@ fn fit_new(
     }
 }
 
+/// Every candidate fitted alone.
+fn fit_singles(
+    problem: &mut Problem,
+    candidates: &[Candidate],
+    job: &Job,
+    fitted: &Measurement,
+    log: &dyn Fn(&str),
+) -> Result<Vec<Fit>, DiagnoseError> {
+    let mut fits = Vec::new();
+    for c in candidates {
+        log(&format!("fitting {}", c.label()));
+        if let Some(fit) = fit_new(problem, &[], &[], *c, job, fitted)? {
+            fits.push(fit);
+        }
+    }
+    Ok(fits)
+}
+
+/// The effective number of independent points for comparing models: from the
+/// correlation of the residual the best of them leaves (closest to the noise), the
+/// same for all so that no model is favoured by its own residual's texture.
+fn common_effective_points(fits: &[Fit], baseline: &fit::Evaluation, m: &Measurement) -> f64 {
+    let used = baseline.registered.used as f64;
+    let tau = fits
+        .iter()
+        .min_by(|a, b| a.evaluation.rss().total_cmp(&b.evaluation.rss()))
+        .map_or_else(
+            || zones::correlation_length(m, &baseline.registered.residual_mm),
+            |f| f.correlation_length,
+        );
+    used / tau
+}
+
+/// Evidence `fit` adds over a model leaving `rss_before` with `k_before` parameters.
+fn evidence(rss_before: f64, k_before: usize, fit: &Fit, n_eff: f64) -> f64 {
+    let used = fit.evaluation.registered.used;
+    bic(rss_before, used, n_eff, k_before)
+        - bic(fit.evaluation.rss(), used, n_eff, fit.values.len())
+}
+
 /// Whether member `member`'s parameters stand 3σ clear of zero together.
 fn significant(fit: &Fit, member: usize) -> bool {
     let (values, sigmas) = fit.values_of(member);
-    let z2: f64 = values.iter().zip(sigmas).map(|(v, s)| (v / s).powi(2)).sum();
+    let z2: f64 = values
+        .iter()
+        .zip(sigmas)
+        .map(|(v, s)| (v / s).powi(2))
+        .sum();
     z2.sqrt() > 3.0
 }
 
 fn labels(set: &[Candidate]) -> String {
-    set.iter().map(Candidate::label).collect::<Vec<_>>().join(" + ")
+    set.iter()
+        .map(Candidate::label)
+        .collect::<Vec<_>>()
+        .join(" + ")
 }
 
 /// Harmonic orders to screen for edge waviness: from half a cycle over the edge angles
@@ -388,7 +514,9 @@ fn waviness_orders(job: &Job, m: &Measurement) -> Vec<f64> {
     let (lo, hi) = match turning.path.mode() {
         crate::process::TurningMode::Xz => {
             let samples = (0..=64).map(|i| slope_angle(r_max * i as f64 / 64.0));
-            let (a, b) = samples.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+            let (a, b) = samples.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            });
             // A line through the axis meets both sides: the edge angle changes sign.
             if m.xy_mm.iter().any(|p| p.x < 0.0) || m.is_line() {
                 (-(a.abs().max(b.abs())), a.abs().max(b.abs()))
@@ -404,7 +532,9 @@ fn waviness_orders(job: &Job, m: &Measurement) -> Vec<f64> {
     if k_max <= k_min {
         return Vec::new();
     }
-    let step = (0.5 * std::f64::consts::PI / span).max((k_max - k_min) / 40.0);
+    // A quarter cycle of phase across the range between neighbours, at most 30 orders
+    // (the refinement between neighbours recovers what a coarser grid misses).
+    let step = (0.5 * std::f64::consts::PI / span).max((k_max - k_min) / 30.0);
     let count = ((k_max - k_min) / step).floor() as usize + 1;
     (0..count).map(|i| k_min + i as f64 * step).collect()
 }
@@ -419,19 +549,31 @@ fn mark_period_mm(job: &Job, m: &Measurement) -> f64 {
         .min(m.extent_mm() / 8.0)
 }
 
-/// The nominal registration's search: a few per cent of the extent, scanned at a
-/// quarter period (coarser on maps, whose scan is two-dimensional).
+/// The nominal registration's search: a few per cent of the extent, scanned at an
+/// eighth of the mark period (coarser on maps, whose scan is two-dimensional).
 fn wide_search(m: &Measurement, period: f64) -> ShiftSearch {
     let half = 0.8 * SHIFT_ROOM * m.extent_mm();
     let step = if m.is_line() {
-        (0.25 * period).max(half / 200.0)
+        (0.125 * period).max(half / 400.0)
     } else {
-        (0.25 * period).max(half / 12.0)
+        (0.125 * period).max(half / 12.0)
     };
     ShiftSearch {
         start: DVec2::ZERO,
         half_width_mm: half,
         step_mm: step,
+        refine: 3,
+    }
+}
+
+/// A fit's search for the axis: within half a mark period of where the last
+/// registration put it.
+fn local_search(start: DVec2, period: f64) -> ShiftSearch {
+    ShiftSearch {
+        start,
+        half_width_mm: 0.5 * period,
+        step_mm: 0.125 * period,
+        refine: 1,
     }
 }
 
@@ -464,11 +606,20 @@ fn check_coverage(job: &Job, m: &Measurement) -> Result<Measurement, DiagnoseErr
 }
 
 /// Splits into the fitted part and the held-out rest.
-fn split(m: &Measurement, range: Option<(f64, f64)>) -> Result<(Measurement, Option<Measurement>), DiagnoseError> {
+fn split(
+    m: &Measurement,
+    range: Option<(f64, f64)>,
+) -> Result<(Measurement, Option<Measurement>), DiagnoseError> {
     let Some((from, to)) = range else {
         return Ok((m.clone(), None));
     };
-    let position = |i: usize| if m.is_line() { m.along_mm[i] } else { m.xy_mm[i].x };
+    let position = |i: usize| {
+        if m.is_line() {
+            m.along_mm[i]
+        } else {
+            m.xy_mm[i].x
+        }
+    };
     let fitted = m.subset(|i| (from..=to).contains(&position(i)));
     let held = m.subset(|i| !(from..=to).contains(&position(i)));
     if fitted.len() < 16 || held.len() < 16 {
@@ -482,7 +633,13 @@ fn split(m: &Measurement, range: Option<(f64, f64)>) -> Result<(Measurement, Opt
 }
 
 /// Whether the measurement can be this job's part at all: its marks, its form.
-fn fit_check(m: &Measurement, nominal: &Registered, job: &Job, terms: Terms, period: f64) -> FitCheck {
+fn fit_check(
+    m: &Measurement,
+    nominal: &Registered,
+    job: &Job,
+    terms: Terms,
+    period: f64,
+) -> FitCheck {
     let mut findings = Vec::new();
     let measured: Vec<f64> = m.height_mm.clone();
     let model = &nominal.model_mm;
@@ -498,7 +655,10 @@ fn fit_check(m: &Measurement, nominal: &Registered, job: &Job, terms: Terms, per
     let smooth = |values: &[f64]| gaussian_lowpass(m, values, 5.0 * period);
     let detrend = |values: &[f64]| -> Vec<f64> {
         let zero = vec![0.0; values.len()];
-        let flat = Measurement { height_mm: values.to_vec(), ..m.clone() };
+        let flat = Measurement {
+            height_mm: values.to_vec(),
+            ..m.clone()
+        };
         register::fit_linear(&flat, &zero, nominal.shift_mm, terms.power).residual_mm
     };
     let form_rms = rms(&smooth(&detrend(model)));
@@ -506,31 +666,52 @@ fn fit_check(m: &Measurement, nominal: &Registered, job: &Job, terms: Terms, per
     let measured_smooth_rms = rms(&smooth(&detrend(&measured)));
     let residual_rms = rms(&smooth(&nominal.residual_mm));
     let (mut mark_measured_um, mut mark_simulated_um) = (None, None);
-    if m.is_line() && job.process.pass_spacing_mm().is_some() && m.extent_mm() > 6.0 * period {
+    if m.is_line() && job.process.pass_spacing_mm().is_some() && m.extent_mm() > 30.0 * period {
         let high_pass = |values: &[f64]| -> Vec<f64> {
             let low = gaussian_lowpass(m, values, 5.0 * period);
             values.iter().zip(&low).map(|(v, l)| v - l).collect()
         };
         let (hm, hs) = (high_pass(&measured), high_pass(model));
-        let finite: Vec<usize> = (0..m.len()).filter(|&i| hm[i].is_finite() && hs[i].is_finite()).collect();
+        // Away from the ends, where the filter sees one side only.
+        let (lo, hi) = m
+            .along_mm
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
+        // Away from the centre too, where setup errors leave a feature of any width.
+        let margin = 10.0 * period;
+        let central = (20.0 * period).min(0.25 * m.max_radius_mm());
+        let finite: Vec<usize> = (0..m.len())
+            .filter(|&i| hm[i].is_finite() && hs[i].is_finite())
+            .filter(|&i| m.along_mm[i] > lo + margin && m.along_mm[i] < hi - margin)
+            .filter(|&i| (m.xy_mm[i] - nominal.shift_mm).length() > central)
+            .collect();
         let pick = |v: &[f64]| finite.iter().map(|&i| v[i]).collect::<Vec<f64>>();
         let x = pick(&m.along_mm);
-        let (pm, ps) = (profile_stats(&x, &pick(&hm), 0), profile_stats(&x, &pick(&hs), 0));
-        if ps.rms_nm > 0.5 && pm.rms_nm > 0.5 {
-            mark_measured_um = Some(pm.dominant_period_um);
-            mark_simulated_um = Some(ps.dominant_period_um);
-            let ratio = pm.dominant_period_um / ps.dominant_period_um;
-            if !(0.75..=1.33).contains(&ratio) {
+        let (ym, ys) = (pick(&hm), pick(&hs));
+        // Looked for within a factor 3 of the process's own spacing: a lateral unit
+        // error moves the marks out of that band altogether.
+        let band = |y: &[f64]| dominant_period_mm(&x, y, period / 3.0, 3.0 * period);
+        let (rms_m, rms_s) = (rms(&ym) * 1e6, rms(&ys) * 1e6);
+        if let (Some(pm), Some(ps)) = (band(&ym), band(&ys))
+            && rms_s > 0.5
+            && x.len() > 16
+        {
+            mark_measured_um = Some(pm * 1e3);
+            mark_simulated_um = Some(ps * 1e3);
+            let ratio = pm / ps;
+            if !(0.8..=1.25).contains(&ratio) {
                 findings.push(Finding::severe(format!(
                     "the measured tool marks are {:.2} µm apart, the simulated {:.2} µm: not this feed, or the lateral unit is wrong",
-                    pm.dominant_period_um, ps.dominant_period_um
+                    pm * 1e3,
+                    ps * 1e3
                 )));
             }
-            let amplitude = pm.rms_nm / ps.rms_nm;
+            let amplitude = rms_m / rms_s;
             if !(1.0 / 30.0..=30.0).contains(&amplitude) {
                 findings.push(Finding::severe(format!(
-                    "the measured tool marks are {amplitude:.3}× as high as the simulated ({:.1} nm against {:.1} nm RMS): the height unit is wrong, or this is another process",
-                    pm.rms_nm, ps.rms_nm
+                    "the measured tool marks are {amplitude:.3}× as high as the simulated ({rms_m:.1} nm against {rms_s:.1} nm RMS): the height unit is wrong, or this is another process"
                 )));
             }
         }
@@ -541,6 +722,23 @@ fn fit_check(m: &Measurement, nominal: &Registered, job: &Job, terms: Terms, per
     } else {
         " — if the file's form was removed before export, diagnose with --remove power"
     };
+    if let Some(marks) = job.process.pass_spacing_mm().filter(|s| *s > 0.0)
+        && m.extent_mm() < 2.0 * marks
+    {
+        findings.push(Finding::severe(format!(
+            "the measurement spans {:.3} µm, less than two tool marks ({:.2} µm apart): the lateral unit is wrong, or the region is too small to diagnose",
+            m.extent_mm() * 1e3,
+            marks * 1e3
+        )));
+    }
+    // Setup errors leave micrometres at most on these parts; tens of micrometres of
+    // smooth residual is another part or a unit error.
+    if residual_rms > 5e-3 {
+        findings.push(Finding::severe(format!(
+            "the measured form departs from the simulated part's by {:.1} µm RMS: another part, or heights in the wrong unit",
+            residual_rms * 1e3
+        )));
+    }
     // Judged only where the part has a form to follow (well above the noise).
     if form_rms > 5.0 * noise.max(1e-7) {
         if measured_smooth_rms > 30.0 * form_rms {
@@ -622,7 +820,13 @@ fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<Strin
             .residual_mm
             .iter()
             .zip(&baseline.residual_mm)
-            .map(|(a, b)| if a.is_finite() && b.is_finite() { b - a } else { 0.0 })
+            .map(|(a, b)| {
+                if a.is_finite() && b.is_finite() {
+                    b - a
+                } else {
+                    0.0
+                }
+            })
             .collect()
     };
     let reference = change(best);
@@ -631,9 +835,15 @@ fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<Strin
         .iter()
         .filter(|(f, evidence)| {
             let other = change(f);
-            let cos = reference.iter().zip(&other).map(|(a, b)| a * b).sum::<f64>()
+            let cos = reference
+                .iter()
+                .zip(&other)
+                .map(|(a, b)| a * b)
+                .sum::<f64>()
                 / (norm(&reference) * norm(&other)).max(1e-300);
-            *best_evidence > 0.0 && (best_evidence - evidence).abs() < 0.02 * best_evidence.abs() + 2.0 && cos > 0.98
+            *best_evidence > 0.0
+                && (best_evidence - evidence).abs() < 0.02 * best_evidence.abs() + 2.0
+                && cos > 0.98
         })
         .map(|(f, _)| f.set[0].label())
         .collect()
@@ -663,7 +873,13 @@ fn judge_held_out(
         }
         None => before.clone(),
     };
-    let position = |i: usize| if held.is_line() { held.along_mm[i] } else { held.xy_mm[i].x };
+    let position = |i: usize| {
+        if held.is_line() {
+            held.along_mm[i]
+        } else {
+            held.xy_mm[i].x
+        }
+    };
     let (from, to) = (0..held.len()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), i| {
         (a.min(position(i)), b.max(position(i)))
     });
@@ -733,7 +949,10 @@ fn verdict(
             .collect();
         return Verdict {
             status: "does_not_fit".into(),
-            sentence: format!("The measurement does not fit this job, so no effect is claimed: {}.", why.join("; ")),
+            sentence: format!(
+                "The measurement does not fit this job, so no effect is claimed: {}.",
+                why.join("; ")
+            ),
             advice: vec!["check the units, the part and the job before diagnosing".into()],
         };
     }
@@ -750,7 +969,11 @@ fn verdict(
                 })
                 .collect();
             let mut sentence = capitalise(&parts.join("; "));
-            let which = if f.set.len() == 1 { "correcting it" } else { "correcting them" };
+            let which = if f.set.len() == 1 {
+                "correcting it"
+            } else {
+                "correcting them"
+            };
             sentence.push_str(&format!("; {which} cuts the residual {shrink}."));
             if !alternatives.is_empty() {
                 sentence.push_str(&format!(
@@ -767,7 +990,9 @@ fn verdict(
             Verdict {
                 status: "effects_found".into(),
                 sentence,
-                advice: (0..f.set.len()).map(|i| f.set[i].advice(f.values_of(i).0)).collect(),
+                advice: (0..f.set.len())
+                    .map(|i| f.set[i].advice(f.values_of(i).0))
+                    .collect(),
             }
         }
         None => {
@@ -786,12 +1011,16 @@ fn verdict(
                     .zones
                     .iter()
                     .max_by(|a, b| a.share.total_cmp(&b.share))
-                    .map_or(String::new(), |z| format!("; most of it in the {} ({:.0} %)", z.name, 100.0 * z.share));
+                    .map_or(String::new(), |z| {
+                        format!("; most of it in the {} ({:.0} %)", z.name, 100.0 * z.share)
+                    });
                 let band = before
                     .bands
                     .iter()
                     .max_by(|a, b| a.share.total_cmp(&b.share))
-                    .map_or(String::new(), |b| format!(" and the {} band ({:.0} %)", b.name, 100.0 * b.share));
+                    .map_or(String::new(), |b| {
+                        format!(" and the {} band ({:.0} %)", b.name, 100.0 * b.share)
+                    });
                 Verdict {
                     status: "unexplained_residual".into(),
                     sentence: format!(

@@ -27,6 +27,8 @@ pub struct ShiftSearch {
     pub start: DVec2,
     pub half_width_mm: f64,
     pub step_mm: f64,
+    /// How many of the scan's lowest local minima are refined.
+    pub refine: usize,
 }
 
 /// What registration removed, in report units.
@@ -74,51 +76,111 @@ pub fn register(
     // A subsample keeps the scan cheap on large maps.
     let stride = (m.len() / 4000).max(1);
     let coarse = m.subset(|i| i % stride == 0);
-    let rss_at = |points: &Measurement, shift: DVec2| {
+    // The axis is judged on the bulk of the points: the worst 5 % (an unmodelled local
+    // feature, spikes) do not steer it.
+    let objective = |points: &Measurement, shift: DVec2| {
         let r = fit_linear(points, &sim.sample(points, shift), shift, terms.power);
-        if r.used < points.len() / 2 { f64::INFINITY } else { r.rss / r.used as f64 }
+        if r.used < points.len() / 2 {
+            return f64::INFINITY;
+        }
+        trimmed_mean_square(&r.residual_mm, 0.95)
     };
     let steps = (search.half_width_mm / search.step_mm).ceil().max(1.0) as i64;
-    let offsets: Vec<f64> = (-steps..=steps).map(|k| k as f64 * search.step_mm).collect();
-    let mut best = (f64::INFINITY, search.start);
-    match direction {
+    let offsets: Vec<f64> = (-steps..=steps)
+        .map(|k| k as f64 * search.step_mm)
+        .collect();
+    let width = search.step_mm;
+    let best = match direction {
         Some(d) => {
-            for &a in &offsets {
-                let shift = search.start + a * d;
-                let value = rss_at(&coarse, shift);
-                if value < best.0 {
-                    best = (value, shift);
-                }
-            }
-            let centre = best.1;
-            let along = |a: f64| rss_at(m, centre + a * d);
-            let a = golden_section(&along, -search.step_mm, search.step_mm, 24);
-            best.1 = centre + a * d;
+            let values: Vec<f64> = offsets
+                .iter()
+                .map(|&a| objective(&coarse, search.start + a * d))
+                .collect();
+            local_minima(&values, search.refine)
+                .into_iter()
+                .map(|k| {
+                    let centre = search.start + offsets[k] * d;
+                    let along = |a: f64| objective(m, centre + a * d);
+                    let a = golden_section(&along, -width, width, 24);
+                    (along(a), centre + a * d)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
         }
         None => {
-            for &ax in &offsets {
-                for &ay in &offsets {
-                    let shift = search.start + DVec2::new(ax, ay);
-                    let value = rss_at(&coarse, shift);
-                    if value < best.0 {
-                        best = (value, shift);
+            let n = offsets.len();
+            let values: Vec<f64> = (0..n * n)
+                .map(|k| {
+                    objective(
+                        &coarse,
+                        search.start + DVec2::new(offsets[k % n], offsets[k / n]),
+                    )
+                })
+                .collect();
+            // Local minima on the grid: no lower value among the four neighbours.
+            let mut minima: Vec<usize> = (0..n * n)
+                .filter(|&k| {
+                    let (i, j) = ((k % n) as i64, (k / n) as i64);
+                    [(-1, 0), (1, 0), (0, -1), (0, 1)].iter().all(|(di, dj)| {
+                        let (a, b) = (i + di, j + dj);
+                        a < 0
+                            || b < 0
+                            || a >= n as i64
+                            || b >= n as i64
+                            || values[(b as usize) * n + a as usize] >= values[k]
+                    })
+                })
+                .collect();
+            minima.sort_by(|a, b| values[*a].total_cmp(&values[*b]));
+            minima
+                .into_iter()
+                .take(search.refine)
+                .map(|k| {
+                    // Alternate refinements along X and Y.
+                    let mut at = search.start + DVec2::new(offsets[k % n], offsets[k / n]);
+                    let mut w = width;
+                    for _ in 0..3 {
+                        at.x +=
+                            golden_section(&|a| objective(m, at + DVec2::new(a, 0.0)), -w, w, 20);
+                        at.y +=
+                            golden_section(&|a| objective(m, at + DVec2::new(0.0, a)), -w, w, 20);
+                        w *= 0.5;
                     }
-                }
-            }
-            // Alternate refinements along X and Y.
-            let mut at = best.1;
-            let mut width = search.step_mm;
-            for _ in 0..3 {
-                let x = golden_section(&|a| rss_at(m, at + DVec2::new(a, 0.0)), -width, width, 20);
-                at.x += x;
-                let y = golden_section(&|a| rss_at(m, at + DVec2::new(0.0, a)), -width, width, 20);
-                at.y += y;
-                width *= 0.5;
-            }
-            best.1 = at;
+                    (objective(m, at), at)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
         }
+    };
+    let shift = best.map_or(search.start, |b| b.1);
+    fit_linear(m, &sim.sample(m, shift), shift, terms.power)
+}
+
+/// Mean of the smallest `keep` share of the squared finite values.
+fn trimmed_mean_square(values: &[f64], keep: f64) -> f64 {
+    let mut squares: Vec<f64> = values
+        .iter()
+        .filter(|v| v.is_finite())
+        .map(|v| v * v)
+        .collect();
+    if squares.is_empty() {
+        return f64::INFINITY;
     }
-    fit_linear(m, &sim.sample(m, best.1), best.1, terms.power)
+    let count = ((squares.len() as f64 * keep) as usize).clamp(1, squares.len());
+    squares.select_nth_unstable_by(count - 1, f64::total_cmp);
+    squares[..count].iter().sum::<f64>() / count as f64
+}
+
+/// Indices of up to `count` lowest local minima of a sequence (ends count when lower
+/// than their one neighbour).
+fn local_minima(values: &[f64], count: usize) -> Vec<usize> {
+    let n = values.len();
+    let mut minima: Vec<usize> = (0..n)
+        .filter(|&k| {
+            (k == 0 || values[k - 1] >= values[k]) && (k + 1 == n || values[k + 1] >= values[k])
+        })
+        .collect();
+    minima.sort_by(|a, b| values[*a].total_cmp(&values[*b]));
+    minima.truncate(count);
+    minima
 }
 
 /// Least-squares piston, tilt (and power) of measured − simulated at a fixed shift,
@@ -172,7 +234,11 @@ pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool)
     // mm/mm are 1e6 µrad.
     let piston = coefficients[0]
         - coefficients[1] * centre[0]
-        - if raster { coefficients[2] * centre[1] } else { 0.0 };
+        - if raster {
+            coefficients[2] * centre[1]
+        } else {
+            0.0
+        };
     let tilt_urad = [
         coefficients[1] * 1e6,
         if raster { coefficients[2] * 1e6 } else { 0.0 },

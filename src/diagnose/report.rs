@@ -73,7 +73,12 @@ pub struct MeasurementInfo {
 }
 
 impl MeasurementInfo {
-    pub fn of(on_part: &Measurement, all: &Measurement, fitted: &Measurement, held: Option<&Measurement>) -> Self {
+    pub fn of(
+        on_part: &Measurement,
+        all: &Measurement,
+        fitted: &Measurement,
+        held: Option<&Measurement>,
+    ) -> Self {
         Self {
             shape: if all.is_line() { "profile" } else { "map" }.into(),
             points_in_file: all.total_points,
@@ -113,11 +118,17 @@ pub struct Finding {
 
 impl Finding {
     pub fn severe(message: String) -> Self {
-        Self { severity: "severe", message }
+        Self {
+            severity: "severe",
+            message,
+        }
     }
 
     pub fn note(message: String) -> Self {
-        Self { severity: "note", message }
+        Self {
+            severity: "note",
+            message,
+        }
     }
 }
 
@@ -231,7 +242,10 @@ pub fn write_outputs(dir: &Path, outcome: &Outcome) -> io::Result<Vec<PathBuf>> 
     put("diagnosis.json", json.as_bytes())?;
     put("effects.toml", outcome.effects_fragment.as_bytes())?;
     let images = write_images(dir, outcome)?;
-    put("report.md", markdown(&outcome.diagnosis, &images).as_bytes())?;
+    put(
+        "report.md",
+        markdown(&outcome.diagnosis, &images).as_bytes(),
+    )?;
     written.extend(images.into_iter().map(|(_, p)| p));
     Ok(written)
 }
@@ -256,8 +270,18 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
                     x_label: "position along the line from the axis (mm)",
                     y_label: "residual (nm)",
                     series: &[
-                        Series { label: "job as given", x, y: &before, colour: PALETTE[1] },
-                        Series { label: "with the fitted effects", x, y: &after, colour: PALETTE[0] },
+                        Series {
+                            label: "job as given",
+                            x,
+                            y: &before,
+                            colour: PALETTE[1],
+                        },
+                        Series {
+                            label: "with the fitted effects",
+                            x,
+                            y: &after,
+                            colour: PALETTE[0],
+                        },
                     ],
                 },
             )?;
@@ -280,9 +304,24 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
                     x_label: "position along the line from the axis (mm)",
                     y_label: "height (nm)",
                     series: &[
-                        Series { label: "measured", x, y: &measured, colour: PALETTE[2] },
-                        Series { label: "job as given", x, y: &model0, colour: PALETTE[1] },
-                        Series { label: "with the fitted effects", x, y: &model1, colour: PALETTE[0] },
+                        Series {
+                            label: "measured",
+                            x,
+                            y: &measured,
+                            colour: PALETTE[2],
+                        },
+                        Series {
+                            label: "job as given",
+                            x,
+                            y: &model0,
+                            colour: PALETTE[1],
+                        },
+                        Series {
+                            label: "with the fitted effects",
+                            x,
+                            y: &model1,
+                            colour: PALETTE[0],
+                        },
                     ],
                 },
             )?;
@@ -295,7 +334,9 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
                 .enumerate()
                 .map(|(z, (name, _, _))| {
                     let pick = |v: &[f64]| -> Vec<f64> {
-                        (0..m.len()).map(|i| if o.zone[i] == z { v[i] } else { f64::NAN }).collect()
+                        (0..m.len())
+                            .map(|i| if o.zone[i] == z { v[i] } else { f64::NAN })
+                            .collect()
                     };
                     (name.clone(), x.clone(), pick(&before))
                 })
@@ -342,7 +383,10 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
             let mut attributes = BTreeMap::new();
             attributes.insert("pixel_x_mm".into(), format!("{}", pixel_mm[0]));
             attributes.insert("pixel_y_mm".into(), format!("{}", pixel_mm[1]));
-            attributes.insert("units".into(), "residuals in nm; zone = index into diagnosis.json zones".into());
+            attributes.insert(
+                "units".into(),
+                "residuals in nm; zone = index into diagnosis.json zones".into(),
+            );
             let path = dir.join("residual.exr");
             write_exr(
                 &path,
@@ -357,11 +401,22 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
                     attributes,
                 },
             )?;
-            images.push(("Residual maps (EXR: residual_before_nm, residual_after_nm, zone)".into(), path));
+            images.push((
+                "Residual maps (EXR: residual_before_nm, residual_after_nm, zone)".into(),
+                path,
+            ));
             let limit = symmetric_limit(&before);
             for (name, values, title) in [
-                ("residual_before.png", &before, "residual against the job as given"),
-                ("residual_after.png", &after, "residual with the fitted effects"),
+                (
+                    "residual_before.png",
+                    &before,
+                    "residual against the job as given",
+                ),
+                (
+                    "residual_after.png",
+                    &after,
+                    "residual with the fitted effects",
+                ),
             ] {
                 let valid: Vec<bool> = values.iter().map(|v| v.is_finite()).collect();
                 let footer = format!(
@@ -411,7 +466,11 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
 
 /// ±(99th percentile of |v|), at least 1 nm.
 fn symmetric_limit(values: &[f32]) -> f32 {
-    let mut a: Vec<f32> = values.iter().filter(|v| v.is_finite()).map(|v| v.abs()).collect();
+    let mut a: Vec<f32> = values
+        .iter()
+        .filter(|v| v.is_finite())
+        .map(|v| v.abs())
+        .collect();
     if a.is_empty() {
         return 1.0;
     }
@@ -422,7 +481,11 @@ fn symmetric_limit(values: &[f32]) -> f32 {
 /// The readable report: the verdict first, then the tables and images.
 pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
     let mut s = String::new();
-    let file = if d.measurement.file.is_empty() { "the measurement" } else { &d.measurement.file };
+    let file = if d.measurement.file.is_empty() {
+        "the measurement"
+    } else {
+        &d.measurement.file
+    };
     s += &format!("# Diagnosis: {} against {}\n\n", d.job.name, file);
     s += &format!("**{}**\n\n", d.verdict.sentence);
     if !d.verdict.advice.is_empty() {
@@ -434,7 +497,11 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
     }
     if !d.shrinkage.is_empty() {
         s += "## How far the residual shrinks\n\n| model | PV (nm) | RMS (nm) |";
-        let zone_names: Vec<&str> = d.shrinkage[0].zones.iter().map(|z| z.name.as_str()).collect();
+        let zone_names: Vec<&str> = d.shrinkage[0]
+            .zones
+            .iter()
+            .map(|z| z.name.as_str())
+            .collect();
         for z in &zone_names {
             s += &format!(" {z} RMS (nm) |");
         }
@@ -442,7 +509,10 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
         s += &"---|".repeat(zone_names.len());
         s += "\n";
         for step in &d.shrinkage {
-            s += &format!("| {} | {:.1} | {:.2} |", step.model, step.pv_nm, step.rms_nm);
+            s += &format!(
+                "| {} | {:.1} | {:.2} |",
+                step.model, step.pv_nm, step.rms_nm
+            );
             for z in &step.zones {
                 s += &format!(" {:.2} |", z.rms_nm);
             }
@@ -453,7 +523,13 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
     if let Some(h) = &d.held_out {
         s += &format!(
             "Held out from the fit: {} points at {:.4}–{:.4} mm. Residual {:.1} nm PV / {:.2} nm RMS against the job as given, {:.1} nm PV / {:.2} nm RMS with the fitted effects.\n\n",
-            h.points, h.from_mm, h.to_mm, h.before_pv_nm, h.before_rms_nm, h.after_pv_nm, h.after_rms_nm
+            h.points,
+            h.from_mm,
+            h.to_mm,
+            h.before_pv_nm,
+            h.before_rms_nm,
+            h.after_pv_nm,
+            h.after_rms_nm
         );
     }
     if !d.candidates.is_empty() {
@@ -477,7 +553,10 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
         s += "\nΔBIC is the evidence an effect adds (BIC on the effective number of independent points); above 10 is very strong. Only effects above the threshold that stand 3σ clear of zero are accepted.\n\n";
     }
     if !d.indistinguishable.is_empty() {
-        s += &format!("The data cannot tell the first candidate from: {}.\n\n", d.indistinguishable.join(", "));
+        s += &format!(
+            "The data cannot tell the first candidate from: {}.\n\n",
+            d.indistinguishable.join(", ")
+        );
     }
     for n in &d.not_diagnosable {
         s += &format!("Not fitted: `{}` — {}.\n\n", n.effect, n.reason);
@@ -486,13 +565,30 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
     for z in &d.residual_before.zones {
         s += &format!(
             "| {} | {:.4}–{:.4} | {} | {:.1} | {:.2} | {:.1} % |\n",
-            z.name, z.from_mm, z.to_mm, z.points, z.pv_nm, z.rms_nm, 100.0 * z.share
+            z.name,
+            z.from_mm,
+            z.to_mm,
+            z.points,
+            z.pv_nm,
+            z.rms_nm,
+            100.0 * z.share
         );
     }
     s += "\n| band | wavelengths (µm) | RMS (nm) | share |\n|---|---|---|---|\n";
     for b in &d.residual_before.bands {
-        let to = if b.to_mm.is_finite() { format!("{:.1}", b.to_mm * 1e3) } else { "∞".into() };
-        s += &format!("| {} | {:.1}–{} | {:.2} | {:.1} % |\n", b.name, b.from_mm * 1e3, to, b.rms_nm, 100.0 * b.share);
+        let to = if b.to_mm.is_finite() {
+            format!("{:.1}", b.to_mm * 1e3)
+        } else {
+            "∞".into()
+        };
+        s += &format!(
+            "| {} | {:.1}–{} | {:.2} | {:.1} % |\n",
+            b.name,
+            b.from_mm * 1e3,
+            to,
+            b.rms_nm,
+            100.0 * b.share
+        );
     }
     if !d.residual_before.azimuthal_orders.is_empty() {
         s += "\n| azimuthal order | share |\n|---|---|\n";
@@ -514,7 +610,9 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
         r.nominal.piston_nm,
         r.nominal.tilt_urad[0],
         r.nominal.tilt_urad[1],
-        r.nominal.power_nm_per_mm2.map_or(String::new(), |p| format!(", power {p:.2} nm/mm²")),
+        r.nominal
+            .power_nm_per_mm2
+            .map_or(String::new(), |p| format!(", power {p:.2} nm/mm²")),
         r.nominal.axis_at_um[0],
         r.nominal.axis_at_um[1],
         r.fitted.axis_at_um[0],
@@ -523,7 +621,16 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
     let m = &d.measurement;
     s += &format!(
         "## Measurement\n\n{} ({}): {} points, {} valid, {} on the part, {} fitted; extent {:.4} mm, spacing {:.3} µm; lateral unit {}, height unit {}.\n",
-        m.shape, m.format, m.points_in_file, m.valid_points, m.points_on_part, m.points_fitted, m.extent_mm, m.spacing_um, m.lateral_unit, m.height_unit
+        m.shape,
+        m.format,
+        m.points_in_file,
+        m.valid_points,
+        m.points_on_part,
+        m.points_fitted,
+        m.extent_mm,
+        m.spacing_um,
+        m.lateral_unit,
+        m.height_unit
     );
     for n in &m.notes {
         s += &format!("- {n}\n");
@@ -533,7 +640,9 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
     }
     s += "\n## Images\n\n";
     for (title, path) in images {
-        let name = path.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned());
+        let name = path
+            .file_name()
+            .map_or(String::new(), |n| n.to_string_lossy().into_owned());
         if name.ends_with(".png") {
             s += &format!("![{title}]({name})\n\n");
         } else {

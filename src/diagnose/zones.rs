@@ -52,7 +52,11 @@ impl Zones {
 
     /// Per zone statistics of `residual_mm` at `radii_mm` (NaN residuals skipped).
     pub fn stats(&self, radii_mm: &[f64], residual_mm: &[f64]) -> Vec<ZoneStats> {
-        let total: f64 = residual_mm.iter().filter(|v| v.is_finite()).map(|v| v * v).sum();
+        let total: f64 = residual_mm
+            .iter()
+            .filter(|v| v.is_finite())
+            .map(|v| v * v)
+            .sum();
         self.bounds
             .iter()
             .enumerate()
@@ -75,7 +79,9 @@ impl Zones {
 pub fn summary(name: &str, from_mm: f64, to_mm: f64, values_mm: &[f64]) -> ZoneStats {
     let (lo, hi) = values_mm
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
     let n = values_mm.len();
     ZoneStats {
         name: name.to_string(),
@@ -110,7 +116,9 @@ pub fn pv(values: &[f64]) -> f64 {
     let (lo, hi) = values
         .iter()
         .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
     if hi >= lo { hi - lo } else { 0.0 }
 }
 
@@ -142,7 +150,11 @@ pub fn bands(
         summary("form", form_cutoff_mm, f64::INFINITY, &form),
     ];
     for (stats, values) in out.iter_mut().zip([&marks, &waviness, &form]) {
-        stats.share = if total > 0.0 { energy(values) / total } else { 0.0 };
+        stats.share = if total > 0.0 {
+            energy(values) / total
+        } else {
+            0.0
+        };
     }
     out
 }
@@ -186,7 +198,13 @@ pub fn gaussian_lowpass(m: &Measurement, values: &[f64], cutoff_mm: f64) -> Vec<
             let (sum, norm) = raster_lowpass(&grid, nx, ny, pixel_mm, &weight, reach);
             m.index
                 .iter()
-                .map(|&k| if norm[k] > 0.0 { sum[k] / norm[k] } else { f64::NAN })
+                .map(|&k| {
+                    if norm[k] > 0.0 {
+                        sum[k] / norm[k]
+                    } else {
+                        f64::NAN
+                    }
+                })
                 .collect()
         }
     }
@@ -202,10 +220,20 @@ fn raster_lowpass(
     reach: f64,
 ) -> (Vec<f64>, Vec<f64>) {
     let pass = |sum_in: &[f64], norm_in: &[f64], along_x: bool| {
-        let (len, lines, pitch) = if along_x { (nx, ny, pixel_mm[0]) } else { (ny, nx, pixel_mm[1]) };
+        let (len, lines, pitch) = if along_x {
+            (nx, ny, pixel_mm[0])
+        } else {
+            (ny, nx, pixel_mm[1])
+        };
         let half = (reach / pitch).floor() as i64;
         let kernel: Vec<f64> = (-half..=half).map(|k| weight(k as f64 * pitch)).collect();
-        let at = |line: usize, k: usize| if along_x { line * nx + k } else { k * nx + line };
+        let at = |line: usize, k: usize| {
+            if along_x {
+                line * nx + k
+            } else {
+                k * nx + line
+            }
+        };
         let (mut sum, mut norm) = (vec![0.0; nx * ny], vec![0.0; nx * ny]);
         for line in 0..lines {
             for k in 0..len {
@@ -225,8 +253,14 @@ fn raster_lowpass(
         }
         (sum, norm)
     };
-    let sum0: Vec<f64> = grid.iter().map(|v| if v.is_finite() { *v } else { 0.0 }).collect();
-    let norm0: Vec<f64> = grid.iter().map(|v| if v.is_finite() { 1.0 } else { 0.0 }).collect();
+    let sum0: Vec<f64> = grid
+        .iter()
+        .map(|v| if v.is_finite() { *v } else { 0.0 })
+        .collect();
+    let norm0: Vec<f64> = grid
+        .iter()
+        .map(|v| if v.is_finite() { 1.0 } else { 0.0 })
+        .collect();
     let (sum1, norm1) = pass(&sum0, &norm0, true);
     pass(&sum1, &norm1, false)
 }
@@ -235,7 +269,11 @@ fn raster_lowpass(
 /// measurement's frame): per narrow annulus, a Fourier series to order 8 by least
 /// squares; order 0 is what is rotationally symmetric, 1 a decentre- or tilt-like
 /// structure, 2 astigmatism or a saddle; what no order up to 8 holds is "above 8".
-pub fn azimuthal_orders(m: &Measurement, residual_mm: &[f64], axis_mm: DVec2) -> Vec<(String, f64)> {
+pub fn azimuthal_orders(
+    m: &Measurement,
+    residual_mm: &[f64],
+    axis_mm: DVec2,
+) -> Vec<(String, f64)> {
     const MAX_ORDER: usize = 8;
     let points: Vec<(f64, f64, f64)> = (0..m.len())
         .filter(|&i| residual_mm[i].is_finite())
@@ -304,7 +342,13 @@ pub fn azimuthal_orders(m: &Measurement, residual_mm: &[f64], axis_mm: DVec2) ->
 /// (`along_x`) or columns.
 fn sequences(m: &Measurement, residual_mm: &[f64], along_x: bool) -> Vec<Vec<f64>> {
     match m.shape {
-        Shape::Line { .. } => vec![residual_mm.iter().copied().filter(|v| v.is_finite()).collect()],
+        Shape::Line { .. } => vec![
+            residual_mm
+                .iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .collect(),
+        ],
         Shape::Raster { nx, ny, .. } => {
             let mut grid = vec![f64::NAN; nx * ny];
             for (i, &k) in m.index.iter().enumerate() {
@@ -314,7 +358,13 @@ fn sequences(m: &Measurement, residual_mm: &[f64], along_x: bool) -> Vec<Vec<f64
             (0..lines)
                 .map(|l| {
                     (0..len)
-                        .map(|k| if along_x { grid[l * nx + k] } else { grid[k * nx + l] })
+                        .map(|k| {
+                            if along_x {
+                                grid[l * nx + k]
+                            } else {
+                                grid[k * nx + l]
+                            }
+                        })
                         .filter(|v| v.is_finite())
                         .collect()
                 })
@@ -328,7 +378,11 @@ fn sequences(m: &Measurement, residual_mm: &[f64], along_x: bool) -> Vec<Vec<f64
 pub fn white_noise_mm(m: &Measurement, residual_mm: &[f64]) -> f64 {
     let mut d: Vec<f64> = sequences(m, residual_mm, true)
         .iter()
-        .flat_map(|s| s.windows(3).map(|w| (w[0] - 2.0 * w[1] + w[2]).abs()).collect::<Vec<_>>())
+        .flat_map(|s| {
+            s.windows(3)
+                .map(|w| (w[0] - 2.0 * w[1] + w[2]).abs())
+                .collect::<Vec<_>>()
+        })
         .collect();
     if d.is_empty() {
         return 0.0;
@@ -349,7 +403,12 @@ pub fn correlation_length(m: &Measurement, residual_mm: &[f64]) -> f64 {
             return 1.0;
         }
         let mean = seqs.iter().flatten().sum::<f64>() / n as f64;
-        let var = seqs.iter().flatten().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64;
+        let var = seqs
+            .iter()
+            .flatten()
+            .map(|v| (v - mean).powi(2))
+            .sum::<f64>()
+            / n as f64;
         if var <= 0.0 {
             return 1.0;
         }
@@ -361,12 +420,16 @@ pub fn correlation_length(m: &Measurement, residual_mm: &[f64]) -> f64 {
                     count += 1;
                 }
             }
-            if count == 0 { 0.0 } else { s / count as f64 / var }
+            if count == 0 {
+                0.0
+            } else {
+                s / count as f64 / var
+            }
         };
         let max_lag = (seqs.iter().map(Vec::len).max().unwrap_or(0) / 4).max(2);
         let mut tau = 1.0;
         let mut lag = 1;
-        while lag + 1 <= max_lag {
+        while lag < max_lag {
             let pair = rho(lag) + rho(lag + 1);
             if pair <= 0.0 {
                 break;
@@ -444,13 +507,17 @@ mod tests {
         let mut state = 12345u64;
         let mut next = || {
             // Box–Muller on a 64-bit LCG: independent of the code under test.
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let u1 = ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let u2 = ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
             (-2.0 * u1.ln()).sqrt() * (TAU * u2).cos()
         };
-        let n = 20000;
+        let n: usize = 20000;
         let x: Vec<f64> = (0..n).map(|i| i as f64 * 1e-3).collect();
         let h: Vec<f64> = (0..n).map(|_| 2e-6 * next()).collect();
         let m = line(&x, &h);
@@ -470,13 +537,20 @@ mod tests {
     fn zones_split_the_energy_by_radius() {
         let x: Vec<f64> = (0..1000).map(|i| i as f64 * 1e-3).collect();
         // Residual 1 in the centre zone (r < 0.0999), 0 elsewhere.
-        let h: Vec<f64> = x.iter().map(|v| if *v < 0.05 { 1e-6 } else { 0.0 }).collect();
+        let h: Vec<f64> = x
+            .iter()
+            .map(|v| if *v < 0.05 { 1e-6 } else { 0.0 })
+            .collect();
         let m = line(&x, &h);
         let zones = Zones::new(m.max_radius_mm());
         let stats = zones.stats(&radii(&m, DVec2::ZERO), &h);
         assert_eq!(stats[0].name, "centre");
         assert!((stats[0].share - 1.0).abs() < 1e-12);
-        assert!((stats[0].rms_nm - (50f64 / 100.0).sqrt()).abs() < 1e-9, "{:?}", stats[0]);
+        assert!(
+            (stats[0].rms_nm - (50f64 / 100.0).sqrt()).abs() < 1e-9,
+            "{:?}",
+            stats[0]
+        );
     }
 
     #[test]
@@ -486,7 +560,11 @@ mod tests {
         let h: Vec<f64> = (0..nx * ny)
             .map(|k| {
                 let (x, y) = ((k % nx) as f64 - 40.0, (k / nx) as f64 - 40.0);
-                if x.hypot(y) <= 40.0 { 1e-6 * x * 0.01 } else { f64::NAN }
+                if x.hypot(y) <= 40.0 {
+                    1e-6 * x * 0.01
+                } else {
+                    f64::NAN
+                }
             })
             .collect();
         let m = Measurement::raster(
