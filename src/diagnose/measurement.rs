@@ -154,7 +154,8 @@ impl Measurement {
                     .filter(|d| *d > 0.0)
                     .collect();
                 steps.sort_by(f64::total_cmp);
-                steps.get(steps.len() / 2).copied().unwrap_or(0.0)
+                // The lower median: gaps left by invalid points do not count.
+                steps.get(steps.len().saturating_sub(1) / 2).copied().unwrap_or(0.0)
             }
             Shape::Raster { pixel_mm, .. } => pixel_mm[0].min(pixel_mm[1]),
         }
