@@ -1,5 +1,76 @@
 //! Small numerical tools shared across modules.
 
+/// 1/φ: the share of a golden-section bracket kept at each step.
+const INVERSE_PHI: f64 = 0.618_033_988_749_894_9;
+
+/// What a golden-section search leaves: the final bracket and its two inner points
+/// with their values (`inner[0].0 < inner[1].0`).
+#[derive(Debug, Clone, Copy)]
+pub struct GoldenBracket {
+    pub lo: f64,
+    pub hi: f64,
+    pub inner: [(f64, f64); 2],
+}
+
+impl GoldenBracket {
+    pub fn mid(&self) -> f64 {
+        0.5 * (self.lo + self.hi)
+    }
+
+    /// The lower of the two inner values.
+    pub fn lowest_value(&self) -> f64 {
+        self.inner[0].1.min(self.inner[1].1)
+    }
+}
+
+/// Golden-section search for the minimum of a unimodal `f` on [lo, hi]: `steps`
+/// shrinkings of the bracket by 1/φ, one new evaluation each (ties keep the lower
+/// side). The first error `f` returns ends the search.
+pub fn try_golden_section<E>(
+    mut f: impl FnMut(f64) -> Result<f64, E>,
+    lo: f64,
+    hi: f64,
+    steps: usize,
+) -> Result<GoldenBracket, E> {
+    let (mut a, mut b) = (lo, hi);
+    let mut c = b - INVERSE_PHI * (b - a);
+    let mut d = a + INVERSE_PHI * (b - a);
+    let (mut fc, mut fd) = (f(c)?, f(d)?);
+    for _ in 0..steps {
+        if fc <= fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - INVERSE_PHI * (b - a);
+            fc = f(c)?;
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + INVERSE_PHI * (b - a);
+            fd = f(d)?;
+        }
+    }
+    Ok(GoldenBracket {
+        lo: a,
+        hi: b,
+        inner: [(c, fc), (d, fd)],
+    })
+}
+
+/// [`try_golden_section`] for a function that cannot fail.
+pub fn golden_section(
+    mut f: impl FnMut(f64) -> f64,
+    lo: f64,
+    hi: f64,
+    steps: usize,
+) -> GoldenBracket {
+    match try_golden_section(|x| Ok::<f64, std::convert::Infallible>(f(x)), lo, hi, steps) {
+        Ok(bracket) => bracket,
+        Err(never) => match never {},
+    }
+}
+
 /// Least-squares solution of `A x ≈ y` for a tall `A` (rows × columns, row-major) by
 /// Householder QR, which stays accurate where the normal equations would square the
 /// condition number (polynomial bases). Returns `None` when A is rank-deficient.

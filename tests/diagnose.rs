@@ -13,27 +13,13 @@ use toolmark::engine::cpu::CpuEngine;
 use toolmark::io::job::Job;
 use toolmark::synth::{MeasurementModel, synthesize};
 
-/// The turned convex sphere R8, Ø3 mm, 10 µm/rev (the suite's turning base at 1 µm).
-const SPHERE: &str = r#"version = 1
-name = "diag sphere"
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 8.0
-aperture_diameter_mm = 3.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 140.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-stock_allowance_mm = 0.003
-[grid]
-pitch_um = 1.0
-azimuths = 8
-"#;
+/// The suite's turned sphere (R8 convex, Ø3 mm, 10 µm/rev) on a 1 µm grid (the suite
+/// uses 0.5 µm; these cases need no finer).
+fn sphere() -> String {
+    let base = withheld::TURNING_SPHERE.job;
+    assert!(base.contains("pitch_um = 0.5"));
+    base.replace("pitch_um = 0.5", "pitch_um = 1.0")
+}
 
 /// A stylus profile through the axis with a mount of known tilt, piston and offset.
 const PROFILE: &str = r#"kind = "profile"
@@ -97,8 +83,8 @@ fn accepted(outcome: &Outcome, effect: &str) -> Vec<(f64, f64)> {
 
 #[test]
 fn registration_reports_the_mount_it_removed_and_a_clean_part_shows_no_effect() {
-    let m = measure(SPHERE, "", &model(PROFILE));
-    let outcome = run(SPHERE, &m, &mut CpuEngine, &Options::default());
+    let m = measure(&sphere(), "", &model(PROFILE));
+    let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
     let d = &outcome.diagnosis;
     let reg = &d.registration.nominal;
     println!("registration: {reg:?}; verdict: {}", d.verdict.sentence);
@@ -152,8 +138,12 @@ fn single_turning_effects_are_ranked_first_sized_and_removed() {
             5.0,
         ),
     ] {
-        let m = measure(SPHERE, &format!("[[effects]]\n{table}\n"), &model(PROFILE));
-        let outcome = run(SPHERE, &m, &mut CpuEngine, &Options::default());
+        let m = measure(
+            &sphere(),
+            &format!("[[effects]]\n{table}\n"),
+            &model(PROFILE),
+        );
+        let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
         let d = &outcome.diagnosis;
         println!("{effect}: {}", d.verdict.sentence);
         assert_eq!(d.verdict.status, "effects_found");
@@ -175,28 +165,7 @@ fn single_turning_effects_are_ranked_first_sized_and_removed() {
 }
 
 /// The suite's generating base (seed 000's wheel on a concave R53.5).
-const GENERATED: &str = r#"version = 1
-name = "generated sphere"
-[surface]
-kind = "sphere"
-form = "concave"
-radius_mm = 53.5
-aperture_diameter_mm = 4.0
-[tool]
-kind = "cup_wheel"
-cutting_radius_mm = 10.0
-edge_radius_mm = 3.5
-[process]
-kind = "generating"
-plunge_axis = "z"
-tool_rpm = 3000.0
-workpiece_rpm = 10.0
-spark_out_revolutions = 2.0
-stock_allowance_mm = 0.01
-[grid]
-pitch_um = 2.0
-azimuths = 8
-"#;
+const GENERATED: &str = withheld::GENERATED_SPHERE.job;
 
 #[test]
 fn a_displaced_wheel_is_told_from_an_inclination_error_by_its_pip() {
@@ -220,26 +189,7 @@ fn a_displaced_wheel_is_told_from_an_inclination_error_by_its_pip() {
 }
 
 /// The suite's feed-mark base: a two-flute ball-end mill along X over a flat.
-const FEED_MARKS: &str = r#"version = 1
-name = "feed marks on a flat"
-[surface]
-kind = "plane"
-aperture_diameter_mm = 1.0
-[tool]
-kind = "ball_end"
-diameter_mm = 2.0
-teeth = 2
-[process]
-kind = "milling"
-path = "raster"
-stepover_mm = 0.1
-feed_per_tooth_mm = 0.02
-spindle_rpm = 20000.0
-stock_allowance_mm = 0.005
-[grid]
-pitch_um = 0.5
-azimuths = 8
-"#;
+const FEED_MARKS: &str = withheld::BALL_FEED_MARKS_FLAT.job;
 
 #[test]
 fn runout_is_sized_along_the_feed_and_its_unseen_component_is_said_so() {
@@ -295,8 +245,8 @@ fn refusal(result: Result<Outcome, DiagnoseError>) -> String {
 #[test]
 fn data_that_does_not_fit_the_job_is_refused_plainly() {
     let clean = model(PROFILE);
-    let m = measure(SPHERE, "", &clean);
-    let nominal = job(SPHERE);
+    let m = measure(&sphere(), "", &clean);
+    let nominal = job(&sphere());
     let try_it =
         |m: &Measurement| diagnose(&nominal, m, &mut CpuEngine, &Options::default(), &|_| {});
     let rescaled = |lateral: f64, height: f64| {
@@ -322,7 +272,7 @@ fn data_that_does_not_fit_the_job_is_refused_plainly() {
         "{reason}"
     );
     // Another part: the concave sphere of the same radius.
-    let other = measure(&SPHERE.replace("\"convex\"", "\"concave\""), "", &clean);
+    let other = measure(&sphere().replace("\"convex\"", "\"concave\""), "", &clean);
     let reason = refusal(try_it(&other));
     println!("another part: {reason}");
     // Empty: no valid point.
@@ -381,7 +331,7 @@ fn the_suite_is_diagnosed_without_its_truth_and_scored_after() {
 #[test]
 fn gpu_diagnosis_agrees_with_the_cpu_one() {
     let m = measure(
-        SPHERE,
+        &sphere(),
         "[[effects]]\nkind = \"x_decentre\"\noffset_mm = 0.004\n",
         &model(PROFILE),
     );
@@ -389,9 +339,9 @@ fn gpu_diagnosis_agrees_with_the_cpu_one() {
         only: vec!["x_decentre".into()],
         ..Options::default()
     };
-    let cpu = accepted(&run(SPHERE, &m, &mut CpuEngine, &options), "x_decentre")[0];
+    let cpu = accepted(&run(&sphere(), &m, &mut CpuEngine, &options), "x_decentre")[0];
     let mut gpu_engine = gpu_engine();
-    let gpu_outcome = run(SPHERE, &m, &mut gpu_engine, &options);
+    let gpu_outcome = run(&sphere(), &m, &mut gpu_engine, &options);
     let gpu = accepted(&gpu_outcome, "x_decentre")[0];
     println!(
         "x decentre: CPU {:.4} ± {:.4} µm, GPU {:.4} ± {:.4} µm",
@@ -411,13 +361,13 @@ fn gpu_diagnosis_agrees_with_the_cpu_one() {
 fn fitted_effects_change_the_job_as_the_fit_says() {
     // The fragment the diagnosis writes, added to the job, reproduces the fitted model.
     let m = measure(
-        SPHERE,
+        &sphere(),
         "[[effects]]\nkind = \"nose_radius_error\"\nerror_mm = 0.005\n",
         &model(PROFILE),
     );
-    let outcome = run(SPHERE, &m, &mut CpuEngine, &Options::default());
+    let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
     let fragment = &outcome.effects_fragment;
-    let with: Job = job(&format!("{SPHERE}\n{fragment}"));
+    let with: Job = job(&format!("{}\n{fragment}", sphere()));
     let toolmark::process::Process::Turning(t) = &with.process else {
         panic!("a turning job")
     };

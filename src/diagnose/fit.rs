@@ -11,7 +11,7 @@ use super::forward::{ForwardError, ForwardModel};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
 use super::zones::correlation_length;
-use crate::numeric::{invert, least_squares, solve_linear};
+use crate::numeric::{invert, least_squares, solve_linear, try_golden_section};
 use std::collections::HashMap;
 use std::rc::Rc;
 
@@ -273,27 +273,11 @@ impl<'a, 'e> Problem<'a, 'e> {
         let centre = best.1[j];
         let below = tried.iter().rev().find(|t| t.0 < centre).map(|t| t.0);
         let above = tried.iter().find(|t| t.0 > centre).map(|t| t.0);
-        if let (Some(mut a), Some(mut b)) = (below, above) {
-            let ratio = 0.5 * (5f64.sqrt() - 1.0);
-            let mut c = b - ratio * (b - a);
-            let mut d = a + ratio * (b - a);
-            let (mut fc, mut fd) = (at(self, c)?, at(self, d)?);
-            for _ in 0..GOLDEN_STEPS {
-                if fc.0 < fd.0 {
-                    b = d;
-                    d = c;
-                    fd = fc;
-                    c = b - ratio * (b - a);
-                    fc = at(self, c)?;
-                } else {
-                    a = c;
-                    c = d;
-                    fc = fd;
-                    d = a + ratio * (b - a);
-                    fd = at(self, d)?;
-                }
-            }
-            for candidate in [fc, fd] {
+        if let (Some(a), Some(b)) = (below, above) {
+            let bracket = try_golden_section(|v| at(self, v).map(|t| t.0), a, b, GOLDEN_STEPS)?;
+            // Re-evaluated for their values (the simulations are cached).
+            for (v, _) in bracket.inner {
+                let candidate = at(self, v)?;
                 if candidate.0 < best.0 {
                     best = candidate;
                 }
@@ -474,25 +458,22 @@ impl<'a, 'e> Problem<'a, 'e> {
             return Ok(None);
         };
         if orders.len() > 1 {
-            // Golden-section on the order between the grid neighbours.
+            // Golden-section on the order between the grid neighbours, keeping the best
+            // order evaluated (7 steps: 9 orders).
             let step = orders[1] - orders[0];
-            let ratio = 0.5 * (5f64.sqrt() - 1.0);
-            let (mut lo, mut hi) = ((best.1 - step).max(orders[0] * 0.5), best.1 + step);
-            for _ in 0..8 {
-                let (c, d) = (hi - ratio * (hi - lo), lo + ratio * (hi - lo));
-                let fc = self.waviness_at(base, base_values, c, amplitude_nm, &r0)?;
-                let fd = self.waviness_at(base, base_values, d, amplitude_nm, &r0)?;
-                for (order, f) in [(c, fc), (d, fd)] {
+            let (lo, hi) = ((best.1 - step).max(orders[0] * 0.5), best.1 + step);
+            try_golden_section(
+                |order| {
+                    let f = self.waviness_at(base, base_values, order, amplitude_nm, &r0)?;
                     if f.0 < best.0 {
                         best = (f.0, order, f.1, f.2);
                     }
-                }
-                if fc.0 <= fd.0 {
-                    hi = d;
-                } else {
-                    lo = c;
-                }
-            }
+                    Ok::<f64, ForwardError>(f.0)
+                },
+                lo,
+                hi,
+                7,
+            )?;
         }
         Ok(Some((best.1, best.2, best.3)))
     }

@@ -155,7 +155,10 @@ impl Measurement {
                     .collect();
                 steps.sort_by(f64::total_cmp);
                 // The lower median: gaps left by invalid points do not count.
-                steps.get(steps.len().saturating_sub(1) / 2).copied().unwrap_or(0.0)
+                steps
+                    .get(steps.len().saturating_sub(1) / 2)
+                    .copied()
+                    .unwrap_or(0.0)
             }
             Shape::Raster { pixel_mm, .. } => pixel_mm[0].min(pixel_mm[1]),
         }

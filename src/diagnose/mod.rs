@@ -178,16 +178,14 @@ pub fn diagnose(
                 }
             }
         }
-        if let Some(best) = (0..fits.len()).min_by(|&a, &b| {
-            fits[a]
-                .evaluation
-                .rss()
-                .total_cmp(&fits[b].evaluation.rss())
-        }) {
-            problem.shift = frames[best];
-        } else {
-            problem.shift = nominal_frame;
-        }
+        problem.shift = (0..fits.len())
+            .min_by(|&a, &b| {
+                fits[a]
+                    .evaluation
+                    .rss()
+                    .total_cmp(&fits[b].evaluation.rss())
+            })
+            .map_or(nominal_frame, |best| frames[best]);
         problem.clear_cache();
         let rss0 = problem.evaluate(&[], &[])?.rss();
         let n_eff = common_effective_points(&fits, &*problem.evaluate(&[], &[])?, &fitted);

@@ -260,30 +260,14 @@ pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool)
 
 /// Minimum of `f` on [lo, hi] by golden-section search (`steps` shrinkings).
 pub fn golden_section(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, steps: usize) -> f64 {
-    let ratio = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut a, mut b) = (lo, hi);
-    let mut c = b - ratio * (b - a);
-    let mut d = a + ratio * (b - a);
-    let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..steps {
-        if fc <= fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - ratio * (b - a);
-            fc = f(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + ratio * (b - a);
-            fd = f(d);
-        }
-    }
-    let mid = 0.5 * (a + b);
+    let bracket = crate::numeric::golden_section(f, lo, hi, steps);
     // The bracket's ends count too: the minimum may sit on the boundary.
-    [(f(lo), lo), (fc.min(fd), mid), (f(hi), hi)]
-        .into_iter()
-        .min_by(|x, y| x.0.total_cmp(&y.0))
-        .map_or(mid, |b| b.1)
+    [
+        (f(lo), lo),
+        (bracket.lowest_value(), bracket.mid()),
+        (f(hi), hi),
+    ]
+    .into_iter()
+    .min_by(|x, y| x.0.total_cmp(&y.0))
+    .map_or(bracket.mid(), |b| b.1)
 }

@@ -60,16 +60,16 @@ pub struct TruthEffect {
 }
 
 /// A base part: the public job and how it is measured.
-struct Base {
-    name: &'static str,
-    process: &'static str,
-    job: &'static str,
-    measurement: &'static str,
+pub struct Base {
+    pub name: &'static str,
+    pub process: &'static str,
+    pub job: &'static str,
+    pub measurement: &'static str,
     /// Measured file's extension.
-    format: &'static str,
+    pub format: &'static str,
 }
 
-const TURNING_SPHERE: Base = Base {
+pub const TURNING_SPHERE: Base = Base {
     name: "turned convex sphere R8, Ø3 mm, 10 µm/rev, 0.5 mm nose",
     process: "turning",
     job: r#"version = 1
@@ -102,7 +102,7 @@ dropout_fraction = 0.01
     format: "csv",
 };
 
-const GENERATED_SPHERE: Base = Base {
+pub const GENERATED_SPHERE: Base = Base {
     name: "generated concave sphere R53.5 (seed 000's wheel), Ø4 mm",
     process: "generating",
     job: r#"version = 1
@@ -204,7 +204,7 @@ dropout_fraction = 0.01
     format: "csv",
 };
 
-const BALL_FEED_MARKS_FLAT: Base = Base {
+pub const BALL_FEED_MARKS_FLAT: Base = Base {
     name: "two-flute ball-end (Ø2 mm, 20 µm per tooth) raster over a flat, Ø1 mm, profile along the feed",
     process: "milling",
     job: r#"version = 1

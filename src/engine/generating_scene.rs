@@ -282,32 +282,8 @@ pub fn golden_section_min(f: &dyn Fn(f64) -> f64, a: f64, b: f64) -> f64 {
 }
 
 /// Golden-section search with a set number of steps (each shrinks the bracket by 0.618).
-pub fn golden_section_min_steps(
-    f: &dyn Fn(f64) -> f64,
-    mut a: f64,
-    mut b: f64,
-    steps: usize,
-) -> f64 {
-    const INVERSE_PHI: f64 = 0.618_033_988_749_894_9;
-    let mut x1 = b - INVERSE_PHI * (b - a);
-    let mut x2 = a + INVERSE_PHI * (b - a);
-    let (mut f1, mut f2) = (f(x1), f(x2));
-    for _ in 0..steps {
-        if f1 <= f2 {
-            b = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = b - INVERSE_PHI * (b - a);
-            f1 = f(x1);
-        } else {
-            a = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = a + INVERSE_PHI * (b - a);
-            f2 = f(x2);
-        }
-    }
-    0.5 * (a + b)
+pub fn golden_section_min_steps(f: &dyn Fn(f64) -> f64, a: f64, b: f64, steps: usize) -> f64 {
+    crate::numeric::golden_section(f, a, b, steps).mid()
 }
 
 #[cfg(test)]
