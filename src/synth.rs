@@ -4,7 +4,7 @@
 //! lifts and decentres the part, white and 1/f noise, dropouts. What was applied is
 //! the truth, kept apart from the data.
 
-use crate::diagnose::forward::{ForwardError, ForwardModel};
+use crate::diagnose::forward::{ForwardError, ForwardModel, SimulatedSurface};
 use crate::diagnose::measurement::{Instrument, Measurement};
 use crate::engine::RemovalEngine;
 use crate::io::job::Job;
@@ -211,17 +211,25 @@ pub fn synthesize(
 ) -> Result<Synthetic, ForwardError> {
     model.validate(job).map_err(ForwardError)?;
     let (template, positions, origin, pitch, pixels) = model.template(job);
-    // The truth is simulated twice as finely as a diagnosis will.
-    let mut forward = ForwardModel::new(job, &template, engine)?;
+    // The truth is simulated twice as finely as a diagnosis will, and its pixels are
+    // averaged here point by point (not by the diagnosis's own filter).
+    let mut points = template.clone();
+    points.instrument.pixel_averaging = false;
+    let mut forward = ForwardModel::new(job, &points, engine)?;
     forward.refine(2.0);
-    let surface = forward.simulate(&|_| {}, &template)?;
+    let surface = forward.simulate(&|_| {}, &points)?;
     let decentre = DVec2::from_array(model.decentre_um) * 1e-3;
     let shift = if template.is_line() {
         decentre.x * DVec2::from_angle(model.azimuth_deg.to_radians())
     } else {
         decentre
     };
-    let clean = surface.sample(&template, shift);
+    let clean = if template.instrument.pixel_averaging {
+        let spacing = 2.0 * forward.base_job().pitch_mm;
+        pixel_means(&surface, &template, shift, pitch, spacing)
+    } else {
+        surface.sample(&template, shift)
+    };
     let mut rng = Rng::new(model.seed);
     let noise = noise(&template, model, &mut rng);
     let slope = DVec2::from_array(model.tilt_urad) * 1e-6;
@@ -240,6 +248,32 @@ pub fn synthesize(
         pixels,
         height_mm,
     })
+}
+
+/// Each pixel's mean: point values on an n × n lattice over its square footprint, no
+/// further apart than `spacing_mm` (at most 64 × 64).
+fn pixel_means(
+    surface: &SimulatedSurface,
+    m: &Measurement,
+    shift: DVec2,
+    pixel_mm: f64,
+    spacing_mm: f64,
+) -> Vec<f64> {
+    let n = ((pixel_mm / spacing_mm).ceil() as usize).clamp(4, 64);
+    let offsets: Vec<f64> = (0..n)
+        .map(|i| ((i as f64 + 0.5) / n as f64 - 0.5) * pixel_mm)
+        .collect();
+    m.xy_mm
+        .iter()
+        .map(|p| {
+            let sum: f64 = offsets
+                .iter()
+                .flat_map(|dy| offsets.iter().map(move |dx| DVec2::new(*dx, *dy)))
+                .map(|d| surface.at(*p + d - shift))
+                .sum();
+            sum / (n * n) as f64
+        })
+        .collect()
 }
 
 /// White plus 1/f noise (mm) per point: the 1/f part a sum of octaves of Gaussian-

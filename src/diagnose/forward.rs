@@ -6,14 +6,23 @@ use super::measurement::{Measurement, Shape};
 use crate::engine::{EngineError, RemovalEngine};
 use crate::field::{Layout, PolarGrid};
 use crate::io::job::Job;
+use crate::process::Process;
 use crate::run::{prepare_scenes, remove_all};
 use glam::DVec2;
 use std::f64::consts::TAU;
 use std::time::Instant;
 
 /// Lateral slack the simulated region keeps around the measured points, as a share of
-/// their extent: room for the registration's shift.
-pub const SHIFT_ROOM: f64 = 0.05;
+/// their extent, and at least `MIN_SHIFT_ROOM_MM`: room for the registration's shift.
+const SHIFT_ROOM: f64 = 0.05;
+/// A small field (a white-light map of the centre) is placed on the part only to some
+/// tens of µm, whatever its size.
+const MIN_SHIFT_ROOM_MM: f64 = 0.03;
+
+/// How far from where the measurement puts it the part's axis may lie (mm).
+pub fn shift_room_mm(measurement: &Measurement) -> f64 {
+    (SHIFT_ROOM * measurement.extent_mm()).max(MIN_SHIFT_ROOM_MM)
+}
 
 pub struct ForwardModel<'e> {
     base: Job,
@@ -53,8 +62,7 @@ impl<'e> ForwardModel<'e> {
             ));
         }
         let mut base = job.clone();
-        let extent = measurement.extent_mm();
-        let room = SHIFT_ROOM * extent
+        let room = shift_room_mm(measurement)
             + 3.0 * job.pitch_mm
             + measurement.instrument.stylus_tip_mm.unwrap_or(0.0);
         let radii = measurement.xy_mm.iter().map(|p| p.length());
@@ -76,10 +84,21 @@ impl<'e> ForwardModel<'e> {
             }
             Shape::Raster { pixel_mm, .. } => {
                 let pixel = pixel_mm[0].min(pixel_mm[1]);
-                // Half a pixel of arc at the outer edge, so straight marks stay resolved.
-                let rows = (TAU * base.aperture.outer_radius_mm / (0.5 * pixel)).ceil();
-                base.azimuths = (rows as u32).clamp(16, 8192).next_multiple_of(4);
+                // Half a pixel of arc at the outer edge and of ring pitch, so marks
+                // crossing the rings stay resolved. A turned part's marks follow the
+                // rings, moving one feed per revolution: rings an eighth of a feed
+                // apart at most (a pixel then averages resolved marks, not aliased
+                // ones), and rows that move the marks no more than a quarter of that
+                // or an eighth of a pixel.
                 base.pitch_mm = job.pitch_mm.max(0.5 * pixel);
+                let mut rows = (TAU * base.aperture.outer_radius_mm / (0.5 * pixel)).ceil();
+                if let Process::Turning(turning) = &job.process {
+                    let feed = turning.path.pass_spacing_mm();
+                    base.pitch_mm = base.pitch_mm.min(feed / 8.0).max(job.pitch_mm);
+                    let spiral = feed / (0.25 * base.pitch_mm).max(pixel / 8.0);
+                    rows = rows.min(spiral.ceil());
+                }
+                base.azimuths = (rows as u32).clamp(16, 8192).next_multiple_of(4);
                 None
             }
         };
@@ -202,6 +221,11 @@ impl SimulatedSurface {
             }
             _ => None,
         };
+        // Each of a pixel's 3 × 3 midpoints stands for a third of it.
+        let height_mm = match pixel_mm {
+            Some([dx, dy]) => box_filtered(&grid, &height_mm, dx.min(dy) / 3.0),
+            None => height_mm,
+        };
         Self {
             grid,
             height_mm,
@@ -284,6 +308,63 @@ impl SimulatedSurface {
         let row1 = value(k0, j1) + t * (value(k1, j1) - value(k0, j1));
         row0 + u * (row1 - row0)
     }
+}
+
+/// The heights averaged over a window `width_mm` across: over the rings within half of
+/// it in radius, then over the rows within half of it in arc (all rows near the axis).
+/// Marks finer than a pixel are averaged as the pixel averages them, not aliased by
+/// the few points that sample it.
+fn box_filtered(grid: &PolarGrid, height_mm: &[f64], width_mm: f64) -> Vec<f64> {
+    let (rings, rows) = (grid.ring_count(), grid.azimuths);
+    let radius: Vec<f64> = grid.rings.iter().map(|r| r.radius_mm).collect();
+    let half = 0.5 * width_mm;
+    let mut radial = height_mm.to_vec();
+    let mut prefix = vec![0.0; rings + 1];
+    for row in 0..rows {
+        for k in 0..rings {
+            prefix[k + 1] = prefix[k] + height_mm[grid.sample_index(k, row)];
+        }
+        let (mut lo, mut hi) = (0, 0);
+        for k in 0..rings {
+            while radius[lo] < radius[k] - half {
+                lo += 1;
+            }
+            hi = hi.max(k);
+            while hi + 1 < rings && radius[hi + 1] <= radius[k] + half {
+                hi += 1;
+            }
+            radial[grid.sample_index(k, row)] =
+                (prefix[hi + 1] - prefix[lo]) / (hi + 1 - lo) as f64;
+        }
+    }
+    let mut filtered = radial.clone();
+    let n = rows as usize;
+    let mut prefix = vec![0.0; 3 * n + 1];
+    for k in 0..rings {
+        let arc = TAU * radius[k] / rows as f64;
+        let reach = if arc > 0.0 {
+            (half / arc).floor() as usize
+        } else {
+            n
+        };
+        if reach == 0 {
+            continue;
+        }
+        // Rows around the ring three times over, so a window may wrap either way.
+        for j in 0..3 * n {
+            prefix[j + 1] = prefix[j] + radial[grid.sample_index(k, (j % n) as u32)];
+        }
+        for j in 0..n {
+            let value = if 2 * reach + 1 >= n {
+                prefix[n] / n as f64
+            } else {
+                let (from, to) = (j + n - reach, j + n + reach + 1);
+                (prefix[to] - prefix[from]) / (2 * reach + 1) as f64
+            };
+            filtered[grid.sample_index(k, j as u32)] = value;
+        }
+    }
+    filtered
 }
 
 /// Linear interpolation in a table of increasing x; NaN outside it.

@@ -27,7 +27,7 @@ use crate::engine::RemovalEngine;
 use crate::io::job::Job;
 use candidates::{Candidate, NotDiagnosable, candidates_for};
 use fit::{Fit, Problem, apply_set, bic, width};
-use forward::{ForwardError, ForwardModel, SHIFT_ROOM, SimulatedSurface};
+use forward::{ForwardError, ForwardModel, SimulatedSurface, shift_room_mm};
 use glam::DVec2;
 use measurement::Measurement;
 use register::{Registered, ShiftSearch, Terms, register};
@@ -129,7 +129,7 @@ pub fn diagnose(
         options.terms,
         ShiftSearch {
             start: DVec2::ZERO,
-            half_width_mm: 0.8 * SHIFT_ROOM * fitted.extent_mm(),
+            half_width_mm: 0.8 * shift_room_mm(&fitted),
             step_mm: 0.25 * period,
             refine: 1,
         },
@@ -282,6 +282,14 @@ pub fn diagnose(
         .map_or(baseline.clone(), |f| f.evaluation.clone());
     let radii_fitted = radii(&fitted, nominal.shift_mm);
     let zone: Vec<usize> = radii_fitted.iter().map(|r| zones.of(*r)).collect();
+    // The job as given, as well registered as the diagnosis managed: the wide search's
+    // frame, or the final one when that fits it better.
+    let mean_square = |r: &Registered| r.rss / r.used.max(1) as f64;
+    let nominal = if mean_square(&baseline.registered) < mean_square(&nominal) {
+        baseline.registered.clone()
+    } else {
+        nominal
+    };
     let residual_before = nominal.residual_mm.clone();
     let residual_after = after.registered.residual_mm.clone();
     let (marks_cutoff, form_cutoff) = band_cutoffs(&fitted, Some(period));
@@ -547,10 +555,11 @@ fn mark_period_mm(job: &Job, m: &Measurement) -> f64 {
         .min(m.extent_mm() / 8.0)
 }
 
-/// The nominal registration's search: a few per cent of the extent, scanned at an
-/// eighth of the mark period (coarser on maps, whose scan is two-dimensional).
+/// The nominal registration's search: most of the simulation's room for a shift,
+/// scanned at an eighth of the mark period (coarser on maps, whose scan is
+/// two-dimensional).
 fn wide_search(m: &Measurement, period: f64) -> ShiftSearch {
-    let half = 0.8 * SHIFT_ROOM * m.extent_mm();
+    let half = 0.8 * shift_room_mm(m);
     let step = if m.is_line() {
         (0.125 * period).max(half / 400.0)
     } else {
@@ -652,7 +661,8 @@ fn fit_check(
     // smooth part of what registration leaves.
     let smooth = |values: &[f64]| gaussian_lowpass(m, values, 5.0 * period);
     let detrend = |values: &[f64]| -> Vec<f64> {
-        let zero = vec![0.0; values.len()];
+        // Points the model does not cover (NaN) stay out of the fit.
+        let zero: Vec<f64> = values.iter().map(|v| v * 0.0).collect();
         let flat = Measurement {
             height_mm: values.to_vec(),
             ..m.clone()

@@ -73,14 +73,21 @@ pub fn register(
         super::measurement::Shape::Line { azimuth_rad } => Some(DVec2::from_angle(azimuth_rad)),
         super::measurement::Shape::Raster { .. } => None,
     };
-    // A subsample keeps the scan cheap on large maps.
-    let stride = (m.len() / 4000).max(1);
+    // A subsample keeps the scan cheap (a map's scan is two-dimensional).
+    let scanned = if direction.is_some() { 4000 } else { 1500 };
+    let stride = (m.len() / scanned).max(1);
     let coarse = m.subset(|i| i % stride == 0);
     // The axis is judged on the bulk of the points: the worst 5 % (an unmodelled local
     // feature, spikes) do not steer it.
+    // A map's shift may not move its points off the simulated region (judging the rest
+    // alone would favour losing the hard ones); a profile may lose its ends at the rim.
+    let kept = |points: &Measurement| match direction {
+        Some(_) => points.len() / 2,
+        None => points.len() * 98 / 100,
+    };
     let objective = |points: &Measurement, shift: DVec2| {
         let r = fit_linear(points, &sim.sample(points, shift), shift, terms.power);
-        if r.used < points.len() / 2 {
+        if r.used < kept(points) {
             return f64::INFINITY;
         }
         trimmed_mean_square(&r.residual_mm, 0.95)
@@ -135,17 +142,9 @@ pub fn register(
                 .into_iter()
                 .take(search.refine)
                 .map(|k| {
-                    // Alternate refinements along X and Y.
-                    let mut at = search.start + DVec2::new(offsets[k % n], offsets[k / n]);
-                    let mut w = width;
-                    for _ in 0..3 {
-                        at.x +=
-                            golden_section(&|a| objective(m, at + DVec2::new(a, 0.0)), -w, w, 20);
-                        at.y +=
-                            golden_section(&|a| objective(m, at + DVec2::new(0.0, a)), -w, w, 20);
-                        w *= 0.5;
-                    }
-                    (objective(m, at), at)
+                    let at = search.start + DVec2::new(offsets[k % n], offsets[k / n]);
+                    let on_all = |shift: DVec2| objective(m, shift);
+                    refine_shift(m, sim, terms.power, &on_all, at, 0.25 * width)
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0))
         }
@@ -186,44 +185,15 @@ fn local_minima(values: &[f64], count: usize) -> Vec<usize> {
 /// Least-squares piston, tilt (and power) of measured − simulated at a fixed shift,
 /// by the normal equations on centred coordinates (at most four well-scaled columns).
 pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool) -> Registered {
-    let raster = !m.is_line();
-    let width = 2 + usize::from(raster) + usize::from(power);
-    let used: Vec<usize> = (0..m.len()).filter(|&i| simulated[i].is_finite()).collect();
-    let n = used.len().max(1) as f64;
-    let centre = used.iter().fold([0.0, 0.0], |c, &i| {
-        let t = m.tilt_coordinates(i);
-        [c[0] + t[0] / n, c[1] + t[1] / n]
-    });
-    let columns = |i: usize| -> [f64; 4] {
-        let t = m.tilt_coordinates(i);
-        let mut row = [1.0, t[0] - centre[0], 0.0, 0.0];
-        let mut k = 2;
-        if raster {
-            row[k] = t[1] - centre[1];
-            k += 1;
-        }
-        if power {
-            row[k] = (m.xy_mm[i] - shift).length_squared();
-        }
-        row
-    };
-    let mut normal = vec![vec![0.0; width]; width];
-    let mut rhs = vec![0.0; width];
-    for &i in &used {
-        let row = columns(i);
-        let target = m.height_mm[i] - simulated[i];
-        for a in 0..width {
-            rhs[a] += row[a] * target;
-            for b in 0..width {
-                normal[a][b] += row[a] * row[b];
-            }
-        }
-    }
-    let coefficients = solve_linear(&normal, &rhs).unwrap_or_else(|| vec![0.0; width]);
+    let terms = LinearTerms::new(m, simulated, shift, power);
+    let coefficients = terms.solve(m, simulated, &[]);
+    let (raster, width, centre) = (terms.raster, terms.width, terms.centre);
+    let columns = |i: usize| terms.row(m, i);
+    let used = &terms.used;
     let mut residual_mm = vec![f64::NAN; m.len()];
     let mut model_mm = vec![f64::NAN; m.len()];
     let mut rss = 0.0;
-    for &i in &used {
+    for &i in used {
         let row = columns(i);
         let removed: f64 = (0..width).map(|a| row[a] * coefficients[a]).sum();
         model_mm[i] = simulated[i] + removed;
@@ -256,6 +226,118 @@ pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool)
         rss,
         used: used.len(),
     }
+}
+
+/// The linear terms registration removes (piston, tilt, optionally power), on
+/// coordinates centred over the points the simulation covers.
+struct LinearTerms {
+    raster: bool,
+    power: bool,
+    shift: DVec2,
+    width: usize,
+    centre: [f64; 2],
+    used: Vec<usize>,
+}
+
+impl LinearTerms {
+    fn new(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool) -> Self {
+        let raster = !m.is_line();
+        let used: Vec<usize> = (0..m.len()).filter(|&i| simulated[i].is_finite()).collect();
+        let n = used.len().max(1) as f64;
+        let centre = used.iter().fold([0.0, 0.0], |c, &i| {
+            let t = m.tilt_coordinates(i);
+            [c[0] + t[0] / n, c[1] + t[1] / n]
+        });
+        Self {
+            raster,
+            power,
+            shift,
+            width: 2 + usize::from(raster) + usize::from(power),
+            centre,
+            used,
+        }
+    }
+
+    fn row(&self, m: &Measurement, i: usize) -> [f64; 4] {
+        let t = m.tilt_coordinates(i);
+        let mut row = [1.0, t[0] - self.centre[0], 0.0, 0.0];
+        let mut k = 2;
+        if self.raster {
+            row[k] = t[1] - self.centre[1];
+            k += 1;
+        }
+        if self.power {
+            row[k] = (m.xy_mm[i] - self.shift).length_squared();
+        }
+        row
+    }
+
+    /// Coefficients of the terms, then of the `extra` columns, fitted together to
+    /// measured − simulated (zeros when singular).
+    fn solve(&self, m: &Measurement, simulated: &[f64], extra: &[Vec<f64>]) -> Vec<f64> {
+        let width = self.width + extra.len();
+        let mut normal = vec![vec![0.0; width]; width];
+        let mut rhs = vec![0.0; width];
+        let mut row = vec![0.0; width];
+        for &i in &self.used {
+            if extra.iter().any(|column| !column[i].is_finite()) {
+                continue;
+            }
+            row[..self.width].copy_from_slice(&self.row(m, i)[..self.width]);
+            for (k, column) in extra.iter().enumerate() {
+                row[self.width + k] = column[i];
+            }
+            let target = m.height_mm[i] - simulated[i];
+            for a in 0..width {
+                rhs[a] += row[a] * target;
+                for b in 0..width {
+                    normal[a][b] += row[a] * row[b];
+                }
+            }
+        }
+        solve_linear(&normal, &rhs).unwrap_or_else(|| vec![0.0; width])
+    }
+}
+
+/// Gauss–Newton on a map's axis position from `start`: the model's slopes along X and
+/// Y (central differences over `h`) are fitted with piston and tilt as one linear
+/// step; a step is kept only while it lowers `objective`, else it is halved once.
+fn refine_shift(
+    m: &Measurement,
+    sim: &SimulatedSurface,
+    power: bool,
+    objective: &dyn Fn(DVec2) -> f64,
+    start: DVec2,
+    h: f64,
+) -> (f64, DVec2) {
+    let (mut at, mut best) = (start, objective(start));
+    for _ in 0..8 {
+        let model = sim.sample(m, at);
+        let slope = |d: DVec2| -> Vec<f64> {
+            let (ahead, behind) = (sim.sample(m, at + d), sim.sample(m, at - d));
+            ahead
+                .iter()
+                .zip(&behind)
+                .map(|(a, b)| (a - b) / (2.0 * h))
+                .collect()
+        };
+        let columns = [slope(DVec2::new(h, 0.0)), slope(DVec2::new(0.0, h))];
+        let terms = LinearTerms::new(m, &model, at, power);
+        let c = terms.solve(m, &model, &columns);
+        let step = DVec2::new(c[terms.width], c[terms.width + 1]);
+        let Some((value, next)) = [step, 0.5 * step]
+            .into_iter()
+            .map(|s| (objective(at + s), at + s))
+            .find(|(value, _)| *value < best)
+        else {
+            break;
+        };
+        (at, best) = (next, value);
+        if step.length() < 1e-6 {
+            break;
+        }
+    }
+    (best, at)
 }
 
 /// Minimum of `f` on [lo, hi] by golden-section search (`steps` shrinkings).

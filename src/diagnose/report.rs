@@ -406,6 +406,14 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
                 path,
             ));
             let limit = symmetric_limit(&before);
+            // Small maps are drawn with each pixel a block, at least 320 px across.
+            let factor = (320 / nx.max(ny)).max(1);
+            let (width, height) = ((nx * factor) as u32, (ny * factor) as u32);
+            let (before, after, zone) = (
+                enlarged(&before, nx, factor),
+                enlarged(&after, nx, factor),
+                enlarged(&zone, nx, factor),
+            );
             for (name, values, title) in [
                 (
                     "residual_before.png",
@@ -429,8 +437,8 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
                     &FalseColourPlot {
                         values,
                         valid: &valid,
-                        width: nx as u32,
-                        height: ny as u32,
+                        width,
+                        height,
                         range: (-limit, limit),
                         colour_map: ColourMap::Diverging,
                         title,
@@ -448,8 +456,8 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
                 &FalseColourPlot {
                     values: &zone,
                     valid: &valid,
-                    width: nx as u32,
-                    height: ny as u32,
+                    width,
+                    height,
                     range: (0.0, (o.zones.bounds.len() - 1) as f32),
                     colour_map: ColourMap::Sequential,
                     title: "radial zones: centre, annuli, rim",
@@ -462,6 +470,20 @@ fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
         }
     }
     Ok(images)
+}
+
+/// A row-major raster `nx` wide with each value repeated into a `factor` × `factor` block.
+fn enlarged(values: &[f32], nx: usize, factor: usize) -> Vec<f32> {
+    values
+        .chunks(nx)
+        .flat_map(|row| {
+            let wide: Vec<f32> = row
+                .iter()
+                .flat_map(|v| std::iter::repeat_n(*v, factor))
+                .collect();
+            std::iter::repeat_n(wide, factor).flatten()
+        })
+        .collect()
 }
 
 /// ±(99th percentile of |v|), at least 1 nm.

@@ -272,14 +272,85 @@ dropout_fraction = 0.01
     format: "csv",
 };
 
+/// The turned sphere's centre as a white-light interferometer maps it: 81 × 81 pixels
+/// of 1 µm, each the mean over its footprint.
+pub const TURNING_CENTRE_MAP: Base = Base {
+    name: "turned convex sphere R8 (as above), white-light map of the centre, 81 × 81 px of 1 µm",
+    process: "turning",
+    job: TURNING_SPHERE.job,
+    measurement: r#"kind = "map"
+pixels = [81, 81]
+pixel_um = 1.0
+pixel_averaging = true
+white_noise_nm = 1.5
+pink_noise_nm = 1.0
+dropout_fraction = 0.01
+"#,
+    format: "x3p",
+};
+
+/// The turned sphere's whole aperture as a Fizeau interferometer maps it: 61 × 61
+/// pixels of 50 µm (the tool marks average out; the form stays).
+const TURNING_FORM_MAP: Base = Base {
+    name: "turned convex sphere R8 (as above), interferometer map of the aperture, 61 × 61 px of 50 µm",
+    process: "turning",
+    job: TURNING_SPHERE.job,
+    measurement: r#"kind = "map"
+pixels = [61, 61]
+pixel_um = 50.0
+pixel_averaging = true
+white_noise_nm = 1.5
+pink_noise_nm = 1.0
+dropout_fraction = 0.01
+"#,
+    format: "gsf",
+};
+
+/// A bull-nose raster over a flat, mapped across five passes: the map sees a spindle's
+/// tram both ways (a profile across the passes sees only its component across them).
+const BULL_NOSE_FLAT_MAP: Base = Base {
+    name: "bull-nose (Ø3 mm, 0.5 mm corner, 0.1 mm step) raster over a flat, Ø2 mm, map of 21 × 21 px of 25 µm",
+    process: "milling",
+    job: r#"version = 1
+name = "bull-nose raster over a flat"
+[surface]
+kind = "plane"
+aperture_diameter_mm = 2.0
+[tool]
+kind = "bull_nose"
+diameter_mm = 3.0
+corner_radius_mm = 0.5
+[process]
+kind = "milling"
+path = "raster"
+stepover_mm = 0.1
+stock_allowance_mm = 0.01
+[grid]
+pitch_um = 2.0
+azimuths = 8
+"#,
+    measurement: r#"kind = "map"
+pixels = [21, 21]
+pixel_um = 25.0
+pixel_averaging = true
+white_noise_nm = 1.5
+pink_noise_nm = 1.0
+dropout_fraction = 0.01
+"#,
+    format: "exr",
+};
+
 /// Every base, for the suite's README.
-const BASES: [&Base; 6] = [
+const BASES: [&Base; 9] = [
     &TURNING_SPHERE,
     &GENERATED_SPHERE,
     &BALL_MILLED_SPHERE,
     &BALL_SPIRAL_FLAT,
     &BALL_FEED_MARKS_FLAT,
     &BALL_FEED_MARKS_SPHERE,
+    &TURNING_CENTRE_MAP,
+    &TURNING_FORM_MAP,
+    &BULL_NOSE_FLAT_MAP,
 ];
 
 /// One case of the suite.
@@ -316,6 +387,7 @@ fn suite() -> Vec<Spec> {
     let g = &GENERATED_SPHERE;
     let (ms, sp) = (&BALL_MILLED_SPHERE, &BALL_SPIRAL_FLAT);
     let (fm, fs) = (&BALL_FEED_MARKS_FLAT, &BALL_FEED_MARKS_SPHERE);
+    let (cm, im, tm) = (&TURNING_CENTRE_MAP, &TURNING_FORM_MAP, &BULL_NOSE_FLAT_MAP);
     let wave = |order: f64| EdgeWaviness { order };
     vec![
         single(t, CentreHeight, &[3.0]),
@@ -375,6 +447,17 @@ fn suite() -> Vec<Spec> {
         control(fm),
         pair(fs, (RadialRunout, &[1.732, 1.0]), (ToolRadiusError, &[4.0])),
         pair(fs, (RadialRunout, &[-1.5, 0.0]), (ToolRadiusError, &[-6.0])),
+        // Maps: the centre, the form, a tram both ways.
+        single(cm, CentreHeight, &[3.0]),
+        single(cm, CentreHeight, &[-2.0]),
+        single(cm, XDecentre, &[4.0]),
+        control(cm),
+        single(im, NoseRadiusError, &[8.0]),
+        single(im, AxialDrift, &[300.0]),
+        control(im),
+        single(tm, SpindleTram, &[0.02, 0.05]),
+        single(tm, SpindleTram, &[-0.05, 0.01]),
+        control(tm),
     ]
 }
 
