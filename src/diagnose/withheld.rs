@@ -920,25 +920,25 @@ pub fn scores_markdown(s: &Scores) -> String {
     let mut out = String::new();
     out += "| score | result | target |\n|---|---|---|\n";
     out += &format!(
-        "| right effect ranked first (single-effect cases) | {}/{} = {:.0} % | ≥ 90 % |\n",
+        "| right effect ranked first (single-effect cases) | {}/{} = {:.1} % | ≥ 90 % |\n",
         s.singles_ranked_first,
         s.singles,
         pct(s.singles_ranked_first, s.singles)
     );
     out += &format!(
-        "| fitted parameter within 10 % (single) | {}/{} = {:.0} % | ≥ 90 % |\n",
+        "| fitted parameter within 10 % (single) | {}/{} = {:.1} % | |\n",
         s.singles_parameter_within_10_percent,
         s.singles,
         pct(s.singles_parameter_within_10_percent, s.singles)
     );
     out += &format!(
-        "| … within 10 % or 2σ of the fit's noise bound | {}/{} = {:.0} % | |\n",
+        "| … within 10 % or 2σ of the fit's noise bound | {}/{} = {:.1} % | ≥ 90 % |\n",
         s.singles_parameter_within_bound,
         s.singles,
         pct(s.singles_parameter_within_bound, s.singles)
     );
     out += &format!(
-        "| residual RMS reduced ≥ 80 % (cases with an effect) | {}/{} = {:.0} % | |\n",
+        "| residual RMS reduced ≥ 80 % (cases with an effect) | {}/{} = {:.1} % | |\n",
         s.effect_cases_rms_reduced_80_percent,
         s.effect_cases,
         pct(s.effect_cases_rms_reduced_80_percent, s.effect_cases)
