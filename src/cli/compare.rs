@@ -1,10 +1,9 @@
 //! `toolmark compare-profile`: a simulated part against a measured profile.
 
-use super::{EngineChoice, Failure, load_job, open_engine, slug};
-use clap::ValueEnum;
+use super::{EngineChoice, Failure, Unit, load_job, open_engine, slug};
 use std::path::PathBuf;
 use toolmark::analysis::profile_compare::{compare_profiles, residual_nm, simulated_profile};
-use toolmark::io::measured::{LengthUnit, read_wli_profile_csv};
+use toolmark::io::measured::read_wli_profile_csv;
 use toolmark::io::plot::{LinePlot, PALETTE, Series, write_line_plot};
 use toolmark::run::simulate;
 
@@ -29,23 +28,6 @@ pub struct CompareArgs {
     /// Output folder (default: toolmark-out/<job name>-vs-measured).
     #[arg(long)]
     pub out: Option<PathBuf>,
-}
-
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Unit {
-    Mm,
-    Um,
-    Nm,
-}
-
-impl Unit {
-    fn length_unit(self) -> LengthUnit {
-        match self {
-            Unit::Mm => LengthUnit::Millimetre,
-            Unit::Um => LengthUnit::Micrometre,
-            Unit::Nm => LengthUnit::Nanometre,
-        }
-    }
 }
 
 pub fn compare_profile(args: CompareArgs) -> Result<(), Failure> {

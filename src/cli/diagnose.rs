@@ -1,6 +1,6 @@
 //! `toolmark diagnose`, `toolmark synth` and `toolmark bench-diagnose`.
 
-use super::{EngineChoice, Failure, load_job, load_job_with_effects, open_engine, slug};
+use super::{EngineChoice, Failure, Unit, load_job, load_job_with_effects, open_engine, slug};
 use clap::ValueEnum;
 use std::path::{Path, PathBuf};
 use toolmark::diagnose::files::{Placement, load_measurement, merge_source};
@@ -10,25 +10,8 @@ use toolmark::diagnose::report::write_outputs;
 use toolmark::diagnose::withheld;
 use toolmark::diagnose::{DiagnoseError, Options, diagnose};
 use toolmark::io::atomic::write_bytes_atomically;
-use toolmark::io::measured::{LengthUnit, ReadOptions};
+use toolmark::io::measured::ReadOptions;
 use toolmark::synth::{MeasurementModel, synthesize};
-
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Unit {
-    Mm,
-    Um,
-    Nm,
-}
-
-impl Unit {
-    fn length_unit(self) -> LengthUnit {
-        match self {
-            Unit::Mm => LengthUnit::Millimetre,
-            Unit::Um => LengthUnit::Micrometre,
-            Unit::Nm => LengthUnit::Nanometre,
-        }
-    }
-}
 
 #[derive(clap::Args)]
 pub struct DiagnoseArgs {

@@ -13,6 +13,25 @@ use toolmark::engine::RemovalEngine;
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::engine::gpu::GpuEngine;
 use toolmark::io::job::{EffectsFragment, FragmentError, Job, JobError};
+use toolmark::io::measured::LengthUnit;
+
+/// A length unit as the command line names it (a measured file's coordinates or heights).
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Unit {
+    Mm,
+    Um,
+    Nm,
+}
+
+impl Unit {
+    pub fn length_unit(self) -> LengthUnit {
+        match self {
+            Unit::Mm => LengthUnit::Millimetre,
+            Unit::Um => LengthUnit::Micrometre,
+            Unit::Nm => LengthUnit::Nanometre,
+        }
+    }
+}
 
 #[derive(Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
 pub enum EngineChoice {

@@ -347,14 +347,7 @@ impl<'a, 'e> Problem<'a, 'e> {
                 break;
             }
             let r = current.residual();
-            let jtj: Vec<Vec<f64>> = free
-                .iter()
-                .map(|&a| {
-                    free.iter()
-                        .map(|&b| dot(&jacobian[a], &jacobian[b]))
-                        .collect()
-                })
-                .collect();
+            let jtj = normal_matrix(&jacobian, &free);
             let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], &r)).collect();
             let mut improved = false;
             for _ in 0..8 {
@@ -410,14 +403,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let free = observable(jacobian, frozen);
         let dof = (used - free.len() as f64 - 4.0).max(1.0);
         let variance = evaluation.rss() / dof * tau;
-        let jtj: Vec<Vec<f64>> = free
-            .iter()
-            .map(|&a| {
-                free.iter()
-                    .map(|&b| dot(&jacobian[a], &jacobian[b]))
-                    .collect()
-            })
-            .collect();
+        let jtj = normal_matrix(jacobian, &free);
         let mut sigmas = vec![f64::INFINITY; values.len()];
         if let Some(inv) = invert(&jtj) {
             for (i, &j) in free.iter().enumerate() {
@@ -521,6 +507,17 @@ fn observable(jacobian: &[Vec<f64>], frozen: &[usize]) -> Vec<usize> {
     let largest = norms.iter().copied().fold(0.0, f64::max);
     (0..norms.len())
         .filter(|&j| norms[j] > 1e-12 * largest && norms[j] > 0.0 && !frozen.contains(&j))
+        .collect()
+}
+
+/// JᵀJ over the `free` columns of the Jacobian (stored column by column).
+fn normal_matrix(jacobian: &[Vec<f64>], free: &[usize]) -> Vec<Vec<f64>> {
+    free.iter()
+        .map(|&a| {
+            free.iter()
+                .map(|&b| dot(&jacobian[a], &jacobian[b]))
+                .collect()
+        })
         .collect()
 }
 

@@ -123,19 +123,9 @@ pub fn diagnose(
 
     // The nominal model, registered with a wide search for the axis.
     log("simulating the job as given and registering it");
-    let mut problem = Problem::new(
-        &fitted,
-        model,
-        options.terms,
-        ShiftSearch {
-            start: DVec2::ZERO,
-            half_width_mm: 0.8 * shift_room_mm(&fitted),
-            step_mm: 0.25 * period,
-            refine: 1,
-        },
-    );
-    let nominal_sim = problem.model.simulate(&|_| {}, &fitted)?;
     let wide = wide_search(&fitted, period);
+    let mut problem = Problem::new(&fitted, model, options.terms, wide);
+    let nominal_sim = problem.model.simulate(&|_| {}, &fitted)?;
     let nominal = register(&fitted, &nominal_sim, options.terms, Some(wide));
     // Fits re-solve the axis only near where the nominal model put it.
     problem.shift = local_search(nominal.shift_mm, period);
@@ -1015,20 +1005,18 @@ fn verdict(
                     advice: vec!["nothing to correct from this measurement".into()],
                 }
             } else {
-                let zone = before
-                    .zones
-                    .iter()
-                    .max_by(|a, b| a.share.total_cmp(&b.share))
-                    .map_or(String::new(), |z| {
-                        format!("; most of it in the {} ({:.0} %)", z.name, 100.0 * z.share)
-                    });
-                let band = before
-                    .bands
-                    .iter()
-                    .max_by(|a, b| a.share.total_cmp(&b.share))
-                    .map_or(String::new(), |b| {
-                        format!(" and the {} band ({:.0} %)", b.name, 100.0 * b.share)
-                    });
+                let largest = |parts: &[zones::ZoneStats]| {
+                    parts
+                        .iter()
+                        .max_by(|a, b| a.share.total_cmp(&b.share))
+                        .map(|p| (p.name.clone(), 100.0 * p.share))
+                };
+                let zone = largest(&before.zones).map_or(String::new(), |(name, share)| {
+                    format!("; most of it in the {name} ({share:.0} %)")
+                });
+                let band = largest(&before.bands).map_or(String::new(), |(name, share)| {
+                    format!(" and the {name} band ({share:.0} %)")
+                });
                 Verdict {
                     status: "unexplained_residual".into(),
                     sentence: format!(

@@ -77,14 +77,14 @@ pub fn register(
     let scanned = if direction.is_some() { 4000 } else { 1500 };
     let stride = (m.len() / scanned).max(1);
     let coarse = m.subset(|i| i % stride == 0);
-    // The axis is judged on the bulk of the points: the worst 5 % (an unmodelled local
-    // feature, spikes) do not steer it.
     // A map's shift may not move its points off the simulated region (judging the rest
     // alone would favour losing the hard ones); a profile may lose its ends at the rim.
     let kept = |points: &Measurement| match direction {
         Some(_) => points.len() / 2,
         None => points.len() * 98 / 100,
     };
+    // The axis is judged on the bulk of the points: the worst 5 % (an unmodelled local
+    // feature, spikes) do not steer it.
     let objective = |points: &Measurement, shift: DVec2| {
         let r = fit_linear(points, &sim.sample(points, shift), shift, terms.power);
         if r.used < kept(points) {
@@ -188,13 +188,11 @@ pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool)
     let terms = LinearTerms::new(m, simulated, shift, power);
     let coefficients = terms.solve(m, simulated, &[]);
     let (raster, width, centre) = (terms.raster, terms.width, terms.centre);
-    let columns = |i: usize| terms.row(m, i);
-    let used = &terms.used;
     let mut residual_mm = vec![f64::NAN; m.len()];
     let mut model_mm = vec![f64::NAN; m.len()];
     let mut rss = 0.0;
-    for &i in used {
-        let row = columns(i);
+    for &i in &terms.used {
+        let row = terms.row(m, i);
         let removed: f64 = (0..width).map(|a| row[a] * coefficients[a]).sum();
         model_mm[i] = simulated[i] + removed;
         residual_mm[i] = m.height_mm[i] - model_mm[i];
@@ -224,7 +222,7 @@ pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool)
         residual_mm,
         model_mm,
         rss,
-        used: used.len(),
+        used: terms.used.len(),
     }
 }
 
