@@ -334,7 +334,7 @@ fn xyz_points_on_a_partial_grid() {
 #[test]
 fn real_wli_profile_with_declared_units() {
     let path =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/upm-spdt/1021-WLI-2D.csv");
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/upm-spdt/1021-WLI-2D.csv");
     let e = error(&path, &none());
     assert!(e.contains("--lateral-unit"), "{e}");
     let um = ReadOptions {

@@ -1,4 +1,4 @@
-//! Real cut 1021 of ../shared/data/upm-spdt: its own NC program simulated with an ideal
+//! Real cut 1021 of data/upm-spdt: its own NC program simulated with an ideal
 //! 0.191 mm arc and with each measured edge, against the measured WLI profile.
 //! Asserted: what independent sources fix (the data README's measured period and PV;
 //! the contact-point spacing the program implies); the table itself is printed for the
@@ -11,7 +11,7 @@ use toolmark::analysis::profile_compare::compare_profiles;
 use toolmark::io::job::Job;
 use toolmark::io::measured::{LengthUnit, read_wli_profile_csv};
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/upm-spdt");
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/upm-spdt");
 
 fn job_with_edge(edge: Option<usize>) -> Job {
     let text = std::fs::read_to_string(concat!(

@@ -709,7 +709,7 @@ mod tests {
 
     const REAL: &str = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/upm-spdt/1021-r1000sts-res1-0.02-0.5-tool191.nc"
+        "/data/upm-spdt/1021-r1000sts-res1-0.02-0.5-tool191.nc"
     );
 
     fn err(text: &str) -> NcError {

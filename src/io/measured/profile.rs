@@ -241,7 +241,7 @@ mod tests {
     fn data(name: &str) -> PathBuf {
         Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/../shared/data/upm-spdt/"
+            "/data/upm-spdt/"
         ))
         .join(name)
     }
