@@ -139,6 +139,7 @@ fn turning_scenes(job: &Job, turning: &TurningProcess, grid: PolarGrid) -> Vec<T
         .pose_tables(&job.surface, &meridian, &turning.tool);
     for poses in &mut passes {
         turning.correction.apply(poses, &job.surface, &meridian);
+        poses.start_angle_rad += turning.azimuth_offset_rad;
     }
     turning.effects.apply_to_passes(&mut passes);
     passes

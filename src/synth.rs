@@ -217,7 +217,7 @@ pub fn synthesize(
     points.instrument.pixel_averaging = false;
     let mut forward = ForwardModel::new(job, &points, engine)?;
     forward.refine(2.0);
-    let surface = forward.simulate(&|_| {}, &points)?;
+    let surface = forward.simulate(&|_| {})?;
     let decentre = DVec2::from_array(model.decentre_um) * 1e-3;
     let shift = if template.is_line() {
         decentre.x * DVec2::from_angle(model.azimuth_deg.to_radians())
@@ -228,7 +228,7 @@ pub fn synthesize(
         let spacing = 2.0 * forward.base_job().pitch_mm;
         pixel_means(&surface, &template, shift, pitch, spacing)
     } else {
-        surface.sample(&template, shift)
+        surface.sample(&template, crate::diagnose::forward::Frame::at(shift))
     };
     let mut rng = Rng::new(model.seed);
     let noise = noise(&template, model, &mut rng);

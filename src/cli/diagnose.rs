@@ -168,6 +168,7 @@ pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
         min_evidence: args.min_evidence,
         only: args.only.clone(),
         calibrate_on_mm,
+        lateral_scale: true,
     };
     let mut engine = open_engine(args.engine, &job)?;
     println!("engine: {} — {}", engine.info().kind, engine.info().adapter);

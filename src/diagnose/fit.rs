@@ -1,13 +1,16 @@
 //! Fitting effects by re-simulation: a trial set of effect values is simulated, seen as
 //! the instrument sees it, registered (piston, tilt, power, the axis shift re-solved for
-//! every trial), and judged by its residual. A candidate's start comes from scans along
-//! each parameter (outward in ×3 steps while the residual falls); Levenberg–Marquardt
-//! with finite-difference Jacobians refines all parameters together. Uncertainties
-//! come from the Jacobian at the optimum with the residual's variance, inflated by its
-//! correlation length (neighbouring points are not independent).
+//! every trial), and judged by its residual. A candidate's start comes from a global scan
+//! along each parameter — both signs, magnitudes from a third of its typical size to its
+//! bound in steps of √3 — refined by golden section between the best value's
+//! neighbours; Levenberg–Marquardt with finite-difference Jacobians then refines all
+//! parameters together. Uncertainties: the larger of the Jacobian's (the residual's
+//! variance inflated by its correlation length) and a block sandwich estimate (residual
+//! structure and model error that the Jacobian's noise model ignores). A value at its
+//! search bound is flagged as such, never reported as a fit.
 
 use super::candidates::{Candidate, Parameter};
-use super::forward::{ForwardError, ForwardModel};
+use super::forward::{ForwardError, ForwardModel, SimulatedSurface};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
 use super::zones::correlation_length;
@@ -25,7 +28,13 @@ pub struct Problem<'a, 'e> {
     pub model: ForwardModel<'e>,
     pub terms: Terms,
     pub shift: ShiftSearch,
-    cache: HashMap<(String, Vec<u64>), Rc<Evaluation>>,
+    /// Which point set `measurement` is (0: all fitted points; folds get their own),
+    /// so cached evaluations of one set never answer for another.
+    points_tag: usize,
+    cache: HashMap<(usize, String, Vec<u64>), Rc<Evaluation>>,
+    /// Simulated surfaces of lines (small), so another point set re-registers them
+    /// without simulating again.
+    surfaces: HashMap<(String, Vec<u64>), Rc<SimulatedSurface>>,
 }
 
 /// One trial: the effect values and the registered residual they leave.
@@ -62,6 +71,9 @@ pub struct Fit {
     /// Correlation length of the residual (points) and the effective point count.
     pub correlation_length: f64,
     pub effective_points: f64,
+    /// Per value: it sits at its search bound (the data wants more than the job files
+    /// allow, or the model cannot explain it): not a fit.
+    pub at_bound: Vec<bool>,
 }
 
 impl Fit {
@@ -120,7 +132,9 @@ impl<'a, 'e> Problem<'a, 'e> {
             model,
             terms,
             shift,
+            points_tag: 0,
             cache: HashMap::new(),
+            surfaces: HashMap::new(),
         }
     }
 
@@ -129,19 +143,42 @@ impl<'a, 'e> Problem<'a, 'e> {
         self.cache.clear();
     }
 
+    /// The point set trials are judged on, and its tag.
+    pub fn points(&self) -> (&'a Measurement, usize) {
+        (self.measurement, self.points_tag)
+    }
+
+    /// Judges trials on another point set (a fold of the fitted points), tagged `tag`
+    /// (≠ 0, distinct per set); returns the set and tag in force before.
+    pub fn use_points(&mut self, points: &'a Measurement, tag: usize) -> (&'a Measurement, usize) {
+        let before = (self.measurement, self.points_tag);
+        self.measurement = points;
+        self.points_tag = tag;
+        before
+    }
+
     /// Simulates `set` at `values` and registers it (cached by the exact values).
     pub fn evaluate(
         &mut self,
         set: &[Candidate],
         values: &[f64],
     ) -> Result<Rc<Evaluation>, ForwardError> {
-        let key = cache_key(set, values);
+        let (label, bits) = cache_key(set, values);
+        let key = (self.points_tag, label, bits);
         if let Some(hit) = self.cache.get(&key) {
             return Ok(hit.clone());
         }
-        let sim = self
-            .model
-            .simulate(&|job| apply_set(set, values, job), self.measurement)?;
+        let surface_key = (key.1.clone(), key.2.clone());
+        let sim = match self.surfaces.get(&surface_key) {
+            Some(sim) => sim.clone(),
+            None => {
+                let sim = Rc::new(self.model.simulate(&|job| apply_set(set, values, job))?);
+                if self.measurement.is_line() {
+                    self.surfaces.insert(surface_key, sim.clone());
+                }
+                sim
+            }
+        };
         let registered = register(self.measurement, &sim, self.terms, Some(self.shift));
         let evaluation = Rc::new(Evaluation {
             values: values.to_vec(),
@@ -188,10 +225,12 @@ impl<'a, 'e> Problem<'a, 'e> {
         self.finish(set, parameters, values, &jacobian, &unseen)
     }
 
-    /// The best value of parameter `j` along its axis: outward from the current value
-    /// in ×3 steps of its scale, each way, while the residual falls (finer steps when
-    /// neither way helps). At each step the `others` are re-adjusted by least squares on
-    /// their Jacobian at the start. Returns all values at the best step.
+    /// The best value of parameter `j` along its axis, searched globally: the current
+    /// value, then both signs at magnitudes from a third of the parameter's scale to its
+    /// bound in steps of √3 (a cone and a cylinder, a larger and a smaller radius, are
+    /// all tried); then golden section between the best value's neighbours. At each
+    /// value the `others` are re-adjusted by least squares on their Jacobian at the
+    /// start. Returns all values at the best one.
     fn scan(
         &mut self,
         set: &[Candidate],
@@ -239,36 +278,16 @@ impl<'a, 'e> Problem<'a, 'e> {
         let mut best = at(self, origin)?;
         // Every value tried, to bracket the best afterwards.
         let mut tried = vec![(origin, best.0)];
-
-        for direction in [1.0, -1.0] {
-            let mut previous = best.0;
-            for multiple in [1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0] {
-                let v = (origin + direction * multiple * p.scale).clamp(-p.bound, p.bound);
-                let trial = at(self, v)?;
-                let rss = trial.0;
-                tried.push((v, rss));
-                if rss < best.0 {
-                    best = trial;
-                }
-                if rss >= previous || v.abs() >= p.bound {
-                    break;
-                }
-                previous = rss;
+        for v in scan_values(origin, p.scale, p.bound) {
+            let trial = at(self, v)?;
+            tried.push((v, trial.0));
+            if trial.0 < best.0 {
+                best = trial;
             }
         }
-        if best.1[j] == origin {
-            for multiple in [0.3, -0.3, 0.1, -0.1] {
-                let v = origin + multiple * p.scale;
-                let trial = at(self, v)?;
-                tried.push((v, trial.0));
-                if trial.0 < best.0 {
-                    best = trial;
-                }
-            }
-        }
-        // Golden-section search between the best step's neighbours: features that
-        // move in whole grid steps (a centre cylinder's edge) leave the residual too
-        // rough for derivatives at the scale of one step.
+        // Golden-section search between the best value's neighbours: features that
+        // move in steps (a centre cylinder's edge between samples) leave the residual
+        // too rough for derivatives there.
         tried.sort_by(|a, b| a.0.total_cmp(&b.0));
         let centre = best.1[j];
         let below = tried.iter().rev().find(|t| t.0 < centre).map(|t| t.0);
@@ -401,15 +420,17 @@ impl<'a, 'e> Problem<'a, 'e> {
         let tau = correlation_length(self.measurement, &evaluation.registered.residual_mm);
         let used = evaluation.registered.used as f64;
         let free = observable(jacobian, frozen);
-        let dof = (used - free.len() as f64 - 4.0).max(1.0);
-        let variance = evaluation.rss() / dof * tau;
-        let jtj = normal_matrix(jacobian, &free);
+        let residual = evaluation.residual();
+        let sigmas_free = uncertainties(jacobian, &free, &residual, tau);
         let mut sigmas = vec![f64::INFINITY; values.len()];
-        if let Some(inv) = invert(&jtj) {
-            for (i, &j) in free.iter().enumerate() {
-                sigmas[j] = (inv[i][i] * variance).max(0.0).sqrt();
-            }
+        for (&j, s) in free.iter().zip(sigmas_free) {
+            sigmas[j] = s;
         }
+        let at_bound = values
+            .iter()
+            .zip(&parameters)
+            .map(|(v, p)| v.abs() >= 0.98 * p.bound)
+            .collect();
         Ok(Fit {
             set: set.to_vec(),
             parameters,
@@ -418,6 +439,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             evaluation,
             correlation_length: tau,
             effective_points: used / tau,
+            at_bound,
         })
     }
 
@@ -501,12 +523,81 @@ impl<'a, 'e> Problem<'a, 'e> {
     }
 }
 
+/// Multiples of a parameter's scale the global scan tries on each side (steps of √3).
+const SCAN_MULTIPLES: [f64; 17] = [
+    0.3, 0.5, 1.0, 1.7, 3.0, 5.0, 10.0, 17.0, 30.0, 50.0, 100.0, 170.0, 300.0, 500.0, 1000.0,
+    1700.0, 3000.0,
+];
+
+/// The values a global scan of one parameter tries around `origin`: both signs, every
+/// multiple of `scale` within the bound, and the bound itself on each side.
+fn scan_values(origin: f64, scale: f64, bound: f64) -> Vec<f64> {
+    let mut values: Vec<f64> = Vec::new();
+    for sign in [1.0, -1.0] {
+        for m in SCAN_MULTIPLES {
+            let v = origin + sign * m * scale;
+            if v.abs() < bound {
+                values.push(v);
+            }
+        }
+        values.push(sign * bound);
+    }
+    values.sort_by(f64::total_cmp);
+    values.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * bound);
+    values.retain(|v| *v != origin);
+    values
+}
+
 /// The parameters whose Jacobian column is not (numerically) zero: those the data sees.
 fn observable(jacobian: &[Vec<f64>], frozen: &[usize]) -> Vec<usize> {
     let norms: Vec<f64> = jacobian.iter().map(|c| dot(c, c)).collect();
     let largest = norms.iter().copied().fold(0.0, f64::max);
     (0..norms.len())
         .filter(|&j| norms[j] > 1e-12 * largest && norms[j] > 0.0 && !frozen.contains(&j))
+        .collect()
+}
+
+/// One-σ uncertainties of the `free` parameters: the larger of the Jacobian's — the
+/// residual's variance inflated by its correlation length `tau` (points) — and a block
+/// sandwich estimate, (JᵀJ)⁻¹ (Σ_b g_b g_bᵀ) (JᵀJ)⁻¹ with g_b = J_bᵀ r_b over blocks of
+/// 5 τ points, which also carries structure the noise model ignores (model error,
+/// correlated residuals). ∞ when JᵀJ is singular.
+pub(super) fn uncertainties(
+    jacobian: &[Vec<f64>],
+    free: &[usize],
+    residual: &[f64],
+    tau: f64,
+) -> Vec<f64> {
+    let k = free.len();
+    let n = residual.len();
+    let Some(inverse) = invert(&normal_matrix(jacobian, free)) else {
+        return vec![f64::INFINITY; k];
+    };
+    let used = residual.iter().filter(|r| **r != 0.0).count() as f64;
+    let variance = dot(residual, residual) / (used - k as f64 - 4.0).max(1.0) * tau;
+    let block = ((5.0 * tau).ceil() as usize).max(n / 200).max(1);
+    let mut meat = vec![vec![0.0; k]; k];
+    for start in (0..n).step_by(block) {
+        let end = (start + block).min(n);
+        let g: Vec<f64> = free
+            .iter()
+            .map(|&a| (start..end).map(|i| jacobian[a][i] * residual[i]).sum())
+            .collect();
+        for a in 0..k {
+            for b in 0..k {
+                meat[a][b] += g[a] * g[b];
+            }
+        }
+    }
+    (0..k)
+        .map(|a| {
+            let jacobian_sigma = (inverse[a][a] * variance).max(0.0).sqrt();
+            let sandwich: f64 = (0..k)
+                .flat_map(|b| (0..k).map(move |c| (b, c)))
+                .map(|(b, c)| inverse[a][b] * meat[b][c] * inverse[c][a])
+                .sum();
+            jacobian_sigma.max(sandwich.max(0.0).sqrt())
+        })
         .collect()
 }
 

@@ -202,6 +202,24 @@ pub enum ProcessKind {
     Milling,
 }
 
+/// Unit of an NC program's lengths.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum NcUnits {
+    #[serde(rename = "mm")]
+    Millimetre,
+    #[serde(rename = "um", alias = "µm")]
+    Micrometre,
+}
+
+impl NcUnits {
+    pub fn mm_per_unit(self) -> f64 {
+        match self {
+            NcUnits::Millimetre => 1.0,
+            NcUnits::Micrometre => 1e-3,
+        }
+    }
+}
+
 /// The `[process]` table. Turning fields: mode, feeds, spindle_rpm, depth_of_cut_mm,
 /// start/end_radius_mm, nc_program, nc_reference, compensation; generating fields:
 /// inclination_deg, plunge_axis, tool_rpm, workpiece_rpm, spark_out_revolutions,
@@ -240,6 +258,13 @@ pub struct ProcessSpec {
     /// What the program's X/Z locate: "nose_centre" (default) or "tip".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub nc_reference: Option<NcReference>,
+    /// The feed mode a program that sets none starts in (a planner's bare `C X Z`
+    /// block file): "inverse_time" (G93) or "per_minute" (G94).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nc_feed_mode: Option<crate::io::nc::FeedMode>,
+    /// Unit of the program's X and Z: "mm" (default) or "um".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nc_units: Option<NcUnits>,
     /// A normal correction (`radius_mm,normal_offset_nm` CSV, as `toolmark compensate`
     /// writes): the path cuts that much deeper along the surface normal.
     #[serde(default, skip_serializing_if = "Option::is_none")]
