@@ -31,9 +31,11 @@ pub struct DiagnoseArgs {
     /// Pixel pitch of a map (µm; "X" or "X,Y"), when the file does not state it.
     #[arg(long, value_delimiter = ',', num_args = 1..=2)]
     pub pixel_um: Option<Vec<f64>>,
-    /// Direction of a profile on the part (degrees from +X; a multiple of 0.5°).
-    #[arg(long, default_value_t = 0.0)]
-    pub azimuth_deg: f64,
+    /// Direction of a profile on the part (degrees from +X; a multiple of 0.5°). On a
+    /// turned part, where it lies on the program's spiral (C = 0 along +X): stated, it
+    /// is believed where the data cannot tell; unstated, it is found from the marks.
+    #[arg(long, allow_negative_numbers = true)]
+    pub azimuth_deg: Option<f64>,
     /// Where the part's axis lies in the file's frame (mm; "X" for a profile, "X,Y"
     /// for a map). Default: a profile's zero, a map's centre.
     #[arg(long, value_delimiter = ',', num_args = 1..=2, allow_negative_numbers = true)]
@@ -99,10 +101,11 @@ fn read_options(
 
 pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
     let job = load_job(Some(&args.job))?;
-    if !args.azimuth_deg.is_finite() || args.azimuth_deg.abs() > 360.0 {
+    if let Some(a) = args.azimuth_deg
+        && !(a.is_finite() && a.abs() <= 360.0)
+    {
         return Err(Failure::Input(format!(
-            "--azimuth-deg: {} is out of range; allowed: −360 to 360",
-            args.azimuth_deg
+            "--azimuth-deg: {a} is out of range; allowed: −360 to 360"
         )));
     }
     let instrument = Instrument {

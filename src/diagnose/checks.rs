@@ -8,7 +8,7 @@
 use super::compare::Comparison;
 use super::measurement::Measurement;
 use super::register::{Registered, Terms, fit_linear};
-use super::report::{FitCheck, Finding};
+use super::report::{Finding, FitCheck};
 use super::zones::{gaussian_lowpass, rms, white_noise_mm};
 use crate::io::job::Job;
 
@@ -123,6 +123,9 @@ fn mark_amplitude_ratio(m: &Measurement, model: &[f64], period: f64) -> Option<f
         let low = gaussian_lowpass(&points, values, 5.0 * period);
         values.iter().zip(&low).map(|(v, l)| v - l).collect()
     };
-    let (measured, simulated) = (rms(&high_pass(&pick(&m.height_mm))), rms(&high_pass(&pick(model))));
+    let (measured, simulated) = (
+        rms(&high_pass(&pick(&m.height_mm))),
+        rms(&high_pass(&pick(model))),
+    );
     (simulated > 0.5e-6).then(|| measured / simulated)
 }

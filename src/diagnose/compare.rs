@@ -132,7 +132,11 @@ fn spacing_bands(
             let to = (from + BAND_MARKS * marks_mm).min(r_max);
             let marks_mm = spacing(from, to).unwrap_or(marks_mm);
             // A short last band joins the one before.
-            let to = if r_max - to < MIN_BAND_MARKS * marks_mm { r_max } else { to };
+            let to = if r_max - to < MIN_BAND_MARKS * marks_mm {
+                r_max
+            } else {
+                to
+            };
             let picked: Vec<usize> = on_side
                 .iter()
                 .copied()

@@ -10,7 +10,7 @@
 //! search bound is flagged as such, never reported as a fit.
 
 use super::candidates::{Candidate, Parameter};
-use super::forward::{ForwardError, ForwardModel, SimulatedSurface};
+use super::forward::{ForwardError, ForwardModel};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
 use super::zones::correlation_length;
@@ -28,13 +28,12 @@ pub struct Problem<'a, 'e> {
     pub model: ForwardModel<'e>,
     pub terms: Terms,
     pub shift: ShiftSearch,
-    /// Which point set `measurement` is (0: all fitted points; folds get their own),
-    /// so cached evaluations of one set never answer for another.
-    points_tag: usize,
-    cache: HashMap<(usize, String, Vec<u64>), Rc<Evaluation>>,
-    /// Simulated surfaces of lines (small), so another point set re-registers them
-    /// without simulating again.
-    surfaces: HashMap<(String, Vec<u64>), Rc<SimulatedSurface>>,
+    /// The points a fit is judged on (a fold's part when some are held out); every
+    /// trial is still registered on all the points: registration places the
+    /// measurement, and one part alone would let a tilt absorb half of a cone.
+    mask: Option<Rc<Vec<bool>>>,
+    pub prior: Option<AzimuthPrior>,
+    cache: HashMap<(String, Vec<u64>), Rc<Evaluation>>,
 }
 
 /// One trial: the effect values and the registered residual they leave.
@@ -42,6 +41,23 @@ pub struct Problem<'a, 'e> {
 pub struct Evaluation {
     pub values: Vec<f64>,
     pub registered: Registered,
+    /// The azimuth prior's pseudo-residual (mm; 0 without one): see [`AzimuthPrior`].
+    pub prior_mm: f64,
+}
+
+/// What the user said about where a turned profile lies on the spiral, held as a
+/// belief the data may overrule: a decentre and a drift move the marks alike on a
+/// sphere (as does the azimuth), so only the stated azimuth can tell them apart there.
+/// It enters the fit as one pseudo-residual, `weight · Δ / σ`, Δ the fitted azimuth's
+/// distance from the stated one: at Δ = σ it weighs as much as one effective point.
+#[derive(Debug, Clone, Copy)]
+pub struct AzimuthPrior {
+    /// The stated azimuth relative to the located one (the spiral azimuth member's
+    /// value that agrees with the statement), degrees.
+    pub centre_deg: f64,
+    pub sigma_deg: f64,
+    /// The residual's RMS per effective point (mm).
+    pub weight_mm: f64,
 }
 
 impl Evaluation {
@@ -68,6 +84,9 @@ pub struct Fit {
     /// One standard deviation per value (∞ when the data cannot pin it).
     pub sigmas: Vec<f64>,
     pub evaluation: Rc<Evaluation>,
+    /// Σ r² the fit minimised (mm²): the registered residual on the judged points, and
+    /// the azimuth prior's term.
+    pub objective: f64,
     /// Correlation length of the residual (points) and the effective point count.
     pub correlation_length: f64,
     pub effective_points: f64,
@@ -80,11 +99,27 @@ impl Fit {
     /// Bayesian information criterion on the effective point count.
     pub fn bic(&self) -> f64 {
         bic(
-            self.evaluation.rss(),
+            self.objective,
             self.evaluation.registered.used,
             self.effective_points,
             self.values.len(),
         )
+    }
+
+    /// The members that are effects (not registration terms), by index.
+    pub fn effect_members(&self) -> Vec<usize> {
+        (0..self.set.len())
+            .filter(|&i| !self.set[i].is_registration())
+            .collect()
+    }
+
+    /// The effects in the set.
+    pub fn effects(&self) -> Vec<Candidate> {
+        self.set
+            .iter()
+            .copied()
+            .filter(|c| !c.is_registration())
+            .collect()
     }
 
     /// The values and sigmas of one member of the set.
@@ -96,6 +131,12 @@ impl Fit {
 }
 
 /// Adds every member of `set` at its values (concatenated) to the job's effects.
+///
+/// Where the set fits the spiral's azimuth, an effect that moves the marks along the
+/// radius (a decentre moves them out by δ) is paired with the turn of the spiral that
+/// moves them back (−2π δ / feed): the azimuth member then holds where the marks are
+/// and the effect what it does besides, so a scan over the effect does not have to
+/// drag the azimuth round the spiral with it.
 pub fn apply_set(set: &[Candidate], values: &[f64], job: &mut crate::io::job::Job) {
     let mut at = 0;
     for c in set {
@@ -103,6 +144,28 @@ pub fn apply_set(set: &[Candidate], values: &[f64], job: &mut crate::io::job::Jo
         c.apply(&values[at..at + n], job);
         at += n;
     }
+    let turn = spiral_compensation_rad(set, values, job);
+    if let crate::process::Process::Turning(t) = &mut job.process {
+        t.azimuth_offset_rad += turn;
+    }
+}
+
+/// The turn of the spiral that moves back the marks the set's effects move (rad; 0
+/// when the set does not fit the azimuth).
+fn spiral_compensation_rad(set: &[Candidate], values: &[f64], job: &crate::io::job::Job) -> f64 {
+    let Some(turning) = job.process.turning() else {
+        return 0.0;
+    };
+    if !set.contains(&Candidate::SpiralAzimuth) {
+        return 0.0;
+    }
+    let mut at = 0;
+    let mut shift_mm = 0.0;
+    for c in set {
+        shift_mm += c.mark_shift_mm(&values[at..at + width(c)]);
+        at += width(c);
+    }
+    -std::f64::consts::TAU * shift_mm / turning.path.pass_spacing_mm()
 }
 
 /// Parameters a candidate takes.
@@ -132,9 +195,9 @@ impl<'a, 'e> Problem<'a, 'e> {
             model,
             terms,
             shift,
-            points_tag: 0,
+            mask: None,
+            prior: None,
             cache: HashMap::new(),
-            surfaces: HashMap::new(),
         }
     }
 
@@ -143,18 +206,30 @@ impl<'a, 'e> Problem<'a, 'e> {
         self.cache.clear();
     }
 
-    /// The point set trials are judged on, and its tag.
-    pub fn points(&self) -> (&'a Measurement, usize) {
-        (self.measurement, self.points_tag)
+    /// Judges fits on the points where `mask` holds (None: all); returns the mask in
+    /// force before.
+    pub fn judge_on(&mut self, mask: Option<Rc<Vec<bool>>>) -> Option<Rc<Vec<bool>>> {
+        std::mem::replace(&mut self.mask, mask)
     }
 
-    /// Judges trials on another point set (a fold of the fitted points), tagged `tag`
-    /// (≠ 0, distinct per set); returns the set and tag in force before.
-    pub fn use_points(&mut self, points: &'a Measurement, tag: usize) -> (&'a Measurement, usize) {
-        let before = (self.measurement, self.points_tag);
-        self.measurement = points;
-        self.points_tag = tag;
-        before
+    /// A trial's residual on the judged points (0 elsewhere and where the simulation
+    /// has no data), then the azimuth prior's pseudo-residual.
+    pub fn residual(&self, e: &Evaluation) -> Vec<f64> {
+        let mut r = e.residual();
+        if let Some(mask) = &self.mask {
+            for (v, keep) in r.iter_mut().zip(mask.iter()) {
+                if !keep {
+                    *v = 0.0;
+                }
+            }
+        }
+        r.push(e.prior_mm);
+        r
+    }
+
+    /// Σ residual² on the judged points.
+    pub fn rss(&self, e: &Evaluation) -> f64 {
+        self.residual(e).iter().map(|v| v * v).sum()
     }
 
     /// Simulates `set` at `values` and registers it (cached by the exact values).
@@ -163,29 +238,37 @@ impl<'a, 'e> Problem<'a, 'e> {
         set: &[Candidate],
         values: &[f64],
     ) -> Result<Rc<Evaluation>, ForwardError> {
-        let (label, bits) = cache_key(set, values);
-        let key = (self.points_tag, label, bits);
+        let key = cache_key(set, values);
         if let Some(hit) = self.cache.get(&key) {
             return Ok(hit.clone());
         }
-        let surface_key = (key.1.clone(), key.2.clone());
-        let sim = match self.surfaces.get(&surface_key) {
-            Some(sim) => sim.clone(),
-            None => {
-                let sim = Rc::new(self.model.simulate(&|job| apply_set(set, values, job))?);
-                if self.measurement.is_line() {
-                    self.surfaces.insert(surface_key, sim.clone());
-                }
-                sim
-            }
-        };
+        let sim = self.model.simulate(&|job| apply_set(set, values, job))?;
         let registered = register(self.measurement, &sim, self.terms, Some(self.shift));
         let evaluation = Rc::new(Evaluation {
             values: values.to_vec(),
             registered,
+            prior_mm: self.prior_term(set, values),
         });
         self.cache.insert(key, evaluation.clone());
         Ok(evaluation)
+    }
+
+    /// The prior's pseudo-residual for `set` at `values` (0 without a prior, or when the
+    /// set does not fit the azimuth).
+    fn prior_term(&self, set: &[Candidate], values: &[f64]) -> f64 {
+        let Some(prior) = self.prior else {
+            return 0.0;
+        };
+        let turn = spiral_compensation_rad(set, values, self.model.base_job()).to_degrees();
+        let mut at = 0;
+        for c in set {
+            if *c == Candidate::SpiralAzimuth {
+                let d = (values[at] + turn - prior.centre_deg + 180.0).rem_euclid(360.0) - 180.0;
+                return prior.weight_mm * d / prior.sigma_deg;
+            }
+            at += width(c);
+        }
+        0.0
     }
 
     /// Fits `set` starting from `start`: a scan along each parameter listed in `scan`
@@ -248,7 +331,8 @@ impl<'a, 'e> Problem<'a, 'e> {
         let at = |problem: &mut Self, v: f64| -> Result<(f64, Vec<f64>), ForwardError> {
             let mut trial = base.to_vec();
             trial[j] = v;
-            let r = problem.evaluate(set, &trial)?.residual();
+            let evaluation = problem.evaluate(set, &trial)?;
+            let r = problem.residual(&evaluation);
             if columns.is_empty() {
                 return Ok((dot(&r, &r), trial));
             }
@@ -304,8 +388,14 @@ impl<'a, 'e> Problem<'a, 'e> {
         }
         // The linear re-adjustment is a prediction: keep it only if it really helps.
         let (now, then) = (
-            self.evaluate(set, base)?.rss(),
-            self.evaluate(set, &best.1)?.rss(),
+            {
+                let e = self.evaluate(set, base)?;
+                self.rss(&e)
+            },
+            {
+                let e = self.evaluate(set, &best.1)?;
+                self.rss(&e)
+            },
         );
         Ok(if then < now { best.1 } else { base.to_vec() })
     }
@@ -327,10 +417,13 @@ impl<'a, 'e> Problem<'a, 'e> {
         }
         let mut trial = values.to_vec();
         trial[j] += h;
-        let r1 = self.evaluate(set, &trial)?.residual();
+        let r1 = {
+            let e = self.evaluate(set, &trial)?;
+            self.residual(&e)
+        };
         Ok(r1
             .iter()
-            .zip(at.residual())
+            .zip(self.residual(at))
             .map(|(a, b)| (a - b) / h)
             .collect())
     }
@@ -365,7 +458,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             if k == 0 {
                 break;
             }
-            let r = current.residual();
+            let r = self.residual(&current);
             let jtj = normal_matrix(&jacobian, &free);
             let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], &r)).collect();
             let mut improved = false;
@@ -386,8 +479,9 @@ impl<'a, 'e> Problem<'a, 'e> {
                     trial[j] = (values[j] + s).clamp(-parameters[j].bound, parameters[j].bound);
                 }
                 let evaluation = self.evaluate(set, &trial)?;
-                if evaluation.rss() < current.rss() {
-                    let gain = 1.0 - evaluation.rss() / current.rss();
+                let (now, before) = (self.rss(&evaluation), self.rss(&current));
+                if now < before {
+                    let gain = 1.0 - now / before;
                     let small = free
                         .iter()
                         .zip(&step)
@@ -418,9 +512,12 @@ impl<'a, 'e> Problem<'a, 'e> {
     ) -> Result<Fit, ForwardError> {
         let evaluation = self.evaluate(set, &values)?;
         let tau = correlation_length(self.measurement, &evaluation.registered.residual_mm);
-        let used = evaluation.registered.used as f64;
+        let judged = |i: usize| self.mask.as_ref().is_none_or(|m| m[i]);
+        let used = (0..self.measurement.len())
+            .filter(|&i| judged(i) && evaluation.registered.residual_mm[i].is_finite())
+            .count() as f64;
         let free = observable(jacobian, frozen);
-        let residual = evaluation.residual();
+        let residual = self.residual(&evaluation);
         let sigmas_free = uncertainties(jacobian, &free, &residual, tau);
         let mut sigmas = vec![f64::INFINITY; values.len()];
         for (&j, s) in free.iter().zip(sigmas_free) {
@@ -431,12 +528,14 @@ impl<'a, 'e> Problem<'a, 'e> {
             .zip(&parameters)
             .map(|(v, p)| v.abs() >= 0.98 * p.bound)
             .collect();
+        let objective = self.rss(&evaluation);
         Ok(Fit {
             set: set.to_vec(),
             parameters,
             values,
             sigmas,
             evaluation,
+            objective,
             correlation_length: tau,
             effective_points: used / tau,
             at_bound,
@@ -454,7 +553,10 @@ impl<'a, 'e> Problem<'a, 'e> {
         orders: &[f64],
         amplitude_nm: f64,
     ) -> Result<Option<(f64, f64, f64)>, ForwardError> {
-        let r0 = self.evaluate(base, base_values)?.residual();
+        let r0 = {
+            let e = self.evaluate(base, base_values)?;
+            self.residual(&e)
+        };
         let mut best: Option<(f64, f64, f64, f64)> = None;
         for &order in orders {
             let (rss, a, b) = self.waviness_at(base, base_values, order, amplitude_nm, &r0)?;
@@ -502,7 +604,10 @@ impl<'a, 'e> Problem<'a, 'e> {
             let mut v = base_values.to_vec();
             v.extend([a, b]);
             // The residual removed per nm.
-            let r = self.evaluate(&set, &v)?.residual();
+            let r = {
+                let e = self.evaluate(&set, &v)?;
+                self.residual(&e)
+            };
             Ok(r.iter()
                 .zip(r0)
                 .map(|(x, y)| (y - x) / amplitude_nm)

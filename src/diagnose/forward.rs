@@ -112,9 +112,8 @@ impl<'e> ForwardModel<'e> {
     ) -> Result<Self, ForwardError> {
         check_layout(job)?;
         let mut base = job.clone();
-        let room = room_mm
-            + 3.0 * job.pitch_mm
-            + measurement.instrument.stylus_tip_mm.unwrap_or(0.0);
+        let room =
+            room_mm + 3.0 * job.pitch_mm + measurement.instrument.stylus_tip_mm.unwrap_or(0.0);
         let radii = measurement.xy_mm.iter().map(|p| p.length());
         let (r_min, r_max) = radii.fold((f64::INFINITY, 0.0_f64), |(lo, hi), r| {
             (lo.min(r), hi.max(r))
@@ -240,12 +239,15 @@ impl<'e> ForwardModel<'e> {
     }
 
     /// Simulates the base job changed by `modify` (the trial effects).
-    pub fn simulate(&mut self, modify: &dyn Fn(&mut Job)) -> Result<SimulatedSurface, ForwardError> {
+    pub fn simulate(
+        &mut self,
+        modify: &dyn Fn(&mut Job),
+    ) -> Result<SimulatedSurface, ForwardError> {
         let mut job = self.base.clone();
-        modify(&mut job);
         if let Process::Turning(turning) = &mut job.process {
             turning.azimuth_offset_rad = self.azimuth_rad;
         }
+        modify(&mut job);
         let started = Instant::now();
         let scenes = prepare_scenes(&job);
         self.prepare_s += started.elapsed().as_secs_f64();
@@ -302,6 +304,11 @@ impl Trace {
         for k in (0..rings).rev() {
             x.push(-grid.rings[k].radius_mm);
             z.push(height_mm[grid.sample_index(k, behind)]);
+        }
+        if grid.rings[0].radius_mm > 1e-12 {
+            // The grid leaves out the centre: nothing there to interpolate across.
+            x.push(0.0);
+            z.push(f64::NAN);
         }
         for k in 0..rings {
             let r = grid.rings[k].radius_mm;
@@ -659,8 +666,8 @@ height_mm = 0.002
         let mut grid_job = turned.base_job().clone();
         grid_job.azimuths = 8; // row 3 lies along 135°
         let mut engine = CpuEngine;
-        let mut rows = ForwardModel::covering(&grid_job, 1.0, 8, Instrument::default(), &mut engine)
-            .unwrap();
+        let mut rows =
+            ForwardModel::covering(&grid_job, 1.0, 8, Instrument::default(), &mut engine).unwrap();
         rows.base.aperture = turned.base_job().aperture;
         let expected = rows.simulate(&|_| {}).unwrap().trace_along(3);
         assert_eq!(trace.x.len(), expected.x.len());
@@ -671,5 +678,75 @@ height_mm = 0.002
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(worst < 1e-9, "largest difference {worst} mm");
+    }
+}
+
+#[cfg(test)]
+mod decentre_marks_tests {
+    use super::*;
+    use crate::diagnose::candidates::Candidate;
+    use crate::diagnose::fit::apply_set;
+    use crate::engine::cpu::CpuEngine;
+
+    /// A decentre moves a turned part's marks out by δ; paired with the spiral's
+    /// azimuth (`apply_set`) the turn 2π δ/f moves them back: the marks of the
+    /// compensated trace lie where the nominal's do (away from the centre), while the
+    /// uncompensated trace's are δ further out — checked by where each trace best
+    /// matches the nominal's marks.
+    #[test]
+    fn a_decentre_paired_with_the_azimuth_leaves_the_marks_in_place() {
+        let job = Job::from_toml_str(
+            r#"version = 1
+[surface]
+kind = "plane"
+aperture_diameter_mm = 0.6
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.2
+included_angle_deg = 140.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.01
+[grid]
+pitch_um = 0.25
+azimuths = 8
+"#,
+            "test",
+        )
+        .unwrap();
+        let x: Vec<f64> = (-25..=25).map(|i| i as f64 * 0.01).collect();
+        let line = Measurement::line(&x, &vec![0.0; x.len()], 0.0, 0.0, Instrument::default());
+        let mut engine = CpuEngine;
+        let mut model = ForwardModel::new(&job, &line, &mut engine).unwrap();
+        let delta = 0.003;
+        let mut trace = |set: &[Candidate], values: &[f64]| {
+            model.simulate(&|j| apply_set(set, values, j)).unwrap().trace.unwrap()
+        };
+        let nominal = trace(&[], &[]);
+        let moved = trace(&[Candidate::XDecentre], &[delta * 1e3]);
+        let kept = trace(&[Candidate::SpiralAzimuth, Candidate::XDecentre], &[0.0, delta * 1e3]);
+        // The shift (µm, outward on the + side) that best lays a trace's marks on the
+        // nominal's between r = 0.05 and 0.2 mm (their mean height difference aside).
+        let best_shift = |t: &Trace| -> f64 {
+            (-50..=50)
+                .map(|k| k as f64 * 1e-4)
+                .map(|s| {
+                    let d: Vec<f64> = (0..1500)
+                        .map(|i| 0.05 + i as f64 * 1e-4)
+                        .map(|r| t.at(r + s) - nominal.at(r))
+                        .collect();
+                    let mean = d.iter().sum::<f64>() / d.len() as f64;
+                    let err: f64 = d.iter().map(|v| (v - mean).powi(2)).sum();
+                    (err, s)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .unwrap()
+                .1
+                * 1e3
+        };
+        let (moved_um, kept_um) = (best_shift(&moved), best_shift(&kept));
+        assert!((moved_um - 3.0).abs() <= 0.15, "uncompensated marks moved {moved_um} µm");
+        assert!(kept_um.abs() <= 0.15, "compensated marks moved {kept_um} µm");
     }
 }

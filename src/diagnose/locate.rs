@@ -12,13 +12,13 @@
 //! Gauss–Newton), with the scale when the map resolves the marks.
 
 use super::DiagnoseError;
-use super::forward::{Frame, ForwardModel, SimulatedSurface, Trace};
+use super::fit::uncertainties;
+use super::forward::{ForwardModel, Frame, SimulatedSurface, Trace};
 use super::measurement::{Measurement, Shape};
 use super::register::{LinearTerms, ShiftSearch, Terms, fit_linear, register, trimmed_mean_square};
-use super::zones::correlation_length;
+use super::zones::{correlation_length, gaussian_lowpass_line};
 use crate::engine::RemovalEngine;
 use crate::io::job::Job;
-use super::fit::uncertainties;
 use crate::numeric::try_golden_section;
 use crate::process::Process;
 use glam::DVec2;
@@ -52,7 +52,9 @@ pub struct Located {
     pub sigma_shift_mm: [f64; 2],
     pub sigma_scale: f64,
     pub sigma_azimuth_rad: f64,
+    /// The scale was searched; and it came out within 2σ of 1, so it is held at 1.
     pub scale_fitted: bool,
+    pub scale_held: bool,
     pub azimuth_fitted: bool,
     /// RMS of the residual the nominal model leaves in this placement (mm).
     pub rms_mm: f64,
@@ -84,6 +86,16 @@ impl Located {
     /// Whether the scale sits at its search bound (not a fit).
     pub fn scale_at_bound(&self) -> bool {
         self.scale_fitted && (self.frame.scale - 1.0).abs() > 0.999 * SCALE_BOUND
+    }
+
+    /// What became of the lateral scale, in words.
+    pub fn scale_status(&self) -> &'static str {
+        match (self.scale_fitted, self.scale_held, self.scale_at_bound()) {
+            (false, _, _) => "not searched (the data carries no marks to fix it)",
+            (true, true, _) => "within 2σ of 1: held at 1",
+            (true, false, true) => "at the search bound (±2 %): not a fit",
+            (true, false, false) => "fitted",
+        }
     }
 }
 
@@ -169,13 +181,14 @@ fn locate_line(
         )));
     }
     let reach = (hi - a_min).max(a_max - lo).min(outer);
-    let marks = mark_spacing_mm(job, reach);
     let typical = local_mark_spacing_mm(job, 0.0, reach);
+    // The scale is fixed by marks the profile resolves (six points a mark, six marks).
+    let marks = typical.filter(|f| *f >= 6.0 * m.spacing_mm() && hi - lo >= 6.0 * f);
     let scale = options.scale && marks.is_some();
     let turning = job.process.turning().is_some();
-    let room = marks.unwrap_or(0.0) + 4.0 * job.pitch_mm + m.instrument.stylus_tip_mm.unwrap_or(0.0);
+    let room =
+        typical.unwrap_or(0.0) + 4.0 * job.pitch_mm + m.instrument.stylus_tip_mm.unwrap_or(0.0);
     let r_model = (reach * (1.0 + SCALE_BOUND) + room).min(outer);
-
     log(&format!(
         "locating the profile: axis anywhere in {:.4}–{:.4} mm of the file{}{}",
         m.file_position_of(DVec2::new(a_min, 0.0)).x,
@@ -183,7 +196,10 @@ fn locate_line(
         if turning { ", every azimuth of the spiral" } else { "" },
         if scale { ", lateral scale within ±2 %" } else { "" }
     ));
-    // The wide search on one simulation: every azimuth (turning) or the line's own.
+
+    // The wide search on one simulation — every azimuth (turning) or the line's own —
+    // judged on form and marks together: on a sphere an axis shift is a tilt to first
+    // order, but the marks, the centre and the form's higher orders tell.
     let rows = if turning { SCAN_ROWS } else { line_rows(line_azimuth)?.0 };
     let mut model = ForwardModel::covering(job, r_model, rows, m.instrument, engine)?;
     let surface = model.simulate(&|_| {})?;
@@ -195,118 +211,76 @@ fn locate_line(
         vec![(line_azimuth, surface.trace_along(line_rows(line_azimuth)?.1))]
     };
     let step = typical.map_or((a_max - lo).max(hi - a_min) / 200.0, |f| f / 8.0);
-    let positions = grid(a_min, a_max, step);
-    let scales = scale_grid(scale, marks, reach);
-    let coarse = ScanPoints::new(&subsample(m, SCAN_POINTS));
     let power = options.terms.power;
-    let scan: Vec<(usize, usize, Vec<f64>)> = (0..traces.len())
-        .flat_map(|t| (0..scales.len()).map(move |s| (t, s)))
-        .collect::<Vec<_>>()
-        .into_par_iter()
-        .map(|(t, s)| {
-            let mut scratch = Vec::new();
-            let values = positions
-                .iter()
-                .map(|&a| coarse.objective(&traces[t].1, a, scales[s], power, &mut scratch))
-                .collect();
-            (t, s, values)
-        })
-        .collect();
-    let mut starts: Vec<(f64, usize, f64, f64)> = Vec::new();
-    for (t, s, values) in &scan {
-        for k in local_minima(values) {
-            starts.push((values[k], *t, positions[k], scales[*s]));
-        }
-    }
-    starts.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let starts = distinct(starts, typical.unwrap_or(step) / 3.0, traces.len(), CANDIDATES);
+    let starts = wide_scan(m, &traces, grid(a_min, a_max, step), power, typical.unwrap_or(step));
     if starts.is_empty() {
         return Err(DiagnoseError::DoesNotFit(
             "no placement of the profile keeps its points on the simulated part".into(),
         ));
     }
 
-    // Refine each: the azimuth by golden section (a fresh two-row simulation per trial),
-    // the axis and scale by Gauss–Newton.
+    // Refine each start: the azimuth by golden section (a fresh two-row simulation per
+    // trial), the axis by Gauss–Newton.
     let fine = subsample(m, REFINE_POINTS);
     let mut line = ForwardModel::covering(job, r_model, 2, m.instrument, model.engine())?;
-    let half_row = TAU / rows as f64;
+    let row_step = TAU / rows as f64;
+    let mut trace_at = |phi: f64| -> Result<Trace, DiagnoseError> {
+        if !turning {
+            return Ok(traces[0].1.clone());
+        }
+        line.set_azimuth(phi);
+        Ok(line.simulate(&|_| {})?.trace_along(0))
+    };
     let mut placements: Vec<(Placement, LineFit)> = Vec::new();
-    for &(_, t, a, s) in &starts {
-        let azimuth = traces[t].0;
+    for &(_, t, a) in &starts {
         let mut best: Option<(Placement, LineFit)> = None;
         let mut at_azimuth = |phi: f64| -> Result<f64, DiagnoseError> {
-            let trace = if turning {
-                line.set_azimuth(phi);
-                line.simulate(&|_| {})?.trace_along(0)
-            } else {
-                traces[0].1.clone()
-            };
-            let start = best.as_ref().map_or((a, s), |b| (b.1.along, b.1.scale));
-            let fit = refine_line(&fine, &trace, start, power, scale);
+            let start = best.as_ref().map_or(a, |b| b.1.along);
+            let fit = refine_line(&fine, &trace_at(phi)?, (start, 1.0), power, false);
             let value = fit.objective;
             if best.as_ref().is_none_or(|b| value < b.1.objective) {
-                let frame = Frame {
-                    shift_mm: fit.along * m.line_direction(),
-                    scale: fit.scale,
-                };
-                let placement = Placement {
-                    frame,
-                    azimuth_rad: phi,
-                    rms_mm: value.sqrt(),
-                };
-                best = Some((placement, fit));
+                best = Some((placement(m, &fit, phi), fit));
             }
             Ok(value)
         };
+        let azimuth = traces[t].0;
+        at_azimuth(azimuth)?;
         if turning {
-            at_azimuth(azimuth)?;
-            try_golden_section(&mut at_azimuth, azimuth - half_row, azimuth + half_row, 9)?;
-        } else {
-            at_azimuth(azimuth)?;
+            try_golden_section(&mut at_azimuth, azimuth - row_step, azimuth + row_step, 9)?;
         }
-        if let Some(b) = best {
-            placements.push(b);
-        }
+        placements.extend(best);
     }
-    placements.sort_by(|a, b| a.1.objective.total_cmp(&b.1.objective));
-    // Refinements of neighbouring starts that met are one placement.
-    let close = |a: &Placement, b: &Placement| {
-        let turn = (a.azimuth_rad - b.azimuth_rad).rem_euclid(TAU);
-        (a.frame.shift_mm - b.frame.shift_mm).length() < marks.unwrap_or(step) / 8.0
-            && (a.frame.scale - b.frame.scale).abs() < 2e-3
-            && turn.min(TAU - turn) < 2.0 * half_row
-    };
-    let mut kept: Vec<(Placement, LineFit)> = Vec::new();
-    for p in placements {
-        if !kept.iter().any(|k| close(&k.0, &p.0)) {
-            kept.push(p);
-        }
-    }
-    let placements = kept;
-    let (best, fit) = placements[0].clone();
+    let placements = distinct_placements(placements, typical.unwrap_or(step), row_step);
+    let (mut best, mut fit) = placements[0].clone();
 
-    // Uncertainties: the Gauss–Newton normal matrix with the residual's variance
-    // inflated by its correlation length; the azimuth by a central difference.
+    // The scale from the marks alone (a form error the job lacks must not set it), kept
+    // only when 2σ from 1; then the axis again at that scale.
+    let mut scale_sigma = 0.0;
+    let mut scale_held = false;
+    if let Some(f) = marks.filter(|_| scale) {
+        let (points, trace) = (high_passed(&fine, 2.5 * f), high_passed_trace(fit.trace.clone(), 2.5 * f));
+        let on_marks = refine_line(&points, &trace, (fit.along, best_scale(&points, &trace, fit.along, power)), power, true);
+        scale_sigma = line_sigmas(&points, &on_marks, None, power, true).scale;
+        scale_held = (on_marks.scale - 1.0).abs() < 2.0 * scale_sigma;
+        if !scale_held {
+            fit = refine_line(&fine, &fit.trace, (fit.along, on_marks.scale), power, false);
+            fit.scale = on_marks.scale;
+            best = placement(m, &fit, best.azimuth_rad);
+        }
+    }
+    // Uncertainties of the axis and the azimuth (a central difference of the trace).
     let azimuth_column = if turning {
-        let h = 0.02 * half_row;
-        let mut column = |phi: f64| -> Result<Vec<f64>, DiagnoseError> {
-            line.set_azimuth(phi);
-            let trace = line.simulate(&|_| {})?.trace_along(0);
-            Ok(trace.sample(&fine.along_mm, fit.along, fit.scale))
-        };
-        let (ahead, behind) = (column(best.azimuth_rad + h)?, column(best.azimuth_rad - h)?);
-        Some(
-            ahead
-                .iter()
-                .zip(&behind)
-                .map(|(p, q)| (p - q) / (2.0 * h))
-                .collect::<Vec<f64>>(),
-        )
+        let h = 0.02 * row_step;
+        let (ahead, behind) = (trace_at(best.azimuth_rad + h)?, trace_at(best.azimuth_rad - h)?);
+        let (a, b) = (
+            ahead.sample(&fine.along_mm, fit.along, fit.scale),
+            behind.sample(&fine.along_mm, fit.along, fit.scale),
+        );
+        Some(a.iter().zip(&b).map(|(p, q)| (p - q) / (2.0 * h)).collect::<Vec<f64>>())
     } else {
         None
     };
-    let sigmas = line_sigmas(&fine, &fit, azimuth_column.as_deref(), power, scale);
+    let sigmas = line_sigmas(&fine, &fit, azimuth_column.as_deref(), power, false);
     log(&format!(
         "axis at {:.4} mm of the file (± {:.4}), lateral scale {:.4}{}, residual {:.1} nm RMS",
         m.file_position_of(best.frame.shift_mm.dot(m.line_direction()) * DVec2::X).x,
@@ -323,13 +297,115 @@ fn locate_line(
         frame: best.frame,
         azimuth_rad: best.azimuth_rad,
         sigma_shift_mm: [sigmas.along, 0.0],
-        sigma_scale: sigmas.scale,
+        sigma_scale: scale_sigma,
         sigma_azimuth_rad: sigmas.azimuth,
         scale_fitted: scale,
+        scale_held,
         azimuth_fitted: turning,
         rms_mm: best.rms_mm,
         alternatives: placements[1..].iter().map(|p| p.0).collect(),
     })
+}
+
+/// The wide search: every trace (azimuth) at every axis position, the trimmed mean
+/// square residual of a subsample; the best local minima, distinct in axis position
+/// by a third of `apart` (a mark spacing) on neighbouring azimuths.
+fn wide_scan(
+    m: &Measurement,
+    traces: &[(f64, Trace)],
+    positions: Vec<f64>,
+    power: bool,
+    apart: f64,
+) -> Vec<(f64, usize, f64)> {
+    let coarse = ScanPoints::new(&subsample(m, SCAN_POINTS));
+    let scan: Vec<Vec<f64>> = traces
+        .par_iter()
+        .map(|(_, trace)| {
+            let mut scratch = Vec::new();
+            positions
+                .iter()
+                .map(|&a| coarse.objective(trace, a, 1.0, power, &mut scratch))
+                .collect()
+        })
+        .collect();
+    let mut starts: Vec<(f64, usize, f64)> = Vec::new();
+    for (t, values) in scan.iter().enumerate() {
+        for k in local_minima(values) {
+            starts.push((values[k], t, positions[k]));
+        }
+    }
+    starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    distinct(starts, apart / 3.0, traces.len(), CANDIDATES)
+}
+
+/// A line fit as a placement of the measurement.
+fn placement(m: &Measurement, fit: &LineFit, azimuth_rad: f64) -> Placement {
+    Placement {
+        frame: Frame {
+            shift_mm: fit.along * m.line_direction(),
+            scale: fit.scale,
+        },
+        azimuth_rad,
+        rms_mm: fit.objective.sqrt(),
+    }
+}
+
+/// The best of the scales within ±2 % for a trace placed with its axis at `along`
+/// (golden section on the trimmed objective).
+fn best_scale(m: &Measurement, trace: &Trace, along: f64, power: bool) -> f64 {
+    let objective = |s: f64| line_objective(m, trace, along, s, power);
+    super::register::golden_section(&objective, 1.0 - SCALE_BOUND, 1.0 + SCALE_BOUND, 30)
+}
+
+/// Refinements of neighbouring starts that met are one placement (axis within an
+/// eighth of a mark, azimuth within two rows); best first.
+fn distinct_placements(
+    mut placements: Vec<(Placement, LineFit)>,
+    marks: f64,
+    row_step: f64,
+) -> Vec<(Placement, LineFit)> {
+    placements.sort_by(|a, b| a.1.objective.total_cmp(&b.1.objective));
+    let close = |a: &Placement, b: &Placement| {
+        let turn = (a.azimuth_rad - b.azimuth_rad).rem_euclid(TAU);
+        (a.frame.shift_mm - b.frame.shift_mm).length() < marks / 8.0
+            && turn.min(TAU - turn) < 2.0 * row_step
+    };
+    let mut kept: Vec<(Placement, LineFit)> = Vec::new();
+    for p in placements {
+        if !kept.iter().any(|k| close(&k.0, &p.0)) {
+            kept.push(p);
+        }
+    }
+    kept
+}
+
+/// The points with their form taken out: heights minus their Gaussian low-pass at
+/// `cutoff_mm` (in position order).
+fn high_passed(m: &Measurement, cutoff_mm: f64) -> Measurement {
+    let order = {
+        let mut o: Vec<usize> = (0..m.len()).collect();
+        o.sort_by(|&a, &b| m.along_mm[a].total_cmp(&m.along_mm[b]));
+        o
+    };
+    let sorted = m.subset(|_| true);
+    let x: Vec<f64> = order.iter().map(|&i| m.along_mm[i]).collect();
+    let z: Vec<f64> = order.iter().map(|&i| m.height_mm[i]).collect();
+    let low = gaussian_lowpass_line(&x, &z, cutoff_mm);
+    let mut height = vec![0.0; m.len()];
+    for (k, &i) in order.iter().enumerate() {
+        height[i] = z[k] - low[k];
+    }
+    Measurement {
+        height_mm: height,
+        ..sorted
+    }
+}
+
+/// A trace with its form taken out the same way.
+fn high_passed_trace(trace: Trace, cutoff_mm: f64) -> Trace {
+    let low = gaussian_lowpass_line(&trace.x, &trace.z, cutoff_mm);
+    let z = trace.z.iter().zip(&low).map(|(a, b)| a - b).collect();
+    Trace { x: trace.x, z }
 }
 
 /// The fewest rows with one along the azimuth, and that row.
@@ -348,21 +424,9 @@ fn grid(lo: f64, hi: f64, step: f64) -> Vec<f64> {
     if n == 0 {
         return vec![0.5 * (lo + hi)];
     }
-    (0..=n).map(|k| lo + (hi - lo) * k as f64 / n as f64).collect()
-}
-
-/// The scales the wide search tries: steps that move the farthest point by a third of
-/// a mark spacing at most (up to 21 values within ±2 %), or 1 alone.
-fn scale_grid(fit: bool, marks: Option<f64>, reach_mm: f64) -> Vec<f64> {
-    match marks {
-        Some(f) if fit => {
-            let half = ((SCALE_BOUND * reach_mm) / (f / 3.0)).ceil().clamp(1.0, 10.0) as i64;
-            (-half..=half)
-                .map(|k| 1.0 + SCALE_BOUND * k as f64 / half as f64)
-                .collect()
-        }
-        _ => vec![1.0],
-    }
+    (0..=n)
+        .map(|k| lo + (hi - lo) * k as f64 / n as f64)
+        .collect()
 }
 
 /// The trimmed mean square residual of the trace placed with its axis at `along` and
@@ -400,7 +464,14 @@ impl ScanPoints {
     /// As [`line_objective`], without allocating: the trace is walked along the
     /// ascending positions and the linear terms solved from their 3 × 3 normal
     /// equations (`scratch` holds the residuals).
-    fn objective(&self, trace: &Trace, along: f64, scale: f64, power: bool, scratch: &mut Vec<f64>) -> f64 {
+    fn objective(
+        &self,
+        trace: &Trace,
+        along: f64,
+        scale: f64,
+        power: bool,
+        scratch: &mut Vec<f64>,
+    ) -> f64 {
         let width = if power { 3 } else { 2 };
         let (mut normal, mut rhs) = ([[0.0; 3]; 3], [0.0; 3]);
         scratch.clear();
@@ -454,28 +525,33 @@ fn local_minima(values: &[f64]) -> Vec<usize> {
     let n = values.len();
     (0..n)
         .filter(|&k| values[k].is_finite())
-        .filter(|&k| (k == 0 || values[k - 1] > values[k]) && (k + 1 == n || values[k + 1] >= values[k]))
+        .filter(|&k| {
+            (k == 0 || values[k - 1] > values[k]) && (k + 1 == n || values[k + 1] >= values[k])
+        })
         .collect()
 }
 
-/// The best `count` starts (value, trace, axis, scale), dropping any within `apart` of
+/// The best `count` starts (value, trace, axis), dropping any within `apart` of
 /// a better one on the same or a neighbouring trace (of `traces`, in a circle).
 fn distinct(
-    sorted: Vec<(f64, usize, f64, f64)>,
+    sorted: Vec<(f64, usize, f64)>,
     apart: f64,
     traces: usize,
     count: usize,
-) -> Vec<(f64, usize, f64, f64)> {
+) -> Vec<(f64, usize, f64)> {
     let neighbours = |a: usize, b: usize| {
         let d = a.abs_diff(b);
         d.min(traces - d) <= 1
     };
-    let mut kept: Vec<(f64, usize, f64, f64)> = Vec::new();
+    let mut kept: Vec<(f64, usize, f64)> = Vec::new();
     for s in sorted {
         if kept.len() == count {
             break;
         }
-        if !kept.iter().any(|k| neighbours(k.1, s.1) && (k.2 - s.2).abs() < apart) {
+        if !kept
+            .iter()
+            .any(|k| neighbours(k.1, s.1) && (k.2 - s.2).abs() < apart)
+        {
             kept.push(s);
         }
     }
@@ -626,7 +702,13 @@ fn placement_sigmas(
             .collect::<Vec<f64>>()
     }));
     let residual: Vec<f64> = (0..m.len())
-        .map(|i| if usable(i) { registered.residual_mm[i] } else { 0.0 })
+        .map(|i| {
+            if usable(i) {
+                registered.residual_mm[i]
+            } else {
+                0.0
+            }
+        })
         .collect();
     let tau = correlation_length(m, &registered.residual_mm);
     let free: Vec<usize> = (0..jacobian.len()).collect();
@@ -681,9 +763,13 @@ fn locate_map(
     if scale {
         frame = refine_map_scale(m, &surface, frame, options.terms.power);
     }
+    let sigmas = map_sigmas(m, &surface, frame, options.terms.power, scale);
+    let scale_held = scale && (frame.scale - 1.0).abs() < 2.0 * sigmas[2];
+    if scale_held {
+        frame.scale = 1.0;
+    }
     let model_values = surface.sample(m, frame);
     let final_fit = fit_linear(m, &model_values, frame.shift_mm, options.terms.power);
-    let sigmas = map_sigmas(m, &surface, frame, options.terms.power, scale);
     Ok(Located {
         frame,
         azimuth_rad: 0.0,
@@ -691,6 +777,7 @@ fn locate_map(
         sigma_scale: if scale { sigmas[2] } else { 0.0 },
         sigma_azimuth_rad: 0.0,
         scale_fitted: scale,
+        scale_held,
         azimuth_fitted: false,
         rms_mm: (final_fit.rss / final_fit.used.max(1) as f64).sqrt(),
         alternatives: Vec::new(),
@@ -708,7 +795,8 @@ fn refine_map_scale(m: &Measurement, sim: &SimulatedSurface, frame: Frame, power
         }
         trimmed_mean_square(&r.residual_mm, 0.95)
     };
-    let scale = super::register::golden_section(&objective, 1.0 - SCALE_BOUND, 1.0 + SCALE_BOUND, 30);
+    let scale =
+        super::register::golden_section(&objective, 1.0 - SCALE_BOUND, 1.0 + SCALE_BOUND, 30);
     Frame { scale, ..frame }
 }
 

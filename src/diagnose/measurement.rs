@@ -46,6 +46,8 @@ pub struct Measurement {
     /// inverse of the lateral scale once registration has fitted one).
     pub file_origin_mm: DVec2,
     pub file_per_mm: f64,
+    /// A line's azimuth was stated by the user (not a default).
+    pub azimuth_stated: bool,
 }
 
 impl Measurement {
@@ -110,6 +112,7 @@ impl Measurement {
             total_points,
             file_origin_mm: DVec2::ZERO,
             file_per_mm: 1.0,
+            azimuth_stated: false,
         }
     }
 
@@ -146,7 +149,11 @@ impl Measurement {
         let s0 = shift_here.x;
         Measurement {
             xy_mm: self.xy_mm.iter().map(|p| frame.to_part(*p)).collect(),
-            along_mm: self.along_mm.iter().map(|a| (a - s0) * frame.scale).collect(),
+            along_mm: self
+                .along_mm
+                .iter()
+                .map(|a| (a - s0) * frame.scale)
+                .collect(),
             file_origin_mm: self.file_position_of(shift_here),
             file_per_mm: self.file_per_mm / frame.scale,
             ..self.clone()
@@ -226,6 +233,7 @@ impl Measurement {
         }
         m.file_origin_mm = self.file_origin_mm;
         m.file_per_mm = self.file_per_mm;
+        m.azimuth_stated = self.azimuth_stated;
         m
     }
 }

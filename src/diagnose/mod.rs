@@ -31,10 +31,10 @@ pub mod zones;
 use crate::engine::RemovalEngine;
 use crate::io::job::Job;
 use candidates::{Candidate, NotDiagnosable, candidates_for};
-use fit::{Fit, Problem, width};
+use fit::{AzimuthPrior, Fit, Problem, width};
 use forward::{ForwardError, ForwardModel, SimulatedSurface, shift_room_mm};
 use glam::DVec2;
-use measurement::Measurement;
+use measurement::{Measurement, Shape};
 use register::{Registered, ShiftSearch, Terms, register};
 use report::*;
 use search::Search;
@@ -145,10 +145,28 @@ pub fn diagnose(
         model.set_azimuth(located.azimuth_rad);
     }
     log("simulating the job as given and registering it");
-    let mut problem = Problem::new(&fitted, model, options.terms, local_search(DVec2::ZERO, period));
-    let nominal = problem.evaluate(&[], &[])?.registered.clone();
-    problem.shift = local_search(nominal.shift_mm, period);
-    problem.clear_cache();
+    let mut problem = Problem::new(
+        &fitted,
+        model,
+        options.terms,
+        local_search(DVec2::ZERO, period),
+    );
+    let spiral = located.azimuth_fitted && fitted.is_line();
+    if spiral
+        && let Shape::Line { azimuth_rad } = measurement.shape
+        && measurement.azimuth_stated
+    {
+        let first = search::registration_base(&mut problem, spiral)?;
+        let noise = white_noise_mm(&fitted, &first.evaluation.registered.residual_mm);
+        problem.prior = Some(AzimuthPrior {
+            centre_deg: (azimuth_rad - located.azimuth_rad).to_degrees(),
+            sigma_deg: AZIMUTH_PRIOR_DEG,
+            weight_mm: AZIMUTH_PRIOR_WEIGHT * noise.max(1e-7),
+        });
+        problem.clear_cache();
+    }
+    let base = search::registration_base(&mut problem, spiral)?;
+    let nominal = base.evaluation.registered.clone();
     let spacing = |from: f64, to: f64| locate::local_mark_spacing_mm(job, from, to);
     let comparison = compare::compare(&fitted, &nominal, options.terms.power, &spacing);
     let check = checks::fit_check(&fitted, &nominal, job, options.terms, period, &comparison);
@@ -161,6 +179,7 @@ pub fn diagnose(
     let found = if check.fits {
         search::search(
             &mut problem,
+            &base,
             &candidates,
             job,
             &folds,
@@ -172,7 +191,7 @@ pub fn diagnose(
     } else {
         Search::default()
     };
-    let baseline = problem.evaluate(&[], &[])?;
+    let baseline = base.evaluation.clone();
     let rss0 = baseline.rss();
     let after = found
         .accepted
@@ -206,16 +225,25 @@ pub fn diagnose(
         .singles
         .iter()
         .enumerate()
-        .map(|(rank, (fit, evidence))| CandidateResult {
-            rank: rank + 1,
-            accepted: accepted.is_some_and(|f| f.set.iter().any(|c| c.kind() == fit.set[0].kind())),
-            delta_bic: *evidence,
-            explained: 1.0 - fit.evaluation.rss() / rss0.max(1e-300),
-            ..effect_result(fit, 0, rss0)
+        .map(|(rank, (fit, evidence))| {
+            let member = fit.set.len() - 1;
+            let kind = fit.set[member].kind();
+            CandidateResult {
+                rank: rank + 1,
+                accepted: accepted.is_some_and(|f| f.effects().iter().any(|c| c.kind() == kind)),
+                delta_bic: *evidence,
+                explained: 1.0 - fit.evaluation.rss() / rss0.max(1e-300),
+                ..effect_result(fit, member, rss0)
+            }
         })
         .collect();
     let accepted_results: Vec<CandidateResult> = accepted
-        .map(|f| (0..f.set.len()).map(|i| effect_result(f, i, rss0)).collect())
+        .map(|f| {
+            f.effect_members()
+                .into_iter()
+                .map(|i| effect_result(f, i, rss0))
+                .collect()
+        })
         .unwrap_or_default();
     let mut shrinkage = vec![shrink_step(
         "nominal job",
@@ -303,6 +331,12 @@ pub fn diagnose(
     })
 }
 
+/// How far (one σ) a stated profile azimuth is believed on a turned part (degrees), and
+/// its weight in units of the residual's white noise: one σ off costs as much as one
+/// point three times the noise off, so the marks overrule it wherever they can tell.
+const AZIMUTH_PRIOR_DEG: f64 = 45.0;
+const AZIMUTH_PRIOR_WEIGHT: f64 = 3.0;
+
 /// A diagnosis needs some points.
 fn require_points(m: &Measurement) -> Result<(), DiagnoseError> {
     if m.len() < 16 {
@@ -348,8 +382,8 @@ fn wide_search(m: &Measurement, period: f64) -> ShiftSearch {
 fn local_search(start: DVec2, period: f64) -> ShiftSearch {
     ShiftSearch {
         start,
-        half_width_mm: 0.5 * period,
-        step_mm: 0.125 * period,
+        half_width_mm: 0.125 * period,
+        step_mm: 0.03125 * period,
         refine: 1,
     }
 }
@@ -489,7 +523,7 @@ fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<Strin
                 && (best_evidence - evidence).abs() < 0.02 * best_evidence.abs() + 2.0
                 && cos > 0.98
         })
-        .map(|(f, _)| f.set[0].label())
+        .map(|(f, _)| f.set[f.set.len() - 1].label())
         .collect()
 }
 
@@ -546,7 +580,7 @@ fn effects_fragment(job: &Job, fit: Option<&Fit>) -> String {
     );
     match fit {
         Some(f) => {
-            for i in 0..f.set.len() {
+            for i in f.effect_members() {
                 text.push('\n');
                 text.push_str(&f.set[i].effects_table(f.values_of(i).0));
             }
@@ -574,4 +608,3 @@ fn term_names(terms: Terms) -> Vec<String> {
     }
     names
 }
-

@@ -86,7 +86,12 @@ pub fn register(
     // The axis is judged on the bulk of the points: the worst 5 % (an unmodelled local
     // feature, spikes) do not steer it.
     let objective = |points: &Measurement, shift: DVec2| {
-        let r = fit_linear(points, &sim.sample(points, Frame::at(shift)), shift, terms.power);
+        let r = fit_linear(
+            points,
+            &sim.sample(points, Frame::at(shift)),
+            shift,
+            terms.power,
+        );
         if r.used < kept(points) {
             return f64::INFINITY;
         }
@@ -313,7 +318,10 @@ fn refine_shift(
     for _ in 0..8 {
         let model = sim.sample(m, Frame::at(at));
         let slope = |d: DVec2| -> Vec<f64> {
-            let (ahead, behind) = (sim.sample(m, Frame::at(at + d)), sim.sample(m, Frame::at(at - d)));
+            let (ahead, behind) = (
+                sim.sample(m, Frame::at(at + d)),
+                sim.sample(m, Frame::at(at - d)),
+            );
             ahead
                 .iter()
                 .zip(&behind)

@@ -128,6 +128,8 @@ pub struct RegistrationInfo {
     pub lateral_scale_fitted: bool,
     /// The scale sits at its search bound: not a fit.
     pub lateral_scale_at_bound: bool,
+    /// "fitted", "within 2σ of 1: held at 1", "at the search bound …", "not searched …".
+    pub lateral_scale_status: String,
     /// Turning: the azimuth on the program's spiral (degrees from C = 0, counter-clockwise
     /// seen from +Z) along which the profile runs (a map: its +X), with σ.
     pub azimuth_deg: Option<f64>,
@@ -176,7 +178,11 @@ impl RegistrationInfo {
             r.axis_at_um = (in_file(r.axis_at_um) * 1e3).to_array();
         }
         let file_per_mm = read.file_per_mm;
-        let azimuth = |a: f64| located.azimuth_fitted.then(|| a.to_degrees().rem_euclid(360.0));
+        let azimuth = |a: f64| {
+            located
+                .azimuth_fitted
+                .then(|| a.to_degrees().rem_euclid(360.0))
+        };
         let alternatives = located
             .alternatives
             .iter()
@@ -212,6 +218,7 @@ impl RegistrationInfo {
             lateral_scale_sigma: located.sigma_scale,
             lateral_scale_fitted: located.scale_fitted,
             lateral_scale_at_bound: located.scale_at_bound(),
+            lateral_scale_status: located.scale_status().into(),
             azimuth_deg: azimuth(located.azimuth_rad),
             azimuth_sigma_deg: located
                 .azimuth_fitted

@@ -36,9 +36,22 @@ pub struct Search {
     pub refused: Vec<(String, String)>,
 }
 
-/// Runs the search on `problem` (registered in the nominal frame, axis at `axis_mm`).
+/// The job as given, registered: the registration terms that are fitted like effects
+/// (a turned profile's azimuth on the spiral) fitted alone; an empty set otherwise.
+pub fn registration_base(problem: &mut Problem, spiral: bool) -> Result<Fit, ForwardError> {
+    if spiral {
+        problem.fit(&[Candidate::SpiralAzimuth], vec![0.0], &[])
+    } else {
+        problem.fit(&[], Vec::new(), &[])
+    }
+}
+
+/// Runs the search on `problem` from `base` (the job as given, registered in the
+/// nominal frame, axis at `axis_mm`).
+#[allow(clippy::too_many_arguments)]
 pub fn search<'a>(
     problem: &mut Problem<'a, '_>,
+    base: &Fit,
     candidates: &[Candidate],
     job: &Job,
     folds: &'a [Fold],
@@ -53,29 +66,37 @@ pub fn search<'a>(
     let mut fits = Vec::new();
     for c in candidates {
         log(&format!("fitting {}", c.label()));
-        if let Some(fit) = fit_new(problem, &[], &[], *c, job, fitted)? {
-            fits.push(refit_if_axis_moves(problem, fit, nominal_frame, period_mm, job, fitted, log)?);
+        if let Some(fit) = fit_new(problem, &base.set, &base.values, *c, job, fitted)? {
+            eprintln!("DEBUG {:?} {:?} obj {:e} prior {:?}", fit.set, fit.values, fit.objective, problem.prior);
+            fits.push(refit_if_axis_moves(
+                problem,
+                fit,
+                base,
+                nominal_frame,
+                period_mm,
+                job,
+                fitted,
+                log,
+            )?);
             problem.shift = nominal_frame;
             problem.clear_cache();
         }
     }
-    let rss0 = problem.evaluate(&[], &[])?.rss();
+    let (rss0, k0) = (base.objective, base.values.len());
     let n_eff = common_effective_points(&fits, problem, fitted)?;
     found.singles = fits
         .into_iter()
         .map(|fit| {
-            let e = evidence(rss0, 0, &fit, n_eff);
+            let e = evidence(rss0, k0, &fit, n_eff);
             (fit, e)
         })
         .collect();
     found.singles.sort_by(|a, b| b.1.total_cmp(&a.1));
 
-    let mut current: Option<Fit> = None;
-    while current.as_ref().map_or(0, |c| c.set.len()) < options.max_effects {
-        let round = greedy_round(problem, &found.singles, current.as_ref(), job, fitted, log)?;
-        let (rss_before, k_before) = current
-            .as_ref()
-            .map_or((rss0, 0), |f| (f.evaluation.rss(), f.values.len()));
+    let mut current: Fit = base.clone();
+    while current.effect_members().len() < options.max_effects {
+        let round = greedy_round(problem, &found.singles, &current, job, fitted, log)?;
+        let (rss_before, k_before) = (current.objective, current.values.len());
         let n_eff = common_effective_points(&round, problem, fitted)?;
         let mut ranked: Vec<(Fit, f64)> = round
             .into_iter()
@@ -97,7 +118,9 @@ pub fn search<'a>(
                 found.refused.push((label, why));
                 continue;
             }
-            log(&format!("{label}: checking that it predicts data it was not fitted on"));
+            log(&format!(
+                "{label}: checking that it predicts data it was not fitted on"
+            ));
             let validation = cross_validate(problem, folds, &fit.set, &fit.values, axis_mm)?;
             let passed = validation.passed;
             if passed {
@@ -115,18 +138,18 @@ pub fn search<'a>(
         match taken {
             Some(fit) => {
                 found.steps.push(fit.clone());
-                current = Some(fit);
+                current = fit;
             }
             None => break,
         }
     }
-    if let Some(cur) = current.clone().filter(|c| c.set.len() > 1)
-        && let Some(reduced) = drop_redundant(problem, &cur, options, log)?
+    if current.effect_members().len() > 1
+        && let Some(reduced) = drop_redundant(problem, &current, options, log)?
     {
         found.steps.push(reduced.clone());
-        current = Some(reduced);
+        current = reduced;
     }
-    found.accepted = current;
+    found.accepted = (!current.effect_members().is_empty()).then_some(current);
     Ok(found)
 }
 
@@ -158,30 +181,30 @@ fn widen_sigmas(fit: &mut Fit, member: usize, spread: &[f64]) {
     }
 }
 
-/// One greedy round: every candidate not yet taken fitted on top of `current` (the
-/// singles themselves in the first round); a further waviness order while fewer than
+/// One greedy round: every candidate not yet taken fitted on top of `cur` (the singles
+/// themselves in the first round); a further waviness order while fewer than
 /// `MAX_WAVINESS_ORDERS` are taken.
 fn greedy_round(
     problem: &mut Problem,
     singles: &[(Fit, f64)],
-    current: Option<&Fit>,
+    cur: &Fit,
     job: &Job,
     fitted: &Measurement,
     log: &dyn Fn(&str),
 ) -> Result<Vec<Fit>, DiagnoseError> {
-    let Some(cur) = current else {
+    if cur.effect_members().is_empty() {
         return Ok(singles.iter().map(|(f, _)| f.clone()).collect());
-    };
+    }
     let mut round = Vec::new();
-    let waviness_taken = cur
-        .set
+    let effects = cur.effects();
+    let waviness_taken = effects
         .iter()
         .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
         .count();
     for (single, _) in singles {
-        let c = single.set[0];
+        let c = *single.set.last().expect("a single has its candidate");
         let is_waviness = matches!(c, Candidate::EdgeWaviness { .. });
-        let taken = cur.set.iter().any(|t| t.kind() == c.kind());
+        let taken = effects.iter().any(|t| t.kind() == c.kind());
         if taken && !(is_waviness && waviness_taken < MAX_WAVINESS_ORDERS) {
             continue;
         }
@@ -190,7 +213,7 @@ fn greedy_round(
         } else {
             c
         };
-        log(&format!("fitting {} with {}", c.label(), labels(&cur.set)));
+        log(&format!("fitting {} with {}", c.label(), labels(&effects)));
         if let Some(fit) = fit_new(problem, &cur.set, &cur.values, c, job, fitted)? {
             round.push(fit);
         }
@@ -205,7 +228,7 @@ fn drop_redundant(
     options: &Options,
     log: &dyn Fn(&str),
 ) -> Result<Option<Fit>, DiagnoseError> {
-    for drop in 0..cur.set.len() {
+    for drop in cur.effect_members() {
         let rest: Vec<Candidate> = cur
             .set
             .iter()
@@ -219,7 +242,7 @@ fn drop_redundant(
             .collect();
         let reduced = problem.fit(&rest, start, &[])?;
         let e = evidence(
-            reduced.evaluation.rss(),
+            reduced.objective,
             reduced.values.len(),
             cur,
             cur.effective_points,
@@ -238,9 +261,11 @@ fn drop_redundant(
 /// A strong effect the nominal model lacked can mislead the nominal registration by
 /// whole mark periods: the single fit is registered again over ±2.5 marks, and refitted
 /// around the axis that finds if it moved; the better of the two fits is kept.
+#[allow(clippy::too_many_arguments)]
 fn refit_if_axis_moves(
     problem: &mut Problem,
     fit: Fit,
+    base: &Fit,
     nominal: ShiftSearch,
     period_mm: f64,
     job: &Job,
@@ -263,15 +288,16 @@ fn refit_if_axis_moves(
     if (again.shift_mm - nominal.start).length() <= 0.25 * period_mm {
         return Ok(fit);
     }
+    let c = *fit.set.last().expect("a single has its candidate");
     log(&format!(
         "{} moves the axis: registering again and refitting it",
-        fit.set[0].label()
+        c.label()
     ));
     problem.shift = super::local_search(again.shift_mm, period_mm);
     problem.clear_cache();
-    let refit = fit_new(problem, &[], &[], fit.set[0], job, fitted)?;
+    let refit = fit_new(problem, &base.set, &base.values, c, job, fitted)?;
     Ok(match refit {
-        Some(r) if r.evaluation.rss() < fit.evaluation.rss() => r,
+        Some(r) if r.objective < fit.objective => r,
         _ => fit,
     })
 }
@@ -336,7 +362,7 @@ fn common_effective_points(
     let used = baseline.registered.used as f64;
     let tau = fits
         .iter()
-        .min_by(|a, b| a.evaluation.rss().total_cmp(&b.evaluation.rss()))
+        .min_by(|a, b| a.objective.total_cmp(&b.objective))
         .map_or_else(
             || zones::correlation_length(m, &baseline.registered.residual_mm),
             |f| f.correlation_length,
@@ -348,7 +374,7 @@ fn common_effective_points(
 pub fn evidence(rss_before: f64, k_before: usize, fit: &Fit, n_eff: f64) -> f64 {
     let used = fit.evaluation.registered.used;
     bic(rss_before, used, n_eff, k_before)
-        - bic(fit.evaluation.rss(), used, n_eff, fit.values.len())
+        - bic(fit.objective, used, n_eff, fit.values.len())
 }
 
 /// Whether member `member`'s parameters stand 3σ clear of zero together.
@@ -364,6 +390,7 @@ fn significant(fit: &Fit, member: usize) -> bool {
 
 pub fn labels(set: &[Candidate]) -> String {
     set.iter()
+        .filter(|c| !c.is_registration())
         .map(Candidate::label)
         .collect::<Vec<_>>()
         .join(" + ")

@@ -6,6 +6,10 @@
 //! where the whole data put it (one side alone cannot tell a decentre from an axis
 //! shift).
 //!
+//! Every trial is registered on all the points (registration places the measurement;
+//! one side alone would let its tilt absorb half of a decentre's cone); the folds only
+//! choose which points judge the fit and which judge the prediction.
+//!
 //! A fold judges the effect only where it can: the fit on the rest must see the effect
 //! (2σ from zero) and predict a change on the fold of at least a tenth of the fold's
 //! residual. There the held-out residual must fall, and by at least a third of what the
@@ -20,6 +24,7 @@ use super::forward::ForwardError;
 use super::measurement::Measurement;
 use super::zones::rms;
 use glam::DVec2;
+use std::rc::Rc;
 
 /// Least share of the predicted change a fold must show.
 const MIN_EFFICIENCY: f64 = 0.3;
@@ -28,11 +33,10 @@ const MIN_PREDICTED: f64 = 0.1;
 /// Least share of a side (or half) for the split to be made.
 const MIN_SHARE: f64 = 0.15;
 
-/// A part of the fitted points held out, and the rest the effect is fitted on.
+/// A part of the fitted points held out (the rest is what the effect is fitted on).
 pub struct Fold {
     pub name: String,
-    pub fit_on: Measurement,
-    pub held: Measurement,
+    pub held: Vec<bool>,
 }
 
 /// The folds of `m` (placed on the part, its axis at `axis_mm`).
@@ -47,11 +51,13 @@ pub fn folds(m: &Measurement, axis_mm: DVec2) -> Vec<Fold> {
     };
     let below = (0..m.len()).filter(|&i| side(i) < 0.0).count() as f64 / m.len().max(1) as f64;
     if (MIN_SHARE..=1.0 - MIN_SHARE).contains(&below) {
-        for (name, negative) in [("the − side of the axis", true), ("the + side of the axis", false)] {
+        for (name, negative) in [
+            ("the − side of the axis", true),
+            ("the + side of the axis", false),
+        ] {
             folds.push(Fold {
                 name: name.into(),
-                fit_on: m.subset(|i| (side(i) < 0.0) != negative),
-                held: m.subset(|i| (side(i) < 0.0) == negative),
+                held: (0..m.len()).map(|i| (side(i) < 0.0) == negative).collect(),
             });
         }
     }
@@ -59,11 +65,15 @@ pub fn folds(m: &Measurement, axis_mm: DVec2) -> Vec<Fold> {
     let mut sorted = radius.clone();
     sorted.sort_by(f64::total_cmp);
     let median = sorted[sorted.len() / 2];
-    for (name, inner) in [("the inner half in radius", true), ("the outer half in radius", false)] {
+    for (name, inner) in [
+        ("the inner half in radius", true),
+        ("the outer half in radius", false),
+    ] {
         folds.push(Fold {
             name: name.into(),
-            fit_on: m.subset(|i| (radius[i] < median) != inner),
-            held: m.subset(|i| (radius[i] < median) == inner),
+            held: (0..m.len())
+                .map(|i| (radius[i] < median) == inner)
+                .collect(),
         });
     }
     folds
@@ -103,9 +113,9 @@ pub struct Validation {
 
 /// Cross-validates the last member of `set` (the others are those already accepted)
 /// at `values` (the whole data's fit), on `folds`, the axis held at `axis_mm`.
-pub fn cross_validate<'a>(
-    problem: &mut Problem<'a, '_>,
-    folds: &'a [Fold],
+pub fn cross_validate(
+    problem: &mut Problem,
+    folds: &[Fold],
     set: &[Candidate],
     values: &[f64],
     axis_mm: DVec2,
@@ -113,13 +123,14 @@ pub fn cross_validate<'a>(
     let member = set.len() - 1;
     let start: usize = set[..member].iter().map(width).sum();
     let base_set = &set[..member];
-    let saved = (problem.terms, problem.shift, problem.points());
+    let saved = (problem.terms, problem.shift);
     problem.terms.shift = false;
     problem.shift.start = axis_mm;
+    problem.clear_cache();
     let mut checks = Vec::new();
     let mut result = Ok(());
-    for (k, fold) in folds.iter().enumerate() {
-        match judge_fold(problem, fold, 2 * k + 1, set, values, base_set, start) {
+    for fold in folds {
+        match judge_fold(problem, fold, set, values, base_set, start) {
             Ok(check) => checks.push(check),
             Err(e) => {
                 result = Err(e);
@@ -127,11 +138,15 @@ pub fn cross_validate<'a>(
             }
         }
     }
-    problem.use_points(saved.2.0, saved.2.1);
-    (problem.terms, problem.shift) = (saved.0, saved.1);
+    problem.judge_on(None);
+    (problem.terms, problem.shift) = saved;
+    problem.clear_cache();
     result?;
     let judged: Vec<&FoldCheck> = checks.iter().filter(|c| c.judged).collect();
-    let failed: Vec<&&FoldCheck> = judged.iter().filter(|c| c.efficiency < MIN_EFFICIENCY).collect();
+    let failed: Vec<&&FoldCheck> = judged
+        .iter()
+        .filter(|c| c.efficiency < MIN_EFFICIENCY)
+        .collect();
     let (passed, reason) = if judged.is_empty() {
         (
             false,
@@ -153,7 +168,11 @@ pub fn cross_validate<'a>(
             true,
             format!(
                 "fitted without each of {}, it predicts what it did not see",
-                judged.iter().map(|c| c.fold.as_str()).collect::<Vec<_>>().join(", ")
+                judged
+                    .iter()
+                    .map(|c| c.fold.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         )
     };
@@ -166,7 +185,9 @@ pub fn cross_validate<'a>(
             }
             let (lo, hi) = v
                 .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                    (a.min(*x), b.max(*x))
+                });
             0.5 * (hi - lo)
         })
         .collect();
@@ -179,34 +200,46 @@ pub fn cross_validate<'a>(
     })
 }
 
-fn judge_fold<'a>(
-    problem: &mut Problem<'a, '_>,
-    fold: &'a Fold,
-    tag: usize,
+fn judge_fold(
+    problem: &mut Problem,
+    fold: &Fold,
     set: &[Candidate],
     values: &[f64],
     base_set: &[Candidate],
     start: usize,
 ) -> Result<FoldCheck, ForwardError> {
     let n = width(&set[set.len() - 1]);
-    problem.use_points(&fold.fit_on, tag);
+    let held = Rc::new(fold.held.clone());
+    let rest = Rc::new(fold.held.iter().map(|h| !h).collect::<Vec<bool>>());
+    problem.judge_on(Some(rest));
     let fitted = problem.fit(set, values.to_vec(), &[])?;
     let base_values = if base_set.is_empty() {
         Vec::new()
     } else {
         problem.fit(base_set, values[..start].to_vec(), &[])?.values
     };
-    let (own, sigmas) = (&fitted.values[start..start + n], &fitted.sigmas[start..start + n]);
+    let (own, sigmas) = (
+        &fitted.values[start..start + n],
+        &fitted.sigmas[start..start + n],
+    );
     let seen = own
         .iter()
         .zip(sigmas)
         .any(|(v, s)| s.is_finite() && v.abs() > 2.0 * s);
-    problem.use_points(&fold.held, tag + 1);
+    problem.judge_on(Some(held.clone()));
     let before = problem.evaluate(base_set, &base_values)?;
     let after = problem.evaluate(set, &fitted.values)?;
-    let (rb, ra) = (before.residual(), after.residual());
+    let (rb, ra) = (problem.residual(&before), problem.residual(&after));
     let change: Vec<f64> = rb.iter().zip(&ra).map(|(b, a)| b - a).collect();
-    let (rss_b, rss_a) = (before.rss(), after.rss());
+    let (rss_b, rss_a) = (problem.rss(&before), problem.rss(&after));
+    let on_fold = |r: &[f64]| -> Vec<f64> {
+        r.iter()
+            .zip(held.iter())
+            .filter(|(_, h)| **h)
+            .map(|(v, _)| *v)
+            .collect()
+    };
+    let (rb, change) = (on_fold(&rb), on_fold(&change));
     let predicted = change.iter().map(|d| d * d).sum::<f64>();
     let efficiency = if predicted > 0.0 {
         (rss_b - rss_a) / predicted
@@ -221,12 +254,12 @@ fn judge_fold<'a>(
     };
     Ok(FoldCheck {
         fold: fold.name.clone(),
-        points: fold.held.len(),
+        points: fold.held.iter().filter(|h| **h).count(),
         values: own.to_vec(),
         judged: seen && visible,
         note,
-        before_rms_nm: rms(&before.registered.residual_mm) * 1e6,
-        after_rms_nm: rms(&after.registered.residual_mm) * 1e6,
+        before_rms_nm: rms(&rb) * 1e6,
+        after_rms_nm: rms(&on_fold(&ra)) * 1e6,
         efficiency,
     })
 }

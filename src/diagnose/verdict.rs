@@ -44,14 +44,20 @@ pub fn verdict(
     let location = where_it_lies(before);
     match fit {
         Some(f) => {
-            let parts: Vec<String> = (0..f.set.len())
-                .map(|i| {
+            let members = f.effect_members();
+            let parts: Vec<String> = members
+                .iter()
+                .map(|&i| {
                     let (v, s) = f.values_of(i);
                     f.set[i].describe(v, s)
                 })
                 .collect();
             let mut sentence = capitalise(&parts.join("; "));
-            let which = if f.set.len() == 1 { "correcting it" } else { "correcting them" };
+            let which = if members.len() == 1 {
+                "correcting it"
+            } else {
+                "correcting them"
+            };
             sentence.push_str(&format!(
                 "; {which} cuts the residual from {:.0} nm to {:.0} nm PV ({:.1} → {:.1} nm RMS).",
                 before.pv_nm, after.pv_nm, before.rms_nm, after.rms_nm
@@ -68,8 +74,10 @@ pub fn verdict(
                     h.points, h.before_rms_nm, h.after_rms_nm
                 ));
             }
-            let mut advice: Vec<String> =
-                (0..f.set.len()).map(|i| f.set[i].advice(f.values_of(i).0)).collect();
+            let mut advice: Vec<String> = members
+                .iter()
+                .map(|&i| f.set[i].advice(f.values_of(i).0))
+                .collect();
             let status = if near_noise || explained >= EXPLAINED {
                 "effects_found"
             } else {
@@ -104,7 +112,9 @@ pub fn verdict(
                 after.rms_nm, after.pv_nm, noise
             );
             if let Some((label, why)) = refused.first() {
-                sentence.push_str(&format!(" The strongest candidate, {label}, was not accepted: {why}."));
+                sentence.push_str(&format!(
+                    " The strongest candidate, {label}, was not accepted: {why}."
+                ));
             }
             Verdict {
                 status: "unexplained_residual".into(),

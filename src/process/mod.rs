@@ -160,7 +160,10 @@ impl TurningPath {
                     .map(|(_, f)| f)
                     .collect();
                 feeds.sort_by(f64::total_cmp);
-                feeds.get(feeds.len() / 2).copied().unwrap_or(nc.pass_spacing_mm)
+                feeds
+                    .get(feeds.len() / 2)
+                    .copied()
+                    .unwrap_or(nc.pass_spacing_mm)
             }
         }
     }

@@ -4,8 +4,8 @@
 use super::effects::{apply_edge_profile, turning_effects};
 use super::surface::{self, MAX_SLOPE_DEG, usable_at, usable_over};
 use super::{
-    Aperture, JobError, JobFile, ProcessSpec, SurfaceKind, SurfaceSpec, ToolKind, ToolSpec, check,
-    NcUnits, error, reject_unused, required, resolve_file,
+    Aperture, JobError, JobFile, NcUnits, ProcessSpec, SurfaceKind, SurfaceSpec, ToolKind,
+    ToolSpec, check, error, reject_unused, required, resolve_file,
 };
 use crate::geometry::{ArcNoseTool, MeridianArcLength, SurfaceOfRevolution};
 use crate::io::nc::{NcDeclared, parse_nc_declared};
