@@ -93,6 +93,8 @@ pub struct Fit {
     /// Per value: it sits at its search bound (the data wants more than the job files
     /// allow, or the model cannot explain it): not a fit.
     pub at_bound: Vec<bool>,
+    /// Where registration looked for the axis in this fit.
+    pub frame: ShiftSearch,
 }
 
 impl Fit {
@@ -539,6 +541,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             correlation_length: tau,
             effective_points: used / tau,
             at_bound,
+            frame: self.shift,
         })
     }
 

@@ -197,18 +197,28 @@ fn locate_line(
         if scale { ", lateral scale within ±2 %" } else { "" }
     ));
 
-    // The wide search on one simulation — every azimuth (turning) or the line's own —
-    // judged on form and marks together: on a sphere an axis shift is a tilt to first
-    // order, but the marks, the centre and the form's higher orders tell.
+    // The wide search on one simulation — every azimuth (turning) or the line's own.
+    // Where the profile resolves the marks, they alone place it (the form taken out of
+    // both): a form error the job lacks — a decentre's cone, a radius error — would
+    // otherwise pull the axis, and on a sphere an axis shift is a tilt to first order.
     let rows = if turning { SCAN_ROWS } else { line_rows(line_azimuth)?.0 };
     let mut model = ForwardModel::covering(job, r_model, rows, m.instrument, engine)?;
     let surface = model.simulate(&|_| {})?;
+    let seen = |trace: Trace| match marks {
+        Some(f) => high_passed_trace(trace, 2.5 * f),
+        None => trace,
+    };
     let traces: Vec<(f64, Trace)> = if turning {
         (0..rows)
-            .map(|j| (TAU * j as f64 / rows as f64, surface.trace_along(j)))
+            .map(|j| (TAU * j as f64 / rows as f64, seen(surface.trace_along(j))))
             .collect()
     } else {
-        vec![(line_azimuth, surface.trace_along(line_rows(line_azimuth)?.1))]
+        vec![(line_azimuth, seen(surface.trace_along(line_rows(line_azimuth)?.1)))]
+    };
+    let raw = subsample(m, REFINE_POINTS);
+    let m = &match marks {
+        Some(f) => high_passed(m, 2.5 * f),
+        None => m.clone(),
     };
     let step = typical.map_or((a_max - lo).max(hi - a_min) / 200.0, |f| f / 8.0);
     let power = options.terms.power;
@@ -224,54 +234,66 @@ fn locate_line(
     let fine = subsample(m, REFINE_POINTS);
     let mut line = ForwardModel::covering(job, r_model, 2, m.instrument, model.engine())?;
     let row_step = TAU / rows as f64;
-    let mut trace_at = |phi: f64| -> Result<Trace, DiagnoseError> {
-        if !turning {
-            return Ok(traces[0].1.clone());
-        }
-        line.set_azimuth(phi);
-        Ok(line.simulate(&|_| {})?.trace_along(0))
+    // (the trace as simulated, and as judged: its form taken out where the marks rule).
+    let mut trace_at = |phi: f64| -> Result<(Trace, Trace), DiagnoseError> {
+        let as_simulated = if turning {
+            line.set_azimuth(phi);
+            line.simulate(&|_| {})?.trace_along(0)
+        } else {
+            surface.trace_along(line_rows(line_azimuth)?.1)
+        };
+        Ok((as_simulated.clone(), seen(as_simulated)))
     };
-    let mut placements: Vec<(Placement, LineFit)> = Vec::new();
-    for &(_, t, a) in &starts {
+    // Marks repeat: a scale that moves the farthest point by half a mark aligns it
+    // with the next, so the scale is searched only short of that (and within ±2 %).
+    let scale_bound = |a: f64| -> Option<f64> {
+        let f = marks.filter(|_| scale)?;
+        let far = fine.along_mm.iter().map(|x| (x - a).abs()).fold(0.0, f64::max);
+        Some((0.5 * f / far.max(f)).min(SCALE_BOUND))
+    };
+    let mut refine = |a: f64, azimuth: f64, bound: Option<f64>| -> Result<Option<(Placement, LineFit)>, DiagnoseError> {
         let mut best: Option<(Placement, LineFit)> = None;
         let mut at_azimuth = |phi: f64| -> Result<f64, DiagnoseError> {
-            let start = best.as_ref().map_or(a, |b| b.1.along);
-            let fit = refine_line(&fine, &trace_at(phi)?, (start, 1.0), power, false);
+            let start = best.as_ref().map_or((a, 1.0), |b| (b.1.along, b.1.scale));
+            let (as_simulated, judged) = trace_at(phi)?;
+            let mut fit = refine_line(&fine, &judged, start, power, bound);
+            fit.with_form = line_objective(&raw, &as_simulated, fit.along, fit.scale, power);
             let value = fit.objective;
             if best.as_ref().is_none_or(|b| value < b.1.objective) {
                 best = Some((placement(m, &fit, phi), fit));
             }
             Ok(value)
         };
-        let azimuth = traces[t].0;
         at_azimuth(azimuth)?;
         if turning {
             try_golden_section(&mut at_azimuth, azimuth - row_step, azimuth + row_step, 9)?;
         }
-        placements.extend(best);
+        Ok(best)
+    };
+    let mut placements: Vec<(Placement, LineFit)> = Vec::new();
+    for &(_, t, a) in &starts {
+        placements.extend(refine(a, traces[t].0, scale_bound(a))?);
     }
-    let placements = distinct_placements(placements, typical.unwrap_or(step), row_step);
+    let placements =
+        distinct_placements(placements, typical.unwrap_or(step), row_step, marks.is_some());
     let (mut best, mut fit) = placements[0].clone();
-
-    // The scale from the marks alone (a form error the job lacks must not set it), kept
-    // only when 2σ from 1; then the axis again at that scale.
+    // The scale is kept only when 2σ from 1 (on a sphere a scale is a power term: an
+    // uncertain one would bend the form); else the placement is found again at 1.
     let mut scale_sigma = 0.0;
     let mut scale_held = false;
-    if let Some(f) = marks.filter(|_| scale) {
-        let (points, trace) = (high_passed(&fine, 2.5 * f), high_passed_trace(fit.trace.clone(), 2.5 * f));
-        let on_marks = refine_line(&points, &trace, (fit.along, best_scale(&points, &trace, fit.along, power)), power, true);
-        scale_sigma = line_sigmas(&points, &on_marks, None, power, true).scale;
-        scale_held = (on_marks.scale - 1.0).abs() < 2.0 * scale_sigma;
-        if !scale_held {
-            fit = refine_line(&fine, &fit.trace, (fit.along, on_marks.scale), power, false);
-            fit.scale = on_marks.scale;
-            best = placement(m, &fit, best.azimuth_rad);
+    if scale_bound(fit.along).is_some() {
+        scale_sigma = line_sigmas(&fine, &fit, None, power, true).scale;
+        scale_held = (fit.scale - 1.0).abs() < 2.0 * scale_sigma;
+        if scale_held
+            && let Some(again) = refine(fit.along, best.azimuth_rad, None)?
+        {
+            (best, fit) = again;
         }
     }
     // Uncertainties of the axis and the azimuth (a central difference of the trace).
     let azimuth_column = if turning {
         let h = 0.02 * row_step;
-        let (ahead, behind) = (trace_at(best.azimuth_rad + h)?, trace_at(best.azimuth_rad - h)?);
+        let (ahead, behind) = (trace_at(best.azimuth_rad + h)?.1, trace_at(best.azimuth_rad - h)?.1);
         let (a, b) = (
             ahead.sample(&fine.along_mm, fit.along, fit.scale),
             behind.sample(&fine.along_mm, fit.along, fit.scale),
@@ -350,21 +372,26 @@ fn placement(m: &Measurement, fit: &LineFit, azimuth_rad: f64) -> Placement {
     }
 }
 
-/// The best of the scales within ±2 % for a trace placed with its axis at `along`
-/// (golden section on the trimmed objective).
-fn best_scale(m: &Measurement, trace: &Trace, along: f64, power: bool) -> f64 {
-    let objective = |s: f64| line_objective(m, trace, along, s, power);
-    super::register::golden_section(&objective, 1.0 - SCALE_BOUND, 1.0 + SCALE_BOUND, 30)
-}
-
 /// Refinements of neighbouring starts that met are one placement (axis within an
-/// eighth of a mark, azimuth within two rows); best first.
+/// eighth of a mark, azimuth within two rows); best first. Where the marks placed the
+/// line, placements whose marks fit within half again of the best are alike to the
+/// marks (a whole mark along, or half a mark and half a turn: a spiral of even feed
+/// repeats but at its centre): among those the form decides — its higher orders
+/// (a sphere's r⁴) fix the axis where the marks cannot.
 fn distinct_placements(
     mut placements: Vec<(Placement, LineFit)>,
     marks: f64,
     row_step: f64,
+    by_marks: bool,
 ) -> Vec<(Placement, LineFit)> {
     placements.sort_by(|a, b| a.1.objective.total_cmp(&b.1.objective));
+    if by_marks && let Some(first) = placements.first().map(|p| p.1.objective) {
+        let (mut alike, rest): (Vec<_>, Vec<_>) = placements
+            .into_iter()
+            .partition(|p| p.1.objective <= 1.5 * first);
+        alike.sort_by(|a, b| a.1.with_form.total_cmp(&b.1.with_form));
+        placements = alike.into_iter().chain(rest).collect();
+    }
     let close = |a: &Placement, b: &Placement| {
         let turn = (a.azimuth_rad - b.azimuth_rad).rem_euclid(TAU);
         (a.frame.shift_mm - b.frame.shift_mm).length() < marks / 8.0
@@ -566,6 +593,8 @@ struct LineFit {
     scale: f64,
     objective: f64,
     trace: Trace,
+    /// The objective with the form left in (where the marks alone placed the line).
+    with_form: f64,
 }
 
 /// Gauss–Newton on the axis position and scale (with piston, tilt and power solved in
@@ -576,9 +605,11 @@ fn refine_line(
     trace: &Trace,
     start: (f64, f64),
     power: bool,
-    fit_scale: bool,
+    scale_bound: Option<f64>,
 ) -> LineFit {
-    let (mut along, mut scale) = start;
+    let fit_scale = scale_bound.is_some();
+    let bound = scale_bound.unwrap_or(0.0);
+    let (mut along, mut scale) = (start.0, if fit_scale { start.1 } else { 1.0 });
     let mut best = line_objective(m, trace, along, scale, power);
     for _ in 0..12 {
         let columns = frame_columns(m, trace, along, scale, fit_scale);
@@ -591,7 +622,7 @@ fn refine_line(
         for shrink in [1.0, 0.5, 0.25] {
             let (a, s) = (
                 along + shrink * step_along,
-                (scale + shrink * step_scale).clamp(1.0 - SCALE_BOUND, 1.0 + SCALE_BOUND),
+                (scale + shrink * step_scale).clamp(1.0 - bound, 1.0 + bound),
             );
             let value = line_objective(m, trace, a, s, power);
             if value < best {
@@ -609,6 +640,7 @@ fn refine_line(
         scale,
         objective: best,
         trace: trace.clone(),
+        with_form: best,
     }
 }
 

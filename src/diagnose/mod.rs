@@ -183,7 +183,6 @@ pub fn diagnose(
             &candidates,
             job,
             &folds,
-            nominal.shift_mm,
             period,
             options,
             log,

@@ -114,8 +114,9 @@ pub struct RegistrationInfo {
     /// "diameter" (a profile the axis crosses), "radius" (a profile wholly on one side
     /// of it) or "map".
     pub trace: String,
-    /// Where the spindle axis lies, in the measured file's own lateral coordinates (mm),
-    /// with one σ (∞: the data cannot fix it; 0: held where --axis-at-mm put it).
+    /// Where the spindle axis lies, in the measured file's own lateral coordinates (mm;
+    /// as the final model registers it), with one σ (∞: the data cannot fix it; 0: held
+    /// where --axis-at-mm put it).
     pub axis_x_mm: f64,
     pub axis_x_sigma_mm: f64,
     /// Maps: the same along the file's Y.
@@ -173,7 +174,9 @@ impl RegistrationInfo {
             };
             placed.file_position_of(here)
         };
-        let axis = in_file(nominal.axis_at_um);
+        // The axis where the final model put it (the nominal one, when no effect was
+        // accepted): an effect the job lacked can mislead the nominal placement.
+        let axis = in_file(fitted.axis_at_um);
         for r in [&mut nominal, &mut fitted] {
             r.axis_at_um = (in_file(r.axis_at_um) * 1e3).to_array();
         }

@@ -47,7 +47,7 @@ pub fn registration_base(problem: &mut Problem, spiral: bool) -> Result<Fit, For
 }
 
 /// Runs the search on `problem` from `base` (the job as given, registered in the
-/// nominal frame, axis at `axis_mm`).
+/// nominal frame).
 #[allow(clippy::too_many_arguments)]
 pub fn search<'a>(
     problem: &mut Problem<'a, '_>,
@@ -55,7 +55,6 @@ pub fn search<'a>(
     candidates: &[Candidate],
     job: &Job,
     folds: &'a [Fold],
-    axis_mm: DVec2,
     period_mm: f64,
     options: &Options,
     log: &dyn Fn(&str),
@@ -82,6 +81,11 @@ pub fn search<'a>(
             problem.clear_cache();
         }
     }
+    // The combinations start in the frame of the single that fits best.
+    if let Some(best) = fits.iter().min_by(|a, b| a.objective.total_cmp(&b.objective)) {
+        problem.shift = best.frame;
+        problem.clear_cache();
+    }
     let (rss0, k0) = (base.objective, base.values.len());
     let n_eff = common_effective_points(&fits, problem, fitted)?;
     found.singles = fits
@@ -95,6 +99,10 @@ pub fn search<'a>(
 
     let mut current: Fit = base.clone();
     while current.effect_members().len() < options.max_effects {
+        if !current.effect_members().is_empty() {
+            problem.shift = current.frame;
+            problem.clear_cache();
+        }
         let round = greedy_round(problem, &found.singles, &current, job, fitted, log)?;
         let (rss_before, k_before) = (current.objective, current.values.len());
         let n_eff = common_effective_points(&round, problem, fitted)?;
@@ -121,7 +129,8 @@ pub fn search<'a>(
             log(&format!(
                 "{label}: checking that it predicts data it was not fitted on"
             ));
-            let validation = cross_validate(problem, folds, &fit.set, &fit.values, axis_mm)?;
+            let validation =
+                cross_validate(problem, folds, &fit.set, &fit.values, fit.frame.start)?;
             let passed = validation.passed;
             if passed {
                 widen_sigmas(&mut fit, member, &validation.spread);
@@ -259,8 +268,10 @@ fn drop_redundant(
 }
 
 /// A strong effect the nominal model lacked can mislead the nominal registration by
-/// whole mark periods: the single fit is registered again over ±2.5 marks, and refitted
-/// around the axis that finds if it moved; the better of the two fits is kept.
+/// whole mark periods — or, on a turned spiral of even feed, by half a mark with the
+/// spiral half a turn round: the single fit is registered again over ±2.5 marks, as it
+/// is and (where the spiral's azimuth is fitted) half a turn round, and refitted where
+/// that puts the axis if it moved; the better of the two fits is kept.
 #[allow(clippy::too_many_arguments)]
 fn refit_if_axis_moves(
     problem: &mut Problem,
@@ -275,17 +286,32 @@ fn refit_if_axis_moves(
     if !problem.terms.shift {
         return Ok(fit);
     }
-    let sim = problem
-        .model
-        .simulate(&|job| super::fit::apply_set(&fit.set, &fit.values, job))?;
     let wide = ShiftSearch {
         start: nominal.start,
         half_width_mm: 2.5 * period_mm,
         step_mm: 0.125 * period_mm,
         refine: 3,
     };
-    let again = register(fitted, &sim, problem.terms, Some(wide));
-    if (again.shift_mm - nominal.start).length() <= 0.25 * period_mm {
+    let spiral = fit.set.iter().position(|c| *c == Candidate::SpiralAzimuth);
+    let turns: &[f64] = if spiral.is_some() { &[0.0, 180.0] } else { &[0.0] };
+    let mut best: Option<(f64, Vec<f64>, DVec2)> = None;
+    for &turn in turns {
+        let mut values = fit.values.clone();
+        if let Some(i) = spiral {
+            values[i] += turn;
+        }
+        let sim = problem
+            .model
+            .simulate(&|job| super::fit::apply_set(&fit.set, &values, job))?;
+        let again = register(fitted, &sim, problem.terms, Some(wide));
+        if best.as_ref().is_none_or(|b| again.rss < b.0) {
+            best = Some((again.rss, values, again.shift_mm));
+        }
+    }
+    let Some((_, values, shift)) = best else {
+        return Ok(fit);
+    };
+    if values == fit.values && (shift - nominal.start).length() <= 0.25 * period_mm {
         return Ok(fit);
     }
     let c = *fit.set.last().expect("a single has its candidate");
@@ -293,12 +319,17 @@ fn refit_if_axis_moves(
         "{} moves the axis: registering again and refitting it",
         c.label()
     ));
-    problem.shift = super::local_search(again.shift_mm, period_mm);
+    problem.shift = super::local_search(shift, period_mm);
     problem.clear_cache();
-    let refit = fit_new(problem, &base.set, &base.values, c, job, fitted)?;
-    Ok(match refit {
-        Some(r) if r.objective < fit.objective => r,
-        _ => fit,
+    let refit = problem.fit(&fit.set, values, &[])?;
+    let refit = match fit_new(problem, &base.set, &base.values, c, job, fitted)? {
+        Some(r) if r.objective < refit.objective => r,
+        _ => refit,
+    };
+    Ok(if refit.objective < fit.objective {
+        refit
+    } else {
+        fit
     })
 }
 
