@@ -140,7 +140,8 @@ pub fn top_view_within(
             }
             // Tent over the rows within one pixel of arc (at least the row spacing).
             let position = y.atan2(x).rem_euclid(TAU) / TAU * azimuths;
-            let span = (pitch_mm / r.max(1e-12) / TAU * azimuths).clamp(1.0, 0.5 * azimuths);
+            let span =
+                (pitch_mm / r.max(1e-12) / TAU * azimuths).clamp(1.0, (0.5 * azimuths).max(1.0));
             let (first, last) = ((position - span).ceil(), (position + span).floor());
             let (mut sum, mut weight) = (0.0, 0.0);
             let mut at = first;

@@ -53,6 +53,7 @@ pub fn compensate(args: CompensateArgs) -> Result<(), Failure> {
         PathBuf::from("toolmark-out").join(format!("{}-compensation", slug(&job.name)))
     });
     let mut engine = open_engine(args.engine, &job)?;
+    super::run::prepare_out(&out)?;
     println!(
         "{}: {} compensation cycles, form measured with a {:.1} µm Gaussian cutoff",
         job.name,

@@ -55,8 +55,7 @@ pub fn correct(args: CorrectArgs) -> Result<(), Failure> {
         write_bytes_atomically(&out.join(name), bytes)
             .map_err(|err| Failure::Runtime(format!("{}: {err}", out.join(name).display())))
     };
-    std::fs::create_dir_all(&out)
-        .map_err(|err| Failure::Runtime(format!("{}: {err}", out.display())))?;
+    super::run::prepare_out(&out)?;
     match &args.measured {
         Some(measured) => correct_measured(&job, measured, zone, &out, &write),
         None => correct_simulated(&job, zone, args.engine, &out, &write),

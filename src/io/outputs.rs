@@ -32,6 +32,81 @@ use std::time::Instant;
 
 pub const SUMMARY_SCHEMA: &str = "toolmark.summary/1";
 
+/// Every file name a toolmark command writes into an output folder (run, compensate,
+/// correct and their reports): what [`prepare_output_dir`] clears from a reused folder.
+pub const OUTPUT_FILE_NAMES: &[&str] = &[
+    "surface.exr",
+    "polar.exr",
+    "deviation.png",
+    "deviation_colour.png",
+    "scallop_colour.png",
+    "deviation_centre.png",
+    "centre_profile.png",
+    "cutting_diameter.png",
+    "radial_profile.csv",
+    "summary.json",
+    "job.resolved.toml",
+    "report.html",
+    "correction.csv",
+    "compensated.toml",
+    "compensated.nc",
+    "compensation.json",
+    "form_error.png",
+    "corrected.toml",
+    "corrected_short.toml",
+    "corrected_past.toml",
+    "correction.json",
+    "centre_before.png",
+    "centre_after.png",
+    "centre_profiles.png",
+];
+
+/// Sub-folders of an output folder that hold a run's outputs (`correct`).
+const OUTPUT_SUBFOLDERS: &[&str] = &["before", "after"];
+
+/// Makes `dir` ready for a command's outputs before any work starts: creates it, proves
+/// it writable (a probe file written and removed), and removes the files an earlier
+/// toolmark command left there ([`OUTPUT_FILE_NAMES`], also in `before/` and `after/`,
+/// and stale temporaries), so the folder never mixes two jobs. Other files are left
+/// alone. Returns the files removed.
+pub fn prepare_output_dir(dir: &Path) -> io::Result<Vec<PathBuf>> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::AlreadyExists,
+            "exists and is not a folder",
+        ));
+    }
+    std::fs::create_dir_all(dir)?;
+    let probe = dir.join(format!(".toolmark-write-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"probe")?;
+    std::fs::remove_file(&probe)?;
+    let mut removed = clear_outputs(dir)?;
+    for sub in OUTPUT_SUBFOLDERS {
+        let sub = dir.join(sub);
+        if sub.is_dir() {
+            removed.extend(clear_outputs(&sub)?);
+        }
+    }
+    Ok(removed)
+}
+
+/// Removes toolmark's own output files (and temporaries) directly inside `dir`.
+fn clear_outputs(dir: &Path) -> io::Result<Vec<PathBuf>> {
+    let mut removed = Vec::new();
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let ours = OUTPUT_FILE_NAMES.contains(&name.as_str())
+            || (name.starts_with('.') && name.contains(".tmp-"));
+        if ours && entry.file_type()?.is_file() {
+            std::fs::remove_file(entry.path())?;
+            removed.push(entry.path());
+        }
+    }
+    removed.sort();
+    Ok(removed)
+}
+
 /// Writes all outputs of a run into `dir` and returns the paths written.
 pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
     let started = Instant::now();

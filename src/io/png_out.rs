@@ -225,7 +225,17 @@ fn draw_frame(canvas: &mut RgbImage, x: u32, y: u32, width: u32, height: u32) {
 /// The range actually displayed: `range` itself when it is finite and non-empty,
 /// otherwise one unit either side of its centre (never dividing by zero).
 pub(crate) fn display_range((lo, hi): (f32, f32)) -> (f64, f64) {
-    let (lo, hi) = (f64::from(lo), f64::from(hi));
+    display_range_f64((f64::from(lo), f64::from(hi)))
+}
+
+/// [`display_range`] for f64 ends; a span too wide for f64 (ends near ±f64::MAX) is
+/// halved about its centre so that every later difference stays finite.
+pub(crate) fn display_range_f64((lo, hi): (f64, f64)) -> (f64, f64) {
+    let (lo, hi) = if (hi - lo).is_infinite() && lo.is_finite() && hi.is_finite() {
+        (lo / 4.0, hi / 4.0)
+    } else {
+        (lo, hi)
+    };
     let centre = match (lo.is_finite(), hi.is_finite()) {
         (true, true) if lo < hi => return (lo, hi),
         (true, true) if lo > hi => return (hi, lo),
