@@ -50,6 +50,9 @@ enum Command {
     /// The withheld benchmark: generate a suite of synthetic measurements with sealed
     /// truth, diagnose them without it, then score.
     BenchDiagnose(cli::diagnose::BenchDiagnoseArgs),
+    /// Write the self-contained HTML report of an output folder (run, diagnose,
+    /// compensate or correct).
+    Report(cli::run::ReportArgs),
 }
 
 #[derive(clap::Args)]
@@ -94,6 +97,7 @@ fn main() -> ExitCode {
         Command::Diagnose(args) => cli::diagnose::diagnose_cmd(args),
         Command::Synth(args) => cli::diagnose::synth_cmd(args),
         Command::BenchDiagnose(args) => cli::diagnose::bench_diagnose_cmd(args),
+        Command::Report(args) => cli::run::report(args),
         Command::Bench(args) => bench::run_benchmarks(
             args.engine != BenchEngines::Gpu,
             args.engine != BenchEngines::Cpu,

@@ -187,3 +187,36 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     println!("wrote {} files to {}", written.len(), out.display());
     Ok(())
 }
+
+#[derive(clap::Args)]
+pub struct ReportArgs {
+    /// An output folder of run, diagnose, compensate or correct (holding summary.json,
+    /// diagnosis.json, compensation.json or correction.json and the images).
+    pub dir: PathBuf,
+}
+
+/// Writes (or rewrites) `report.html` for an existing output folder.
+pub fn report(args: ReportArgs) -> Result<(), Failure> {
+    use toolmark::io::html;
+    let read = |name: &str| -> Option<serde_json::Value> {
+        let text = std::fs::read_to_string(args.dir.join(name)).ok()?;
+        serde_json::from_str(&text).ok()
+    };
+    let written = if let Some(doc) = read("diagnosis.json") {
+        html::write_diagnosis_html(&args.dir, &doc)
+    } else if let Some(doc) = read("summary.json") {
+        html::write_run_html(&args.dir, &doc)
+    } else if let Some(doc) = read("compensation.json") {
+        html::write_compensation_html(&args.dir, &doc)
+    } else if let Some(doc) = read("correction.json") {
+        html::write_correction_html(&args.dir, &doc)
+    } else {
+        return Err(Failure::Input(format!(
+            "{}: no summary.json, diagnosis.json, compensation.json or correction.json",
+            args.dir.display()
+        )));
+    };
+    let path = written.map_err(|err| Failure::Runtime(err.to_string()))?;
+    println!("wrote {}", path.display());
+    Ok(())
+}

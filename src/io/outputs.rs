@@ -18,7 +18,7 @@ use super::atomic::write_bytes_atomically;
 use super::colour::ColourMap;
 use super::exr_io::{ExrImage, write_exr};
 use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
-use super::png_out::{FalseColourPlot, write_false_colour_png, write_png16_gray};
+use super::png_out::{FalseColourPlot, MapGeometry, write_map_png, write_png16_gray};
 use crate::analysis::{Raster, top_view, top_view_within};
 use crate::correct::part_sphere;
 use crate::process::Process;
@@ -237,10 +237,16 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let (low, high, mean) = valid_range(&deviation_map);
     let half_range = (high - mean).max(mean - low).max(1.0);
     let footer = format!(
-        "PV {:.1} nm  RMS {:.1} nm  white = mean {mean:.2} nm  {} engine",
-        stats.pv_nm, stats.rms_nm, result.engine.kind
+        "map PV {:.2} nm  RMS {:.2} nm  white = mean {mean:.2} nm,  all samples PV {:.1} nm  RMS {:.1} nm{}  {} engine",
+        high - low,
+        raster_rms(&deviation_map),
+        stats.pv_nm,
+        stats.rms_nm,
+        finer_than_pixels(stats.pv_nm, f64::from(high - low)),
+        result.engine.kind
     );
-    write_false_colour_png(
+    let geometry = MapGeometry::centred(deviation_map.half_width_mm, pixels);
+    write_map_png(
         &file("deviation_colour.png"),
         &FalseColourPlot {
             values: &deviation_map.values,
@@ -253,14 +259,18 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
             unit_label: "deviation (nm)",
             footer: &footer,
         },
+        &geometry,
         &png_text(&attributes),
     )?;
+    let (scallop_low, scallop_high, _) = valid_range(&scallop_map);
     let scallop_footer = match &result.scallops.stats {
-        Some(s) => format!("scallop max {:.1} nm  mean {:.1} nm", s.max_nm, s.mean_nm),
+        Some(s) => format!(
+            "map {scallop_low:.1} to {scallop_high:.1} nm (pixel means),  cusps max {:.1} nm  mean {:.1} nm",
+            s.max_nm, s.mean_nm
+        ),
         None => "scallops not resolved by the grid".to_string(),
     };
-    let (scallop_low, scallop_high, _) = valid_range(&scallop_map);
-    write_false_colour_png(
+    write_map_png(
         &file("scallop_colour.png"),
         &FalseColourPlot {
             values: &scallop_map.values,
@@ -273,13 +283,14 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
             unit_label: "scallop (nm)",
             footer: &scallop_footer,
         },
+        &geometry,
         &png_text(&attributes),
     )?;
 
     if let Some(map) = &diameter_map {
         let (low, high, _) = valid_range(map);
         let stats = cutting_diameter_stats(result);
-        write_false_colour_png(
+        write_map_png(
             &file("cutting_diameter.png"),
             &FalseColourPlot {
                 values: &map.values,
@@ -303,6 +314,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
                     ),
                 },
             },
+            &geometry,
             &png_text(&attributes),
         )?;
     }
@@ -329,6 +341,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let summary = summary_json(result, &deviation_map, png_scale, output_s);
     let text = serde_json::to_string_pretty(&summary).map_err(io::Error::other)?;
     write_bytes_atomically(&file("summary.json"), text.as_bytes())?;
+    written.push(super::html::write_run_html(dir, &summary)?);
     Ok(written)
 }
 
@@ -373,7 +386,7 @@ pub fn write_centre_map(
         ),
     };
     let attributes = common_attributes(result, &map);
-    write_false_colour_png(
+    write_map_png(
         path,
         &FalseColourPlot {
             values: &map.values,
@@ -385,11 +398,13 @@ pub fn write_centre_map(
             title: &format!("{}: central ±{:.3} mm", result.job.name, half_width_mm),
             unit_label: "deviation (nm)",
             footer: &format!(
-                "zone PV {:.1} nm  {feature}  {} engine",
+                "map PV {:.2} nm  RMS {:.2} nm  {feature}  {} engine",
                 high - low,
+                raster_rms(&map),
                 result.engine.kind
             ),
         },
+        &MapGeometry::centred(half_width_mm, PIXELS),
         &png_text(&attributes),
     )?;
     Ok(range)
@@ -478,6 +493,31 @@ fn common_attributes(result: &RunResult, map: &Raster) -> BTreeMap<String, Strin
             "deviation_nm: nm along the outward surface normal, + = material left; height_mm: machined surface height along +Z in mm; scallop_nm: cusp height above the local cut bottoms in nm; protrusion_nm: height above the surround inside the central feature in nm; valid: 1 inside the simulated aperture".into(),
         ),
     ])
+}
+
+/// RMS about the mean of a raster's valid pixels (what the map draws).
+pub fn raster_rms(map: &Raster) -> f64 {
+    let values: Vec<f64> = map
+        .values
+        .iter()
+        .zip(&map.valid)
+        .filter(|(_, valid)| **valid)
+        .map(|(v, _)| f64::from(*v))
+        .collect();
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mean = values.iter().sum::<f64>() / values.len() as f64;
+    (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / values.len() as f64).sqrt()
+}
+
+/// Says why the samples' PV exceeds the map's: texture finer than a pixel.
+fn finer_than_pixels(samples_pv: f64, map_pv: f64) -> &'static str {
+    if samples_pv > 1.5 * map_pv + 0.1 {
+        " (texture finer than a pixel)"
+    } else {
+        ""
+    }
 }
 
 /// (min, max, mean) of a raster's valid pixels; zeros when none is valid.
@@ -632,6 +672,11 @@ fn summary_json(
         "deviation": result.deviation,
         "scallop": scallop,
         "protrusion": result.protrusion,
+        "texture": crate::analysis::texture::analyse_texture(
+            grid,
+            &result.field,
+            job.process.pass_spacing_mm(),
+        ),
         "cutting_diameter": cutting_diameter_stats(result),
         "maps": {
             "pixels": map.pixels,

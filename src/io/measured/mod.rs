@@ -591,7 +591,9 @@ const ZIP_MAGIC: &[u8] = b"PK\x03\x04";
 const EXR_MAGIC: &[u8] = &[0x76, 0x2f, 0x31, 0x01];
 const GSF_MAGIC: &[u8] = b"Gwyddion Simple Field";
 
-fn read_measured_bytes(
+/// [`read_measured`] on bytes already in memory; `path` only gives the extension (for
+/// the format hints) and is not opened. The fuzz harness drives the readers through it.
+pub fn read_measured_bytes(
     path: &Path,
     bytes: &[u8],
     options: &ReadOptions,
