@@ -53,6 +53,9 @@ enum Command {
     /// Write the self-contained HTML report of an output folder (run, diagnose,
     /// compensate or correct).
     Report(cli::run::ReportArgs),
+    /// Run a job over a parameter grid on Dask (LocalCluster or any scheduler) and
+    /// gather the summaries into a table; needs the Python package (pip install ./python).
+    Sweep(cli::sweep::SweepArgs),
 }
 
 #[derive(clap::Args)]
@@ -98,6 +101,7 @@ fn main() -> ExitCode {
         Command::Synth(args) => cli::diagnose::synth_cmd(args),
         Command::BenchDiagnose(args) => cli::diagnose::bench_diagnose_cmd(args),
         Command::Report(args) => cli::run::report(args),
+        Command::Sweep(args) => cli::sweep::sweep(args),
         Command::Bench(args) => bench::run_benchmarks(
             args.engine != BenchEngines::Gpu,
             args.engine != BenchEngines::Cpu,

@@ -114,33 +114,22 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let grid = result.grid();
     let pixels = result.job.map_pixels as usize;
 
-    // Per-sample quantities in report units, then their top views.
     let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
     let scallop_nm: Vec<f64> = result.scallops.map_mm.iter().map(|d| d * 1e6).collect();
     let protrusion_nm: Vec<f64> = result.protrusion.map_mm.iter().map(|d| d * 1e6).collect();
-    // The machined height: nominal z plus the normal offset seen along Z.
     let rings = grid.ring_count();
-    let height_mm: Vec<f64> = result
-        .field
-        .depth_mm
-        .iter()
-        .enumerate()
-        .map(|(sample, depth)| {
-            let ring = &grid.rings[sample % rings];
-            ring.height_mm + depth / ring.normal.y
-        })
-        .collect();
-    let deviation_map = top_view(grid, &deviation_nm, pixels);
-    let scallop_map = top_view(grid, &scallop_nm, pixels);
-    let height_map = top_view(grid, &height_mm, pixels);
-    let protrusion_map = top_view(grid, &protrusion_nm, pixels);
-    // Milling: the effective cutting diameter (0 where nothing cut).
     let diameter_mm: Option<Vec<f64>> = result.cutting_diameter_mm.as_ref().map(|d| {
         d.iter()
             .map(|v| if v.is_finite() { *v } else { 0.0 })
             .collect()
     });
-    let diameter_map = diameter_mm.as_ref().map(|d| top_view(grid, d, pixels));
+    let TopViews {
+        deviation_nm: deviation_map,
+        scallop_nm: scallop_map,
+        height_mm: height_map,
+        protrusion_nm: protrusion_map,
+        cutting_diameter_mm: diameter_map,
+    } = top_views(result);
 
     let attributes = common_attributes(result, &deviation_map);
     let mut written = Vec::new();
@@ -555,21 +544,73 @@ pub struct Png16Scale {
     pub scale_nm_per_count: f64,
 }
 
-fn write_deviation_png16(
-    path: &Path,
-    map: &Raster,
-    attributes: &BTreeMap<String, String>,
-) -> io::Result<Png16Scale> {
+/// The 16-bit PNG's scale for a deviation raster: its valid range over 65534 counts.
+pub fn png16_scale(map: &Raster) -> Png16Scale {
     let (min, max, _) = valid_range(map);
     let (min, max) = (min as f64, max as f64);
-    let scale = Png16Scale {
+    Png16Scale {
         offset_nm: min,
         scale_nm_per_count: if max > min {
             (max - min) / 65534.0
         } else {
             1.0
         },
-    };
+    }
+}
+
+/// The top views a run draws (nm, mm for heights and diameters) on the job's map grid.
+pub struct TopViews {
+    pub deviation_nm: Raster,
+    pub scallop_nm: Raster,
+    pub height_mm: Raster,
+    pub protrusion_nm: Raster,
+    /// Milling only.
+    pub cutting_diameter_mm: Option<Raster>,
+}
+
+/// Every top view of a run (what `surface.exr` holds).
+pub fn top_views(result: &RunResult) -> TopViews {
+    let grid = result.grid();
+    let pixels = result.job.map_pixels as usize;
+    let nm = |v: &[f64]| v.iter().map(|d| d * 1e6).collect::<Vec<f64>>();
+    let rings = grid.ring_count();
+    let height_mm: Vec<f64> = result
+        .field
+        .depth_mm
+        .iter()
+        .enumerate()
+        .map(|(sample, depth)| {
+            let ring = &grid.rings[sample % rings];
+            ring.height_mm + depth / ring.normal.y
+        })
+        .collect();
+    let diameter = result.cutting_diameter_mm.as_ref().map(|d| {
+        let finite: Vec<f64> = d
+            .iter()
+            .map(|v| if v.is_finite() { *v } else { 0.0 })
+            .collect();
+        top_view(grid, &finite, pixels)
+    });
+    TopViews {
+        deviation_nm: top_view(grid, &nm(&result.field.depth_mm), pixels),
+        scallop_nm: top_view(grid, &nm(&result.scallops.map_mm), pixels),
+        height_mm: top_view(grid, &height_mm, pixels),
+        protrusion_nm: top_view(grid, &nm(&result.protrusion.map_mm), pixels),
+        cutting_diameter_mm: diameter,
+    }
+}
+
+/// `summary.json` of a run without writing anything (the timing of the output step is 0).
+pub fn summary(result: &RunResult, deviation_map: &Raster) -> serde_json::Value {
+    summary_json(result, deviation_map, png16_scale(deviation_map), 0.0)
+}
+
+fn write_deviation_png16(
+    path: &Path,
+    map: &Raster,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<Png16Scale> {
+    let scale = png16_scale(map);
     // 0 marks pixels outside the aperture; valid pixels use 1..=65535.
     let samples: Vec<u16> = map
         .values
