@@ -89,6 +89,8 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // Ctrl-C removes half-written outputs and says what was kept (io::atomic).
+    toolmark::io::atomic::install_interrupt_handler();
     let cli = Cli::parse();
     let result = match cli.command.unwrap_or(Command::Run(Default::default())) {
         Command::Run(args) => cli::run::run(args),

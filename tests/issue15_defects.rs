@@ -367,3 +367,34 @@ fn an_x3p_whose_checksum_does_not_match_is_said_on_the_console() {
     );
     assert!(!err.contains("panicked"), "{err}");
 }
+
+#[test]
+#[cfg(unix)]
+fn ctrl_c_leaves_no_half_written_file_and_says_what_was_kept() {
+    // The default job takes seconds (removal, analysis, ten outputs): interrupt it.
+    let dir = temp("interrupt");
+    let out = dir.join("out");
+    let child = Command::new(env!("CARGO_BIN_EXE_toolmark"))
+        .args(["run", "--engine", "cpu", "--out", out.to_str().unwrap()])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(800));
+    // SAFETY: sending SIGINT to the child we spawned.
+    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    let output = child.wait_with_output().unwrap();
+    let err = stderr(&output);
+    if output.status.success() {
+        return; // finished before the signal (a very fast machine): nothing to check
+    }
+    assert_eq!(output.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    let leftovers: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
