@@ -180,8 +180,11 @@ def sweep(job, grid: Mapping[str, list], *, table: Optional[os.PathLike] = "swee
         if address is not None:
             client = Client(address)
         else:
+            # One core per worker: the CPU engine's own threads (rayon) follow the
+            # worker's thread count instead of each taking every core.
             own_cluster = LocalCluster(n_workers=workers, threads_per_worker=threads_per_worker,
-                                       processes=True, dashboard_address=None)
+                                       processes=True, dashboard_address=None,
+                                       env={"RAYON_NUM_THREADS": str(threads_per_worker)})
             client = Client(own_cluster)
     bar = None
     if progress is None:
