@@ -270,13 +270,7 @@ fn decimal_comma_tables_read_as_their_point_twins() {
     let point = "x_um;height_nm\n0.5;1.25\n1.5;-2.5e1\n2.5;3\n3.5;4.75\n";
     let variants = [
         ("semicolon.csv", point.replace('.', ",")),
-        (
-            "tab.txt",
-            point
-                .replace('.', ",")
-                .replace(';', "\t")
-                .replace("x_um\theight_nm", "x_um\theight_nm"),
-        ),
+        ("tab.txt", point.replace('.', ",").replace(';', "\t")),
         (
             "space.txt",
             "# x_um height_nm\n0,5 1,25\n1,5 -2,5e1\n2,5 3\n3,5 4,75\n".to_string(),

@@ -211,7 +211,7 @@ pub fn noll_to_nm(j: usize) -> (i32, i32) {
     // Noll: even j → cos (m > 0), odd j → sin.
     let signed = if m == 0 {
         0
-    } else if j % 2 == 0 {
+    } else if j.is_multiple_of(2) {
         m
     } else {
         -m

@@ -205,7 +205,7 @@ fn seeds(reader: Reader) -> Vec<Seed> {
                 let text = std::fs::read_to_string(&p).ok()?;
                 let at = text.find("[[effects]]")?;
                 Some(Seed {
-                    bytes: text[at..].as_bytes().to_vec(),
+                    bytes: text.as_bytes()[at..].to_vec(),
                     base_dir: root(),
                 })
             })

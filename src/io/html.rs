@@ -367,7 +367,7 @@ pub fn texture_html(texture: &Value) -> String {
         html,
         "<table><tr><th>Sa</th><th>Sq</th><th>Sz</th><th>Ssk</th><th>Sku</th></tr>\
          <tr><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td></tr></table>\
-         <p>Areal parameters of the deviation field (the nominal surface is the F-operator; area-weighted; no L-filter).</p>\n",
+         <p>Areal parameters of the deviation field (the nominal surface is the F-operator; area-weighted; no L-filter).</p>",
         nm(a("sa_nm")),
         nm(a("sq_nm")),
         nm(a("sz_nm")),
@@ -380,7 +380,7 @@ pub fn texture_html(texture: &Value) -> String {
             html,
             "<table><tr><th>Ra</th><th>Rq</th><th>Rz</th><th>λc</th><th>λs</th><th>evaluation length</th></tr>\
              <tr><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td class=\"num\">{} mm</td><td class=\"num\">{} µm</td><td class=\"num\">{} mm ({} sampling lengths)</td></tr></table>\
-             <p>Profile parameters of the radial profile at azimuth 0 (ISO 16610-21 Gaussian filters, λc by ISO 4288 from the mark spacing).</p>\n",
+             <p>Profile parameters of the radial profile at azimuth 0 (ISO 16610-21 Gaussian filters, λc by ISO 4288 from the mark spacing).</p>",
             nm(number(p, "/ra_nm")),
             nm(number(p, "/rq_nm")),
             nm(number(p, "/rz_nm")),
@@ -397,7 +397,7 @@ pub fn texture_html(texture: &Value) -> String {
         html.push_str(&table(zernike));
         let _ = write!(
             html,
-            "<p>RMS left after the 15 terms: {}</p>\n",
+            "<p>RMS left after the 15 terms: {}</p>",
             nm(number(texture, "/zernike_residual_rms_nm"))
         );
     }
@@ -681,7 +681,7 @@ fn effect_table(effects: &[Value]) -> String {
         };
         let _ = write!(
             html,
-            "<tr><td>{}</td><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td>{}</td><td>{}</td></tr>\n",
+            "<tr><td>{}</td><td>{}</td><td class=\"num\">{}</td><td class=\"num\">{}</td><td>{}</td><td>{}</td></tr>",
             escape(&label),
             escape(&parameters.join("; ")),
             escape(&format_value(get(effect, "/delta_bic"))),
