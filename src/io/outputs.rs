@@ -224,11 +224,19 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     // whole surface sits above nominal; the bar is labelled in true deviation values and
     // spans at least ±1 nm, so a clean part is white rather than its numerical dust.
     let (low, high, mean) = valid_range(&deviation_map);
-    let half_range = (high - mean).max(mean - low).max(1.0);
+    // The colour bar spans 99.8 % of the pixels: a single pixel at the axis must not
+    // wash out the rest of the map; the footer says how many lie beyond the bar's ends.
+    let (p_low, p_high) = percentiles(&deviation_map, 0.001);
+    let half_range = (p_high - mean).max(mean - p_low).max(1.0);
+    let beyond = pixels_beyond(&deviation_map, mean - half_range, mean + half_range);
     let footer = format!(
-        "map PV {:.2} nm  RMS {:.2} nm  white = mean {mean:.2} nm,  all samples PV {:.1} nm  RMS {:.1} nm{}  {} engine",
+        "map PV {:.2} nm  RMS {:.2} nm  white = mean {mean:.2} nm{},  all samples PV {:.1} nm  RMS {:.1} nm{}  {} engine",
         high - low,
         raster_rms(&deviation_map),
+        match beyond {
+            0 => String::new(),
+            n => format!(" ({n} pixels beyond the bar, drawn at its ends)"),
+        },
         stats.pv_nm,
         stats.rms_nm,
         finer_than_pixels(stats.pv_nm, f64::from(high - low)),
@@ -498,6 +506,32 @@ pub fn raster_rms(map: &Raster) -> f64 {
     }
     let mean = values.iter().sum::<f64>() / values.len() as f64;
     (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / values.len() as f64).sqrt()
+}
+
+/// The `tail` and 1 − `tail` quantiles of a raster's valid pixels.
+fn percentiles(map: &Raster, tail: f64) -> (f32, f32) {
+    let mut values: Vec<f32> = map
+        .values
+        .iter()
+        .zip(&map.valid)
+        .filter(|(_, valid)| **valid)
+        .map(|(v, _)| *v)
+        .collect();
+    if values.is_empty() {
+        return (0.0, 0.0);
+    }
+    values.sort_by(f32::total_cmp);
+    let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
+    (at(tail), at(1.0 - tail))
+}
+
+/// Valid pixels outside [low, high].
+fn pixels_beyond(map: &Raster, low: f32, high: f32) -> usize {
+    map.values
+        .iter()
+        .zip(&map.valid)
+        .filter(|(v, valid)| **valid && (**v < low || **v > high))
+        .count()
 }
 
 /// Says why the samples' PV exceeds the map's: texture finer than a pixel.
