@@ -9,6 +9,7 @@ pub mod profile_stats;
 pub mod protrusion;
 pub mod scallop;
 pub mod sphere_fit;
+pub mod texture;
 
 pub use deviation::{DeviationStats, deviation_stats};
 pub use form::{FormProfile, form_error};

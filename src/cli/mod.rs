@@ -6,6 +6,7 @@ pub mod correct;
 pub mod diagnose;
 pub mod formulas;
 pub mod run;
+pub mod sweep;
 
 use clap::ValueEnum;
 use std::path::PathBuf;
