@@ -357,7 +357,7 @@ pub struct RunInfo {
     pub mark_period_um: f64,
 }
 
-/// Writes diagnosis.json, report.md, effects.toml and the images into `dir`.
+/// Writes diagnosis.json, report.md, report.html, effects.toml and the images into `dir`.
 pub fn write_outputs(dir: &Path, outcome: &Outcome) -> io::Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir)?;
     let mut written = Vec::new();
@@ -376,6 +376,8 @@ pub fn write_outputs(dir: &Path, outcome: &Outcome) -> io::Result<Vec<PathBuf>> 
         markdown(&outcome.diagnosis, &images).as_bytes(),
     )?;
     written.extend(images.into_iter().map(|(_, p)| p));
+    let document = serde_json::to_value(&outcome.diagnosis).map_err(io::Error::other)?;
+    written.push(crate::io::html::write_diagnosis_html(dir, &document)?);
     Ok(written)
 }
 
