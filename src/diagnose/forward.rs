@@ -721,11 +721,18 @@ azimuths = 8
         let mut model = ForwardModel::new(&job, &line, &mut engine).unwrap();
         let delta = 0.003;
         let mut trace = |set: &[Candidate], values: &[f64]| {
-            model.simulate(&|j| apply_set(set, values, j)).unwrap().trace.unwrap()
+            model
+                .simulate(&|j| apply_set(set, values, j))
+                .unwrap()
+                .trace
+                .unwrap()
         };
         let nominal = trace(&[], &[]);
         let moved = trace(&[Candidate::XDecentre], &[delta * 1e3]);
-        let kept = trace(&[Candidate::SpiralAzimuth, Candidate::XDecentre], &[0.0, delta * 1e3]);
+        let kept = trace(
+            &[Candidate::SpiralAzimuth, Candidate::XDecentre],
+            &[0.0, delta * 1e3],
+        );
         // The shift (µm, outward on the + side) that best lays a trace's marks on the
         // nominal's between r = 0.05 and 0.2 mm (their mean height difference aside).
         let best_shift = |t: &Trace| -> f64 {
@@ -746,7 +753,13 @@ azimuths = 8
                 * 1e3
         };
         let (moved_um, kept_um) = (best_shift(&moved), best_shift(&kept));
-        assert!((moved_um - 3.0).abs() <= 0.15, "uncompensated marks moved {moved_um} µm");
-        assert!(kept_um.abs() <= 0.15, "compensated marks moved {kept_um} µm");
+        assert!(
+            (moved_um - 3.0).abs() <= 0.15,
+            "uncompensated marks moved {moved_um} µm"
+        );
+        assert!(
+            kept_um.abs() <= 0.15,
+            "compensated marks moved {kept_um} µm"
+        );
     }
 }

@@ -56,6 +56,8 @@ pub struct Options {
     pub calibrate_on_mm: Option<(f64, f64)>,
     /// Fit the instrument's lateral scale (within ±2 %) where the part's marks fix it.
     pub lateral_scale: bool,
+    /// Register and compare only: no effect is fitted.
+    pub compare_only: bool,
 }
 
 impl Default for Options {
@@ -70,6 +72,7 @@ impl Default for Options {
             only: Vec::new(),
             calibrate_on_mm: None,
             lateral_scale: true,
+            compare_only: false,
         }
     }
 }
@@ -176,7 +179,7 @@ pub fn diagnose(
         .into_iter()
         .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
         .collect();
-    let found = if check.fits {
+    let found = if check.fits && !options.compare_only {
         search::search(
             &mut problem,
             &base,
@@ -271,6 +274,7 @@ pub fn diagnose(
     };
     let fragment = effects_fragment(job, accepted);
     let verdict = verdict::verdict(
+        options.compare_only.then_some(&comparison),
         &check,
         accepted,
         &before_info,
@@ -293,6 +297,7 @@ pub fn diagnose(
         job: JobInfo {
             name: job.name.clone(),
             process: process_name(job).into(),
+            carried_effects: None,
         },
         measurement: MeasurementInfo::of(&on_part, measurement, &fitted, held_out.as_ref()),
         registration,

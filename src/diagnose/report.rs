@@ -52,6 +52,9 @@ pub struct Diagnosis {
 pub struct JobInfo {
     pub name: String,
     pub process: String,
+    /// The effects file carried from an earlier part (`--effects`), if any: the job
+    /// was simulated with it.
+    pub carried_effects: Option<String>,
 }
 
 #[derive(Debug, Clone, Default, serde::Serialize)]

@@ -66,7 +66,10 @@ pub fn search<'a>(
     for c in candidates {
         log(&format!("fitting {}", c.label()));
         if let Some(fit) = fit_new(problem, &base.set, &base.values, *c, job, fitted)? {
-            eprintln!("DEBUG {:?} {:?} obj {:e} prior {:?}", fit.set, fit.values, fit.objective, problem.prior);
+            eprintln!(
+                "DEBUG {:?} {:?} obj {:e} prior {:?}",
+                fit.set, fit.values, fit.objective, problem.prior
+            );
             fits.push(refit_if_axis_moves(
                 problem,
                 fit,
@@ -82,7 +85,10 @@ pub fn search<'a>(
         }
     }
     // The combinations start in the frame of the single that fits best.
-    if let Some(best) = fits.iter().min_by(|a, b| a.objective.total_cmp(&b.objective)) {
+    if let Some(best) = fits
+        .iter()
+        .min_by(|a, b| a.objective.total_cmp(&b.objective))
+    {
         problem.shift = best.frame;
         problem.clear_cache();
     }
@@ -293,7 +299,11 @@ fn refit_if_axis_moves(
         refine: 3,
     };
     let spiral = fit.set.iter().position(|c| *c == Candidate::SpiralAzimuth);
-    let turns: &[f64] = if spiral.is_some() { &[0.0, 180.0] } else { &[0.0] };
+    let turns: &[f64] = if spiral.is_some() {
+        &[0.0, 180.0]
+    } else {
+        &[0.0]
+    };
     let mut best: Option<(f64, Vec<f64>, DVec2)> = None;
     for &turn in turns {
         let mut values = fit.values.clone();
@@ -404,8 +414,7 @@ fn common_effective_points(
 /// Evidence `fit` adds over a model leaving `rss_before` with `k_before` parameters.
 pub fn evidence(rss_before: f64, k_before: usize, fit: &Fit, n_eff: f64) -> f64 {
     let used = fit.evaluation.registered.used;
-    bic(rss_before, used, n_eff, k_before)
-        - bic(fit.objective, used, n_eff, fit.values.len())
+    bic(rss_before, used, n_eff, k_before) - bic(fit.objective, used, n_eff, fit.values.len())
 }
 
 /// Whether member `member`'s parameters stand 3σ clear of zero together.
