@@ -73,8 +73,13 @@ impl RunResult {
 
 /// Builds the engine-ready scenes (one per cutting pass) for a validated job.
 pub fn prepare_scenes(job: &Job) -> Vec<Scene> {
+    scenes_on(job, job_grid(job))
+}
+
+/// The job's own grid: rings every pitch, its rows.
+pub fn job_grid(job: &Job) -> PolarGrid {
     let meridian = job.meridian();
-    let grid = match job.layout {
+    match job.layout {
         Layout::Polar => PolarGrid::new(
             &job.surface,
             &meridian,
@@ -91,7 +96,12 @@ pub fn prepare_scenes(job: &Job) -> Vec<Scene> {
             job.pitch_mm,
             job.azimuths,
         ),
-    };
+    }
+}
+
+/// The engine-ready scenes of a validated job on a given grid (the job's own, or one
+/// with rings added).
+pub fn scenes_on(job: &Job, grid: PolarGrid) -> Vec<Scene> {
     match &job.process {
         Process::Turning(turning) => turning_scenes(job, turning, grid)
             .into_iter()

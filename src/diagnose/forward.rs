@@ -7,7 +7,7 @@ use crate::engine::{EngineError, RemovalEngine};
 use crate::field::{Layout, PolarGrid};
 use crate::io::job::Job;
 use crate::process::Process;
-use crate::run::{prepare_scenes, remove_all};
+use crate::run::{job_grid, remove_all, scenes_on};
 use glam::DVec2;
 use std::f64::consts::TAU;
 use std::time::Instant;
@@ -249,7 +249,7 @@ impl<'e> ForwardModel<'e> {
         }
         modify(&mut job);
         let started = Instant::now();
-        let scenes = prepare_scenes(&job);
+        let scenes = scenes_on(&job, grid_for(&job));
         self.prepare_s += started.elapsed().as_secs_f64();
         let started = Instant::now();
         let field = remove_all(&scenes, self.engine, &|_, _| {})?;
@@ -269,6 +269,23 @@ impl<'e> ForwardModel<'e> {
             self.instrument,
             self.pixel_mm,
         ))
+    }
+}
+
+/// The job's grid, with rings just inside and outside r = |h| where a turning tool is
+/// off centre by h: the uncut core below centre (the flank's cone above it) ends there,
+/// and with rings on both sides the simulated edge moves continuously with h, so a fit
+/// of h is not a staircase in ring steps.
+fn grid_for(job: &Job) -> PolarGrid {
+    let grid = job_grid(job);
+    match &job.process {
+        Process::Turning(t) if t.effects.centre_height_mm != 0.0 => {
+            let h = t.effects.centre_height_mm.abs();
+            let gap = (1e-3 * job.pitch_mm).min(0.01 * h);
+            let meridian = job.meridian();
+            grid.with_rings_at(&job.surface, &meridian, &[h - gap, h + gap])
+        }
+        _ => grid,
     }
 }
 
@@ -761,5 +778,54 @@ azimuths = 8
             kept_um.abs() <= 0.15,
             "compensated marks moved {kept_um} µm"
         );
+    }
+}
+
+#[cfg(test)]
+mod centre_height_tests {
+    use super::*;
+    use crate::engine::cpu::CpuEngine;
+
+    /// A tool 2.13 µm below centre leaves an uncut core of radius 2.13 µm (the edge
+    /// never reaches r < |h|): on a 0.5 µm ring grid the traced wall must sit at 2.13 µm,
+    /// not at a ring, so that a fit of h is continuous.
+    #[test]
+    fn the_core_a_tool_below_centre_leaves_ends_where_the_tool_does() {
+        let job = Job::from_toml_str(
+            r#"version = 1
+[surface]
+kind = "plane"
+aperture_diameter_mm = 0.2
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.2
+included_angle_deg = 140.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.005
+[grid]
+pitch_um = 0.5
+azimuths = 8
+[[effects]]
+kind = "centre_height"
+height_mm = -0.00213
+"#,
+            "test",
+        )
+        .unwrap();
+        let x: Vec<f64> = (-50..=50).map(|i| i as f64 * 1e-3).collect();
+        let line = Measurement::line(&x, &vec![0.0; x.len()], 0.0, 0.0, Instrument::default());
+        let mut engine = CpuEngine;
+        let mut model = ForwardModel::new(&job, &line, &mut engine).unwrap();
+        let trace = model.simulate(&|_| {}).unwrap().trace.unwrap();
+        // Half-way down the wall, searched on a 1 nm lattice along +x.
+        let (top, floor) = (trace.at(0.0005), trace.at(0.004));
+        assert!(top - floor > 1e-3, "a core stands: {} µm", (top - floor) * 1e3);
+        let wall = (0..4000)
+            .map(|i| i as f64 * 1e-6)
+            .find(|&r| trace.at(r) < 0.5 * (top + floor))
+            .unwrap();
+        assert!((wall - 0.00213).abs() < 2e-6, "wall at {} µm", wall * 1e3);
     }
 }
