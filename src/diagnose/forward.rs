@@ -3,11 +3,13 @@
 //! (a stylus tip's dilation, a pixel's average).
 
 use super::measurement::{Instrument, Measurement, Shape};
+use crate::engine::cpu::CpuEngine;
 use crate::engine::{EngineError, RemovalEngine};
+use rayon::prelude::*;
 use crate::field::{Layout, PolarGrid};
 use crate::io::job::Job;
 use crate::process::Process;
-use crate::run::{job_grid, remove_all, scenes_on};
+use crate::run::{Groundwork, job_grid, remove_all, scenes_on};
 use glam::DVec2;
 use std::f64::consts::TAU;
 use std::time::Instant;
@@ -26,6 +28,8 @@ pub fn shift_room_mm(measurement: &Measurement) -> f64 {
 
 pub struct ForwardModel<'e> {
     base: Job,
+    /// The base job's meridian and programmed paths, computed once.
+    groundwork: Groundwork,
     engine: &'e mut dyn RemovalEngine,
     /// For a line: the two rows through the axis along it (its azimuth and opposite).
     line_rows: Option<(u32, u32)>,
@@ -165,6 +169,7 @@ impl<'e> ForwardModel<'e> {
             _ => None,
         };
         Ok(Self {
+            groundwork: Groundwork::of(&base),
             base,
             engine,
             line_rows,
@@ -193,6 +198,7 @@ impl<'e> ForwardModel<'e> {
         base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(outer_radius_mm);
         base.azimuths = rows;
         Ok(Self {
+            groundwork: Groundwork::of(&base),
             base,
             engine,
             line_rows: None,
@@ -243,32 +249,59 @@ impl<'e> ForwardModel<'e> {
         &mut self,
         modify: &dyn Fn(&mut Job),
     ) -> Result<SimulatedSurface, ForwardError> {
-        let mut job = self.base.clone();
-        if let Process::Turning(turning) = &mut job.process {
-            turning.azimuth_offset_rad = self.azimuth_rad;
-        }
-        modify(&mut job);
+        let job = self.trial(modify);
         let started = Instant::now();
-        let scenes = scenes_on(&job, grid_for(&job));
+        let scenes = scenes_on(&job, grid_for(&job, &self.groundwork), &self.groundwork);
         self.prepare_s += started.elapsed().as_secs_f64();
         let started = Instant::now();
         let field = remove_all(&scenes, self.engine, &|_, _| {})?;
         self.removal_s += started.elapsed().as_secs_f64();
         self.simulations += 1;
-        let grid = scenes[0].grid().clone();
-        let height_mm = (0..grid.sample_count())
-            .map(|s| {
-                let ring = &grid.rings[s % grid.ring_count()];
-                ring.height_mm + field.depth_mm[s] / ring.normal.y
+        Ok(self.seen().surface(&scenes, &field))
+    }
+
+    /// Simulates several trials; on the CPU engine side by side (each trial on its own
+    /// engine), elsewhere one after the other. The same surfaces as `simulate` gives.
+    pub fn simulate_many(
+        &mut self,
+        modifies: &[&(dyn Fn(&mut Job) + Sync)],
+    ) -> Result<Vec<SimulatedSurface>, ForwardError> {
+        if self.engine.info().kind != "cpu" || modifies.len() < 2 {
+            return modifies.iter().map(|m| self.simulate(*m)).collect();
+        }
+        let started = Instant::now();
+        let jobs: Vec<Job> = modifies.iter().map(|m| self.trial(*m)).collect();
+        let (groundwork, seen) = (&self.groundwork, self.seen());
+        let done: Vec<Result<SimulatedSurface, ForwardError>> = jobs
+            .par_iter()
+            .map(|job| {
+                let scenes = scenes_on(job, grid_for(job, groundwork), groundwork);
+                let field = remove_all(&scenes, &mut CpuEngine, &|_, _| {})?;
+                Ok(seen.surface(&scenes, &field))
             })
             .collect();
-        Ok(SimulatedSurface::new(
-            grid,
-            height_mm,
-            self.line_rows,
-            self.instrument,
-            self.pixel_mm,
-        ))
+        self.removal_s += started.elapsed().as_secs_f64();
+        self.simulations += modifies.len();
+        done.into_iter().collect()
+    }
+
+    /// The base job with a trial's changes, looking along the model's azimuth.
+    fn trial(&self, modify: &dyn Fn(&mut Job)) -> Job {
+        let mut job = self.base.clone();
+        if let Process::Turning(turning) = &mut job.process {
+            turning.azimuth_offset_rad = self.azimuth_rad;
+        }
+        modify(&mut job);
+        job
+    }
+
+    /// How this model's simulations are seen.
+    fn seen(&self) -> Seen {
+        Seen {
+            line_rows: self.line_rows,
+            instrument: self.instrument,
+            pixel_mm: self.pixel_mm,
+        }
     }
 }
 
@@ -276,16 +309,37 @@ impl<'e> ForwardModel<'e> {
 /// off centre by h: the uncut core below centre (the flank's cone above it) ends there,
 /// and with rings on both sides the simulated edge moves continuously with h, so a fit
 /// of h is not a staircase in ring steps.
-fn grid_for(job: &Job) -> PolarGrid {
-    let grid = job_grid(job);
+fn grid_for(job: &Job, groundwork: &Groundwork) -> PolarGrid {
+    let grid = job_grid(job, groundwork);
     match &job.process {
         Process::Turning(t) if t.effects.centre_height_mm != 0.0 => {
             let h = t.effects.centre_height_mm.abs();
             let gap = (1e-3 * job.pitch_mm).min(0.01 * h);
-            let meridian = job.meridian();
-            grid.with_rings_at(&job.surface, &meridian, &[h - gap, h + gap])
+            grid.with_rings_at(&job.surface, &groundwork.meridian, &[h - gap, h + gap])
         }
         _ => grid,
+    }
+}
+
+/// How a model's simulations are seen: along which rows, through which instrument.
+#[derive(Clone, Copy)]
+struct Seen {
+    line_rows: Option<(u32, u32)>,
+    instrument: Instrument,
+    pixel_mm: Option<[f64; 2]>,
+}
+
+impl Seen {
+    /// The machined heights of a removal, seen as the instrument sees them.
+    fn surface(&self, scenes: &[crate::engine::Scene], field: &crate::field::DexelField) -> SimulatedSurface {
+        let grid = scenes[0].grid().clone();
+        let height_mm = (0..grid.sample_count())
+            .map(|s| {
+                let ring = &grid.rings[s % grid.ring_count()];
+                ring.height_mm + field.depth_mm[s] / ring.normal.y
+            })
+            .collect();
+        SimulatedSurface::new(grid, height_mm, self.line_rows, self.instrument, self.pixel_mm)
     }
 }
 
@@ -352,9 +406,31 @@ impl Trace {
     }
 
     /// The traced heights at positions `along` of a line whose frame is `(s0, scale)`:
-    /// each point lies at `(along − s0)·scale` on the trace.
+    /// each point lies at `(along − s0)·scale` on the trace. Ascending positions are
+    /// walked, not searched.
     pub fn sample(&self, along: &[f64], s0: f64, scale: f64) -> Vec<f64> {
-        along.iter().map(|s| self.at((s - s0) * scale)).collect()
+        let (x, z) = (&self.x, &self.z);
+        let mut k = 0;
+        let mut last = f64::NEG_INFINITY;
+        along
+            .iter()
+            .map(|s| {
+                let u = (s - s0) * scale;
+                if u < last {
+                    k = x.partition_point(|v| *v <= u).saturating_sub(1);
+                }
+                last = u;
+                while k + 1 < x.len() && x[k + 1] <= u {
+                    k += 1;
+                }
+                if k + 1 < x.len() && x[k] <= u {
+                    let t = (u - x[k]) / (x[k + 1] - x[k]);
+                    z[k] + t * (z[k + 1] - z[k])
+                } else {
+                    interpolate(x, z, u)
+                }
+            })
+            .collect()
     }
 }
 

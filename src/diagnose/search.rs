@@ -216,7 +216,11 @@ fn greedy_round(
         .iter()
         .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
         .count();
-    for (single, _) in singles {
+    for (single, evidence) in singles {
+        // An effect that explains nothing alone is not looked for beside others.
+        if *evidence <= 0.0 {
+            continue;
+        }
         let c = *single.set.last().expect("a single has its candidate");
         let is_waviness = matches!(c, Candidate::EdgeWaviness { .. });
         let taken = effects.iter().any(|t| t.kind() == c.kind());
@@ -438,7 +442,7 @@ pub fn labels(set: &[Candidate]) -> String {
 
 /// Harmonic orders to screen for edge waviness: from half a cycle over the edge angles
 /// the measured region uses to a wavelength of a quarter of one mark's contact, in
-/// steps that shift the phase by at most a quarter cycle across the range (at most 30).
+/// steps that shift the phase by at most a quarter cycle across the range (at most 20).
 fn waviness_orders(job: &Job, m: &Measurement) -> Vec<f64> {
     let Some(turning) = job.process.turning() else {
         return Vec::new();
@@ -468,7 +472,7 @@ fn waviness_orders(job: &Job, m: &Measurement) -> Vec<f64> {
     if k_max <= k_min {
         return Vec::new();
     }
-    let step = (0.5 * std::f64::consts::PI / span).max((k_max - k_min) / 30.0);
+    let step = (0.5 * std::f64::consts::PI / span).max((k_max - k_min) / 20.0);
     let count = ((k_max - k_min) / step).floor() as usize + 1;
     (0..count).map(|i| k_min + i as f64 * step).collect()
 }
