@@ -11,8 +11,8 @@ use crate::engine::{
     TurningScene,
 };
 use crate::field::{DexelField, Layout, PolarGrid};
-use crate::io::job::Job;
 use crate::geometry::MeridianArcLength;
+use crate::io::job::Job;
 use crate::process::{GeneratingProcess, MillingProcess, PoseTable, Process, TurningProcess};
 use std::time::Instant;
 
@@ -173,7 +173,9 @@ fn turning_scenes(
     let extra_reach = turning.effects.extra_reach_mm(&edge);
     let mut passes = groundwork.passes.clone();
     for poses in &mut passes {
-        turning.correction.apply(poses, &job.surface, &groundwork.meridian);
+        turning
+            .correction
+            .apply(poses, &job.surface, &groundwork.meridian);
         poses.start_angle_rad += turning.azimuth_offset_rad;
     }
     turning.effects.apply_to_passes(&mut passes);

@@ -33,6 +33,9 @@ pub struct Problem<'a, 'e> {
     /// trial is still registered on all the points: registration places the
     /// measurement, and one part alone would let a tilt absorb half of a cone.
     mask: Option<Rc<Vec<bool>>>,
+    /// The points the whole search may judge fits on (`--calibrate-on`: the rest is
+    /// held out); every mask is cut from these.
+    calibration: Option<Rc<Vec<bool>>>,
     pub prior: Option<AzimuthPrior>,
     cache: HashMap<(String, Vec<u64>), Rc<Evaluation>>,
 }
@@ -199,6 +202,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             terms,
             shift,
             mask: None,
+            calibration: None,
             prior: None,
             cache: HashMap::new(),
         }
@@ -215,15 +219,23 @@ impl<'a, 'e> Problem<'a, 'e> {
         std::mem::replace(&mut self.mask, mask)
     }
 
+    /// Holds out the points where `calibration` is false from every fit (None: none).
+    pub fn calibrate_on(&mut self, calibration: Option<Rc<Vec<bool>>>) {
+        self.calibration = calibration;
+    }
+
+    /// Whether point `i` judges fits now.
+    fn judged(&self, i: usize) -> bool {
+        self.mask.as_ref().is_none_or(|m| m[i]) && self.calibration.as_ref().is_none_or(|c| c[i])
+    }
+
     /// A trial's residual on the judged points (0 elsewhere and where the simulation
     /// has no data), then the azimuth prior's pseudo-residual.
     pub fn residual(&self, e: &Evaluation) -> Vec<f64> {
         let mut r = e.residual();
-        if let Some(mask) = &self.mask {
-            for (v, keep) in r.iter_mut().zip(mask.iter()) {
-                if !keep {
-                    *v = 0.0;
-                }
+        for (i, v) in r.iter_mut().enumerate() {
+            if !self.judged(i) {
+                *v = 0.0;
             }
         }
         r.push(e.prior_mm);
@@ -258,7 +270,10 @@ impl<'a, 'e> Problem<'a, 'e> {
 
     /// Evaluates each (set, values) trial (those not cached simulated side by side where
     /// the engine allows), so that later `evaluate` calls find them.
-    pub fn evaluate_many(&mut self, trials: &[(Vec<Candidate>, Vec<f64>)]) -> Result<(), ForwardError> {
+    pub fn evaluate_many(
+        &mut self,
+        trials: &[(Vec<Candidate>, Vec<f64>)],
+    ) -> Result<(), ForwardError> {
         let mut missing: Vec<&(Vec<Candidate>, Vec<f64>)> = Vec::new();
         for trial in trials {
             let key = cache_key(&trial.0, &trial.1);
@@ -271,7 +286,9 @@ impl<'a, 'e> Problem<'a, 'e> {
         type Modify<'b> = Box<dyn Fn(&mut crate::io::job::Job) + Sync + 'b>;
         let modifies: Vec<Modify> = missing
             .iter()
-            .map(|(set, values)| Box::new(move |job: &mut crate::io::job::Job| apply_set(set, values, job)) as Modify)
+            .map(|(set, values)| {
+                Box::new(move |job: &mut crate::io::job::Job| apply_set(set, values, job)) as Modify
+            })
             .collect();
         let refs: Vec<&(dyn Fn(&mut crate::io::job::Job) + Sync)> =
             modifies.iter().map(|m| m.as_ref()).collect();
@@ -564,9 +581,8 @@ impl<'a, 'e> Problem<'a, 'e> {
     ) -> Result<Fit, ForwardError> {
         let evaluation = self.evaluate(set, &values)?;
         let tau = correlation_length(self.measurement, &evaluation.registered.residual_mm);
-        let judged = |i: usize| self.mask.as_ref().is_none_or(|m| m[i]);
         let used = (0..self.measurement.len())
-            .filter(|&i| judged(i) && evaluation.registered.residual_mm[i].is_finite())
+            .filter(|&i| self.judged(i) && evaluation.registered.residual_mm[i].is_finite())
             .count() as f64;
         let free = observable(jacobian, frozen);
         let residual = self.residual(&evaluation);

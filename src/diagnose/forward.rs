@@ -5,12 +5,12 @@
 use super::measurement::{Instrument, Measurement, Shape};
 use crate::engine::cpu::CpuEngine;
 use crate::engine::{EngineError, RemovalEngine};
-use rayon::prelude::*;
 use crate::field::{Layout, PolarGrid};
 use crate::io::job::Job;
 use crate::process::Process;
 use crate::run::{Groundwork, job_grid, remove_all, scenes_on};
 use glam::DVec2;
+use rayon::prelude::*;
 use std::f64::consts::TAU;
 use std::time::Instant;
 
@@ -331,7 +331,11 @@ struct Seen {
 
 impl Seen {
     /// The machined heights of a removal, seen as the instrument sees them.
-    fn surface(&self, scenes: &[crate::engine::Scene], field: &crate::field::DexelField) -> SimulatedSurface {
+    fn surface(
+        &self,
+        scenes: &[crate::engine::Scene],
+        field: &crate::field::DexelField,
+    ) -> SimulatedSurface {
         let grid = scenes[0].grid().clone();
         let height_mm = (0..grid.sample_count())
             .map(|s| {
@@ -339,7 +343,13 @@ impl Seen {
                 ring.height_mm + field.depth_mm[s] / ring.normal.y
             })
             .collect();
-        SimulatedSurface::new(grid, height_mm, self.line_rows, self.instrument, self.pixel_mm)
+        SimulatedSurface::new(
+            grid,
+            height_mm,
+            self.line_rows,
+            self.instrument,
+            self.pixel_mm,
+        )
     }
 }
 
@@ -897,7 +907,11 @@ height_mm = -0.00213
         let trace = model.simulate(&|_| {}).unwrap().trace.unwrap();
         // Half-way down the wall, searched on a 1 nm lattice along +x.
         let (top, floor) = (trace.at(0.0005), trace.at(0.004));
-        assert!(top - floor > 1e-3, "a core stands: {} µm", (top - floor) * 1e3);
+        assert!(
+            top - floor > 1e-3,
+            "a core stands: {} µm",
+            (top - floor) * 1e3
+        );
         let wall = (0..4000)
             .map(|i| i as f64 * 1e-6)
             .find(|&r| trace.at(r) < 0.5 * (top + floor))
