@@ -13,7 +13,7 @@
 
 use super::DiagnoseError;
 use super::fit::uncertainties;
-use super::forward::{ForwardModel, Frame, SimulatedSurface, Trace};
+use super::forward::{ForwardModel, Frame, SimulatedSurface, Trace, shift_room_mm};
 use super::measurement::{Measurement, Shape};
 use super::register::{LinearTerms, ShiftSearch, Terms, fit_linear, register, trimmed_mean_square};
 use super::zones::{correlation_length, gaussian_lowpass_line};
@@ -167,11 +167,16 @@ fn locate_line(
 ) -> Result<Located, DiagnoseError> {
     let outer = job.aperture.outer_radius_mm;
     let (lo, hi) = (quantile(&m.along_mm, 0.02), quantile(&m.along_mm, 0.98));
-    // Axis positions that keep the bulk of the points on the part.
-    let (a_min, a_max) = if options.terms.shift {
-        (hi - outer, lo + outer)
-    } else {
-        (0.0, 0.0)
+    // Axis positions that keep the bulk of the points on the part — where the process
+    // leaves marks to place the line by. Without marks (a generated sphere) a shift is
+    // a tilt to first order and only a central feature tells: the axis is looked for
+    // near where the file puts it.
+    let marked = mark_spacing_mm(job, outer).is_some();
+    let near = shift_room_mm(m);
+    let (a_min, a_max) = match (options.terms.shift, marked) {
+        (false, _) => (0.0, 0.0),
+        (true, true) => (hi - outer, lo + outer),
+        (true, false) => ((hi - outer).max(-near), (lo + outer).min(near)),
     };
     if a_min > a_max {
         return Err(DiagnoseError::DoesNotFit(format!(
@@ -284,7 +289,7 @@ fn locate_line(
         let mut at_azimuth = |phi: f64| -> Result<f64, DiagnoseError> {
             let start = best.as_ref().map_or((a, 1.0), |b| (b.1.along, b.1.scale));
             let (as_simulated, judged) = trace_at(phi)?;
-            let mut fit = refine_line(&fine, &judged, start, power, bound);
+            let mut fit = refine_line(&fine, &judged, start, (a_min, a_max), power, bound);
             fit.with_form = line_objective(&raw, &as_simulated, fit.along, fit.scale, power);
             let value = fit.objective;
             if best.as_ref().is_none_or(|b| value < b.1.objective) {
@@ -636,13 +641,14 @@ struct LineFit {
     with_form: f64,
 }
 
-/// Gauss–Newton on the axis position and scale (with piston, tilt and power solved in
-/// the same linear step), from `start`; a step is kept only while it lowers the
+/// Gauss–Newton on the axis position (within `a_min..=a_max`) and scale (with piston,
+/// tilt and power solved in the same linear step), from `start`; a step is kept only while it lowers the
 /// trimmed objective, else halved (twice).
 fn refine_line(
     m: &Measurement,
     trace: &Trace,
     start: (f64, f64),
+    (a_min, a_max): (f64, f64),
     power: bool,
     scale_bound: Option<f64>,
 ) -> LineFit {
@@ -660,7 +666,7 @@ fn refine_line(
         let mut improved = false;
         for shrink in [1.0, 0.5, 0.25] {
             let (a, s) = (
-                along + shrink * step_along,
+                (along + shrink * step_along).clamp(a_min, a_max),
                 (scale + shrink * step_scale).clamp(1.0 - bound, 1.0 + bound),
             );
             let value = line_objective(m, trace, a, s, power);
