@@ -205,7 +205,7 @@ fn diagnose_job(
     let job = build_job(text, is_json, name, base_dir, None)?;
     let o: serde_json::Value =
         serde_json::from_str(options).map_err(|e| job_error("options", e))?;
-    const KNOWN: [&str; 15] = [
+    const KNOWN: [&str; 17] = [
         "lateral_unit",
         "height_unit",
         "pixel_um",
@@ -215,6 +215,8 @@ fn diagnose_job(
         "pixel_averaging",
         "remove_power",
         "fixed_axis",
+        "fixed_scale",
+        "compare_only",
         "calibrate_on",
         "only",
         "max_effects",
@@ -252,7 +254,7 @@ fn diagnose_job(
         pixel_mm: pair("pixel_um").map(|v| (v[0] * 1e-3, v.get(1).unwrap_or(&v[0]) * 1e-3)),
     };
     let placement = Placement {
-        azimuth_deg: f("azimuth_deg").unwrap_or(0.0),
+        azimuth_deg: f("azimuth_deg"),
         axis_at_mm: pair("axis_at_mm").map(|v| [v[0], v.get(1).copied().unwrap_or(0.0)]),
     };
     let instrument = Instrument {
@@ -289,6 +291,8 @@ fn diagnose_job(
             })
             .unwrap_or_default(),
         calibrate_on_mm,
+        lateral_scale: !b("fixed_scale"),
+        compare_only: b("compare_only"),
     };
     let (measurement, source) = load_measurement(&measured, &read, &placement, instrument)
         .map_err(|e| job_error("measured", e))?;

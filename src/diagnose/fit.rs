@@ -156,6 +156,20 @@ pub fn apply_set(set: &[Candidate], values: &[f64], job: &mut crate::io::job::Jo
     }
 }
 
+/// How far round the spiral from the located azimuth the set puts the measurement
+/// (degrees): the azimuth member's value and the turn paired with the set's effects.
+pub fn spiral_turn_deg(set: &[Candidate], values: &[f64], job: &crate::io::job::Job) -> f64 {
+    let mut at = 0;
+    let mut member = 0.0;
+    for c in set {
+        if *c == Candidate::SpiralAzimuth {
+            member += values[at];
+        }
+        at += width(c);
+    }
+    member + spiral_compensation_rad(set, values, job).to_degrees()
+}
+
 /// The turn of the spiral that moves back the marks the set's effects move (rad; 0
 /// when the set does not fit the azimuth).
 fn spiral_compensation_rad(set: &[Candidate], values: &[f64], job: &crate::io::job::Job) -> f64 {
@@ -315,16 +329,12 @@ impl<'a, 'e> Problem<'a, 'e> {
         let Some(prior) = self.prior else {
             return 0.0;
         };
-        let turn = spiral_compensation_rad(set, values, self.model.base_job()).to_degrees();
-        let mut at = 0;
-        for c in set {
-            if *c == Candidate::SpiralAzimuth {
-                let d = (values[at] + turn - prior.centre_deg + 180.0).rem_euclid(360.0) - 180.0;
-                return prior.weight_mm * d / prior.sigma_deg;
-            }
-            at += width(c);
+        if !set.contains(&Candidate::SpiralAzimuth) {
+            return 0.0;
         }
-        0.0
+        let turn = spiral_turn_deg(set, values, self.model.base_job());
+        let d = (turn - prior.centre_deg + 180.0).rem_euclid(360.0) - 180.0;
+        prior.weight_mm * d / prior.sigma_deg
     }
 
     /// Fits `set` starting from `start`: a scan along each parameter listed in `scan`

@@ -286,9 +286,13 @@ pub fn diagnose(
         held.as_ref(),
         &found.refused,
     );
+    let final_fit = accepted.unwrap_or(&base);
+    let turn_deg =
+        fit::spiral_turn_deg(&final_fit.set, &final_fit.values, problem.model.base_job());
     let registration = RegistrationInfo::new(
         term_names(options.terms),
         &located,
+        turn_deg,
         measurement,
         &fitted,
         nominal.registration,

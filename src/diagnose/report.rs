@@ -156,9 +156,12 @@ pub struct PlacementInfo {
 impl RegistrationInfo {
     /// `placed`: the measurement as the diagnosis placed it on the part (its frame is
     /// the one `nominal` and `fitted` were registered in).
+    /// `turn_deg`: how far round the spiral from the located azimuth the final model
+    /// put the measurement.
     pub fn new(
         terms: Vec<String>,
         located: &super::locate::Located,
+        turn_deg: f64,
         read: &Measurement,
         placed: &Measurement,
         mut nominal: Registration,
@@ -222,7 +225,7 @@ impl RegistrationInfo {
             lateral_scale_fitted: located.scale_fitted,
             lateral_scale_at_bound: located.scale_at_bound(),
             lateral_scale_status: located.scale_status().into(),
-            azimuth_deg: azimuth(located.azimuth_rad),
+            azimuth_deg: azimuth(located.azimuth_rad + turn_deg.to_radians()),
             azimuth_sigma_deg: located
                 .azimuth_fitted
                 .then(|| located.sigma_azimuth_rad.to_degrees()),

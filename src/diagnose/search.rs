@@ -66,10 +66,6 @@ pub fn search<'a>(
     for c in candidates {
         log(&format!("fitting {}", c.label()));
         if let Some(fit) = fit_new(problem, &base.set, &base.values, *c, job, fitted)? {
-            eprintln!(
-                "DEBUG {:?} {:?} obj {:e} prior {:?}",
-                fit.set, fit.values, fit.objective, problem.prior
-            );
             fits.push(refit_if_axis_moves(
                 problem,
                 fit,

@@ -130,7 +130,8 @@ def diagnose(job: Job, measured: Union[str, os.PathLike], **options) -> Diagnosi
     """Diagnose the gap between ``job`` and the measured file with the library's
     diagnosis. Options as the CLI's flags: ``lateral_unit``, ``height_unit`` ("nm",
     "um", "mm"), ``pixel_um``, ``azimuth_deg``, ``axis_at_mm``, ``stylus_tip_um``,
-    ``pixel_averaging``, ``remove_power``, ``fixed_axis``, ``calibrate_on=(from_mm,
+    ``pixel_averaging``, ``remove_power``, ``fixed_axis``, ``fixed_scale``,
+    ``compare_only``, ``calibrate_on=(from_mm,
     to_mm)``, ``only=[kinds]``, ``max_effects``, ``min_evidence``, ``engine``, ``out``
     (write diagnosis.json, the images and report.html there)."""
     text, is_json, name, base = _job_source(job)
