@@ -31,8 +31,9 @@ enum Command {
     },
     /// Measure engine throughput (dexel–pass evaluations per second) and scaling.
     Bench(BenchArgs),
-    /// Simulate a job and compare it with a measured radial profile (period, PV, RMS).
-    CompareProfile(cli::compare::CompareArgs),
+    /// Place a measured profile or map on the job's part and compare them (PV, RMS,
+    /// local mark spacing); no effect is fitted (`diagnose` does that).
+    CompareProfile(cli::diagnose::CompareArgs),
     /// Run the machining–measurement–compensation loop in simulation and write the
     /// compensated path.
     Compensate(cli::compensate::CompensateArgs),
@@ -95,7 +96,7 @@ fn main() -> ExitCode {
     let result = match cli.command.unwrap_or(Command::Run(Default::default())) {
         Command::Run(args) => cli::run::run(args),
         Command::Check { job } => cli::run::check(job),
-        Command::CompareProfile(args) => cli::compare::compare_profile(args),
+        Command::CompareProfile(args) => cli::diagnose::compare_cmd(args),
         Command::Compensate(args) => cli::compensate::compensate(args),
         Command::Correct(args) => cli::correct::correct(args),
         Command::Formulas(args) => cli::formulas::formulas(args),

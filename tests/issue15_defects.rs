@@ -108,6 +108,10 @@ fn a_float_max_height_neither_hangs_the_plot_nor_counts_as_a_height() {
         job.to_str().unwrap(),
         "--measured",
         csv.to_str().unwrap(),
+        "--lateral-unit",
+        "um",
+        "--height-unit",
+        "um",
         "--engine",
         "cpu",
         "--out",
@@ -115,7 +119,7 @@ fn a_float_max_height_neither_hangs_the_plot_nor_counts_as_a_height() {
     ]);
     let err = stderr(&output);
     assert!(!err.contains("panicked"), "{err}");
-    assert!(dir.join("out/profile_comparison.png").is_file(), "{err}");
+    assert!(dir.join("out/profile.png").is_file(), "{err}");
 }
 
 #[test]

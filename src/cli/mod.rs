@@ -1,6 +1,5 @@
 //! The command line's subcommands and what they share.
 
-pub mod compare;
 pub mod compensate;
 pub mod correct;
 pub mod diagnose;

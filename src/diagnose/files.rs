@@ -48,7 +48,11 @@ pub fn load_measurement(
             m.azimuth_stated = placement.azimuth_deg.is_some();
             let note = format!(
                 "profile along {azimuth:.1}° on the part{}; the axis searched from {axis:.4} mm in the file{}",
-                if m.azimuth_stated { "" } else { " (not stated)" },
+                if m.azimuth_stated {
+                    ""
+                } else {
+                    " (not stated)"
+                },
                 if placement.axis_at_mm.is_none() {
                     " (its zero)"
                 } else {

@@ -2,7 +2,7 @@
 //! the instrument sees it, registered (piston, tilt, power, the axis shift re-solved for
 //! every trial), and judged by its residual. A candidate's start comes from a global scan
 //! along each parameter — both signs, magnitudes from a third of its typical size to its
-//! bound in steps of √3 — refined by golden section between the best value's
+//! bound in steps of about 3 — refined by golden section between the best value's
 //! neighbours; Levenberg–Marquardt with finite-difference Jacobians then refines all
 //! parameters together. Uncertainties: the larger of the Jacobian's (the residual's
 //! variance inflated by its correlation length) and a block sandwich estimate (residual
@@ -15,6 +15,7 @@ use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
 use super::zones::correlation_length;
 use crate::numeric::{invert, least_squares, solve_linear, try_golden_section};
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::rc::Rc;
 
@@ -32,6 +33,9 @@ pub struct Problem<'a, 'e> {
     /// trial is still registered on all the points: registration places the
     /// measurement, and one part alone would let a tilt absorb half of a cone.
     mask: Option<Rc<Vec<bool>>>,
+    /// The points the whole search may judge fits on (`--calibrate-on`: the rest is
+    /// held out); every mask is cut from these.
+    calibration: Option<Rc<Vec<bool>>>,
     pub prior: Option<AzimuthPrior>,
     cache: HashMap<(String, Vec<u64>), Rc<Evaluation>>,
 }
@@ -198,6 +202,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             terms,
             shift,
             mask: None,
+            calibration: None,
             prior: None,
             cache: HashMap::new(),
         }
@@ -214,15 +219,23 @@ impl<'a, 'e> Problem<'a, 'e> {
         std::mem::replace(&mut self.mask, mask)
     }
 
+    /// Holds out the points where `calibration` is false from every fit (None: none).
+    pub fn calibrate_on(&mut self, calibration: Option<Rc<Vec<bool>>>) {
+        self.calibration = calibration;
+    }
+
+    /// Whether point `i` judges fits now.
+    fn judged(&self, i: usize) -> bool {
+        self.mask.as_ref().is_none_or(|m| m[i]) && self.calibration.as_ref().is_none_or(|c| c[i])
+    }
+
     /// A trial's residual on the judged points (0 elsewhere and where the simulation
     /// has no data), then the azimuth prior's pseudo-residual.
     pub fn residual(&self, e: &Evaluation) -> Vec<f64> {
         let mut r = e.residual();
-        if let Some(mask) = &self.mask {
-            for (v, keep) in r.iter_mut().zip(mask.iter()) {
-                if !keep {
-                    *v = 0.0;
-                }
+        for (i, v) in r.iter_mut().enumerate() {
+            if !self.judged(i) {
+                *v = 0.0;
             }
         }
         r.push(e.prior_mm);
@@ -253,6 +266,47 @@ impl<'a, 'e> Problem<'a, 'e> {
         });
         self.cache.insert(key, evaluation.clone());
         Ok(evaluation)
+    }
+
+    /// Evaluates each (set, values) trial (those not cached simulated side by side where
+    /// the engine allows), so that later `evaluate` calls find them.
+    pub fn evaluate_many(
+        &mut self,
+        trials: &[(Vec<Candidate>, Vec<f64>)],
+    ) -> Result<(), ForwardError> {
+        let mut missing: Vec<&(Vec<Candidate>, Vec<f64>)> = Vec::new();
+        for trial in trials {
+            let key = cache_key(&trial.0, &trial.1);
+            if !self.cache.contains_key(&key)
+                && !missing.iter().any(|m| cache_key(&m.0, &m.1) == key)
+            {
+                missing.push(trial);
+            }
+        }
+        type Modify<'b> = Box<dyn Fn(&mut crate::io::job::Job) + Sync + 'b>;
+        let modifies: Vec<Modify> = missing
+            .iter()
+            .map(|(set, values)| {
+                Box::new(move |job: &mut crate::io::job::Job| apply_set(set, values, job)) as Modify
+            })
+            .collect();
+        let refs: Vec<&(dyn Fn(&mut crate::io::job::Job) + Sync)> =
+            modifies.iter().map(|m| m.as_ref()).collect();
+        let sims = self.model.simulate_many(&refs)?;
+        let (m, terms, shift) = (self.measurement, self.terms, self.shift);
+        let registered: Vec<Registered> = sims
+            .par_iter()
+            .map(|sim| register(m, sim, terms, Some(shift)))
+            .collect();
+        for ((set, values), registered) in missing.into_iter().zip(registered) {
+            let evaluation = Rc::new(Evaluation {
+                values: values.clone(),
+                registered,
+                prior_mm: self.prior_term(set, values),
+            });
+            self.cache.insert(cache_key(set, values), evaluation);
+        }
+        Ok(())
     }
 
     /// The prior's pseudo-residual for `set` at `values` (0 without a prior, or when the
@@ -312,7 +366,7 @@ impl<'a, 'e> Problem<'a, 'e> {
 
     /// The best value of parameter `j` along its axis, searched globally: the current
     /// value, then both signs at magnitudes from a third of the parameter's scale to its
-    /// bound in steps of √3 (a cone and a cylinder, a larger and a smaller radius, are
+    /// bound in steps of about 3 (a cone and a cylinder, a larger and a smaller radius, are
     /// all tried); then golden section between the best value's neighbours. At each
     /// value the `others` are re-adjusted by least squares on their Jacobian at the
     /// start. Returns all values at the best one.
@@ -361,6 +415,15 @@ impl<'a, 'e> Problem<'a, 'e> {
         };
         let p = &parameters[j];
         let origin = base[j];
+        let trials: Vec<(Vec<Candidate>, Vec<f64>)> = std::iter::once(origin)
+            .chain(scan_values(origin, p.scale, p.bound))
+            .map(|v| {
+                let mut trial = base.to_vec();
+                trial[j] = v;
+                (set.to_vec(), trial)
+            })
+            .collect();
+        self.evaluate_many(&trials)?;
         let mut best = at(self, origin)?;
         // Every value tried, to bracket the best afterwards.
         let mut tried = vec![(origin, best.0)];
@@ -412,11 +475,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         j: usize,
         at: &Evaluation,
     ) -> Result<Vec<f64>, ForwardError> {
-        let p = &parameters[j];
-        let mut h = (0.05 * values[j].abs()).max(0.2 * p.scale);
-        if values[j] + h > p.bound {
-            h = -h;
-        }
+        let h = step(parameters, values, j);
         let mut trial = values.to_vec();
         trial[j] += h;
         let r1 = {
@@ -438,6 +497,14 @@ impl<'a, 'e> Problem<'a, 'e> {
         values: &[f64],
         at: &Evaluation,
     ) -> Result<Vec<Vec<f64>>, ForwardError> {
+        let trials: Vec<(Vec<Candidate>, Vec<f64>)> = (0..values.len())
+            .map(|j| {
+                let mut trial = values.to_vec();
+                trial[j] += step(parameters, values, j);
+                (set.to_vec(), trial)
+            })
+            .collect();
+        self.evaluate_many(&trials)?;
         (0..values.len())
             .map(|j| self.column(set, parameters, values, j, at))
             .collect()
@@ -514,9 +581,8 @@ impl<'a, 'e> Problem<'a, 'e> {
     ) -> Result<Fit, ForwardError> {
         let evaluation = self.evaluate(set, &values)?;
         let tau = correlation_length(self.measurement, &evaluation.registered.residual_mm);
-        let judged = |i: usize| self.mask.as_ref().is_none_or(|m| m[i]);
         let used = (0..self.measurement.len())
-            .filter(|&i| judged(i) && evaluation.registered.residual_mm[i].is_finite())
+            .filter(|&i| self.judged(i) && evaluation.registered.residual_mm[i].is_finite())
             .count() as f64;
         let free = observable(jacobian, frozen);
         let residual = self.residual(&evaluation);
@@ -560,6 +626,19 @@ impl<'a, 'e> Problem<'a, 'e> {
             let e = self.evaluate(base, base_values)?;
             self.residual(&e)
         };
+        let trials: Vec<(Vec<Candidate>, Vec<f64>)> = orders
+            .iter()
+            .flat_map(|&order| {
+                let mut set = base.to_vec();
+                set.push(Candidate::EdgeWaviness { order });
+                [[amplitude_nm, 0.0], [0.0, amplitude_nm]].map(|ab| {
+                    let mut v = base_values.to_vec();
+                    v.extend(ab);
+                    (set.clone(), v)
+                })
+            })
+            .collect();
+        self.evaluate_many(&trials)?;
         let mut best: Option<(f64, f64, f64, f64)> = None;
         for &order in orders {
             let (rss, a, b) = self.waviness_at(base, base_values, order, amplitude_nm, &r0)?;
@@ -631,11 +710,17 @@ impl<'a, 'e> Problem<'a, 'e> {
     }
 }
 
-/// Multiples of a parameter's scale the global scan tries on each side (steps of √3).
-const SCAN_MULTIPLES: [f64; 17] = [
-    0.3, 0.5, 1.0, 1.7, 3.0, 5.0, 10.0, 17.0, 30.0, 50.0, 100.0, 170.0, 300.0, 500.0, 1000.0,
-    1700.0, 3000.0,
-];
+/// The finite-difference step of parameter `j`: a twentieth of its value or a fifth of
+/// its scale, toward the open side of its bound.
+fn step(parameters: &[Parameter], values: &[f64], j: usize) -> f64 {
+    let p = &parameters[j];
+    let h = (0.05 * values[j].abs()).max(0.2 * p.scale);
+    if values[j] + h > p.bound { -h } else { h }
+}
+
+/// Multiples of a parameter's scale the global scan tries on each side (steps of about
+/// 3; golden section then refines between the best value's neighbours).
+const SCAN_MULTIPLES: [f64; 9] = [0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
 
 /// The values a global scan of one parameter tries around `origin`: both signs, every
 /// multiple of `scale` within the bound, and the bound itself on each side.

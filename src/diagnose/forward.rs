@@ -3,12 +3,14 @@
 //! (a stylus tip's dilation, a pixel's average).
 
 use super::measurement::{Instrument, Measurement, Shape};
+use crate::engine::cpu::CpuEngine;
 use crate::engine::{EngineError, RemovalEngine};
 use crate::field::{Layout, PolarGrid};
 use crate::io::job::Job;
 use crate::process::Process;
-use crate::run::{prepare_scenes, remove_all};
+use crate::run::{Groundwork, job_grid, remove_all, scenes_on};
 use glam::DVec2;
+use rayon::prelude::*;
 use std::f64::consts::TAU;
 use std::time::Instant;
 
@@ -26,6 +28,8 @@ pub fn shift_room_mm(measurement: &Measurement) -> f64 {
 
 pub struct ForwardModel<'e> {
     base: Job,
+    /// The base job's meridian and programmed paths, computed once.
+    groundwork: Groundwork,
     engine: &'e mut dyn RemovalEngine,
     /// For a line: the two rows through the axis along it (its azimuth and opposite).
     line_rows: Option<(u32, u32)>,
@@ -165,6 +169,7 @@ impl<'e> ForwardModel<'e> {
             _ => None,
         };
         Ok(Self {
+            groundwork: Groundwork::of(&base),
             base,
             engine,
             line_rows,
@@ -193,6 +198,7 @@ impl<'e> ForwardModel<'e> {
         base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(outer_radius_mm);
         base.azimuths = rows;
         Ok(Self {
+            groundwork: Groundwork::of(&base),
             base,
             engine,
             line_rows: None,
@@ -243,18 +249,93 @@ impl<'e> ForwardModel<'e> {
         &mut self,
         modify: &dyn Fn(&mut Job),
     ) -> Result<SimulatedSurface, ForwardError> {
-        let mut job = self.base.clone();
-        if let Process::Turning(turning) = &mut job.process {
-            turning.azimuth_offset_rad = self.azimuth_rad;
-        }
-        modify(&mut job);
+        let job = self.trial(modify);
         let started = Instant::now();
-        let scenes = prepare_scenes(&job);
+        let scenes = scenes_on(&job, grid_for(&job, &self.groundwork), &self.groundwork);
         self.prepare_s += started.elapsed().as_secs_f64();
         let started = Instant::now();
         let field = remove_all(&scenes, self.engine, &|_, _| {})?;
         self.removal_s += started.elapsed().as_secs_f64();
         self.simulations += 1;
+        Ok(self.seen().surface(&scenes, &field))
+    }
+
+    /// Simulates several trials; on the CPU engine side by side (each trial on its own
+    /// engine), elsewhere one after the other. The same surfaces as `simulate` gives.
+    pub fn simulate_many(
+        &mut self,
+        modifies: &[&(dyn Fn(&mut Job) + Sync)],
+    ) -> Result<Vec<SimulatedSurface>, ForwardError> {
+        if self.engine.info().kind != "cpu" || modifies.len() < 2 {
+            return modifies.iter().map(|m| self.simulate(*m)).collect();
+        }
+        let started = Instant::now();
+        let jobs: Vec<Job> = modifies.iter().map(|m| self.trial(*m)).collect();
+        let (groundwork, seen) = (&self.groundwork, self.seen());
+        let done: Vec<Result<SimulatedSurface, ForwardError>> = jobs
+            .par_iter()
+            .map(|job| {
+                let scenes = scenes_on(job, grid_for(job, groundwork), groundwork);
+                let field = remove_all(&scenes, &mut CpuEngine, &|_, _| {})?;
+                Ok(seen.surface(&scenes, &field))
+            })
+            .collect();
+        self.removal_s += started.elapsed().as_secs_f64();
+        self.simulations += modifies.len();
+        done.into_iter().collect()
+    }
+
+    /// The base job with a trial's changes, looking along the model's azimuth.
+    fn trial(&self, modify: &dyn Fn(&mut Job)) -> Job {
+        let mut job = self.base.clone();
+        if let Process::Turning(turning) = &mut job.process {
+            turning.azimuth_offset_rad = self.azimuth_rad;
+        }
+        modify(&mut job);
+        job
+    }
+
+    /// How this model's simulations are seen.
+    fn seen(&self) -> Seen {
+        Seen {
+            line_rows: self.line_rows,
+            instrument: self.instrument,
+            pixel_mm: self.pixel_mm,
+        }
+    }
+}
+
+/// The job's grid, with rings just inside and outside r = |h| where a turning tool is
+/// off centre by h: the uncut core below centre (the flank's cone above it) ends there,
+/// and with rings on both sides the simulated edge moves continuously with h, so a fit
+/// of h is not a staircase in ring steps.
+fn grid_for(job: &Job, groundwork: &Groundwork) -> PolarGrid {
+    let grid = job_grid(job, groundwork);
+    match &job.process {
+        Process::Turning(t) if t.effects.centre_height_mm != 0.0 => {
+            let h = t.effects.centre_height_mm.abs();
+            let gap = (1e-3 * job.pitch_mm).min(0.01 * h);
+            grid.with_rings_at(&job.surface, &groundwork.meridian, &[h - gap, h + gap])
+        }
+        _ => grid,
+    }
+}
+
+/// How a model's simulations are seen: along which rows, through which instrument.
+#[derive(Clone, Copy)]
+struct Seen {
+    line_rows: Option<(u32, u32)>,
+    instrument: Instrument,
+    pixel_mm: Option<[f64; 2]>,
+}
+
+impl Seen {
+    /// The machined heights of a removal, seen as the instrument sees them.
+    fn surface(
+        &self,
+        scenes: &[crate::engine::Scene],
+        field: &crate::field::DexelField,
+    ) -> SimulatedSurface {
         let grid = scenes[0].grid().clone();
         let height_mm = (0..grid.sample_count())
             .map(|s| {
@@ -262,13 +343,13 @@ impl<'e> ForwardModel<'e> {
                 ring.height_mm + field.depth_mm[s] / ring.normal.y
             })
             .collect();
-        Ok(SimulatedSurface::new(
+        SimulatedSurface::new(
             grid,
             height_mm,
             self.line_rows,
             self.instrument,
             self.pixel_mm,
-        ))
+        )
     }
 }
 
@@ -335,9 +416,31 @@ impl Trace {
     }
 
     /// The traced heights at positions `along` of a line whose frame is `(s0, scale)`:
-    /// each point lies at `(along − s0)·scale` on the trace.
+    /// each point lies at `(along − s0)·scale` on the trace. Ascending positions are
+    /// walked, not searched.
     pub fn sample(&self, along: &[f64], s0: f64, scale: f64) -> Vec<f64> {
-        along.iter().map(|s| self.at((s - s0) * scale)).collect()
+        let (x, z) = (&self.x, &self.z);
+        let mut k = 0;
+        let mut last = f64::NEG_INFINITY;
+        along
+            .iter()
+            .map(|s| {
+                let u = (s - s0) * scale;
+                if u < last {
+                    k = x.partition_point(|v| *v <= u).saturating_sub(1);
+                }
+                last = u;
+                while k + 1 < x.len() && x[k + 1] <= u {
+                    k += 1;
+                }
+                if k + 1 < x.len() && x[k] <= u {
+                    let t = (u - x[k]) / (x[k + 1] - x[k]);
+                    z[k] + t * (z[k + 1] - z[k])
+                } else {
+                    interpolate(x, z, u)
+                }
+            })
+            .collect()
     }
 }
 
@@ -721,11 +824,18 @@ azimuths = 8
         let mut model = ForwardModel::new(&job, &line, &mut engine).unwrap();
         let delta = 0.003;
         let mut trace = |set: &[Candidate], values: &[f64]| {
-            model.simulate(&|j| apply_set(set, values, j)).unwrap().trace.unwrap()
+            model
+                .simulate(&|j| apply_set(set, values, j))
+                .unwrap()
+                .trace
+                .unwrap()
         };
         let nominal = trace(&[], &[]);
         let moved = trace(&[Candidate::XDecentre], &[delta * 1e3]);
-        let kept = trace(&[Candidate::SpiralAzimuth, Candidate::XDecentre], &[0.0, delta * 1e3]);
+        let kept = trace(
+            &[Candidate::SpiralAzimuth, Candidate::XDecentre],
+            &[0.0, delta * 1e3],
+        );
         // The shift (µm, outward on the + side) that best lays a trace's marks on the
         // nominal's between r = 0.05 and 0.2 mm (their mean height difference aside).
         let best_shift = |t: &Trace| -> f64 {
@@ -746,7 +856,66 @@ azimuths = 8
                 * 1e3
         };
         let (moved_um, kept_um) = (best_shift(&moved), best_shift(&kept));
-        assert!((moved_um - 3.0).abs() <= 0.15, "uncompensated marks moved {moved_um} µm");
-        assert!(kept_um.abs() <= 0.15, "compensated marks moved {kept_um} µm");
+        assert!(
+            (moved_um - 3.0).abs() <= 0.15,
+            "uncompensated marks moved {moved_um} µm"
+        );
+        assert!(
+            kept_um.abs() <= 0.15,
+            "compensated marks moved {kept_um} µm"
+        );
+    }
+}
+
+#[cfg(test)]
+mod centre_height_tests {
+    use super::*;
+    use crate::engine::cpu::CpuEngine;
+
+    /// A tool 2.13 µm below centre leaves an uncut core of radius 2.13 µm (the edge
+    /// never reaches r < |h|): on a 0.5 µm ring grid the traced wall must sit at 2.13 µm,
+    /// not at a ring, so that a fit of h is continuous.
+    #[test]
+    fn the_core_a_tool_below_centre_leaves_ends_where_the_tool_does() {
+        let job = Job::from_toml_str(
+            r#"version = 1
+[surface]
+kind = "plane"
+aperture_diameter_mm = 0.2
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.2
+included_angle_deg = 140.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.005
+[grid]
+pitch_um = 0.5
+azimuths = 8
+[[effects]]
+kind = "centre_height"
+height_mm = -0.00213
+"#,
+            "test",
+        )
+        .unwrap();
+        let x: Vec<f64> = (-50..=50).map(|i| i as f64 * 1e-3).collect();
+        let line = Measurement::line(&x, &vec![0.0; x.len()], 0.0, 0.0, Instrument::default());
+        let mut engine = CpuEngine;
+        let mut model = ForwardModel::new(&job, &line, &mut engine).unwrap();
+        let trace = model.simulate(&|_| {}).unwrap().trace.unwrap();
+        // Half-way down the wall, searched on a 1 nm lattice along +x.
+        let (top, floor) = (trace.at(0.0005), trace.at(0.004));
+        assert!(
+            top - floor > 1e-3,
+            "a core stands: {} µm",
+            (top - floor) * 1e3
+        );
+        let wall = (0..4000)
+            .map(|i| i as f64 * 1e-6)
+            .find(|&r| trace.at(r) < 0.5 * (top + floor))
+            .unwrap();
+        assert!((wall - 0.00213).abs() < 2e-6, "wall at {} µm", wall * 1e3);
     }
 }

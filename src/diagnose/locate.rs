@@ -13,7 +13,7 @@
 
 use super::DiagnoseError;
 use super::fit::uncertainties;
-use super::forward::{ForwardModel, Frame, SimulatedSurface, Trace};
+use super::forward::{ForwardModel, Frame, SimulatedSurface, Trace, shift_room_mm};
 use super::measurement::{Measurement, Shape};
 use super::register::{LinearTerms, ShiftSearch, Terms, fit_linear, register, trimmed_mean_square};
 use super::zones::{correlation_length, gaussian_lowpass_line};
@@ -167,11 +167,16 @@ fn locate_line(
 ) -> Result<Located, DiagnoseError> {
     let outer = job.aperture.outer_radius_mm;
     let (lo, hi) = (quantile(&m.along_mm, 0.02), quantile(&m.along_mm, 0.98));
-    // Axis positions that keep the bulk of the points on the part.
-    let (a_min, a_max) = if options.terms.shift {
-        (hi - outer, lo + outer)
-    } else {
-        (0.0, 0.0)
+    // Axis positions that keep the bulk of the points on the part — where the process
+    // leaves marks to place the line by. Without marks (a generated sphere) a shift is
+    // a tilt to first order and only a central feature tells: the axis is looked for
+    // near where the file puts it.
+    let marked = mark_spacing_mm(job, outer).is_some();
+    let near = shift_room_mm(m);
+    let (a_min, a_max) = match (options.terms.shift, marked) {
+        (false, _) => (0.0, 0.0),
+        (true, true) => (hi - outer, lo + outer),
+        (true, false) => ((hi - outer).max(-near), (lo + outer).min(near)),
     };
     if a_min > a_max {
         return Err(DiagnoseError::DoesNotFit(format!(
@@ -193,15 +198,27 @@ fn locate_line(
         "locating the profile: axis anywhere in {:.4}–{:.4} mm of the file{}{}",
         m.file_position_of(DVec2::new(a_min, 0.0)).x,
         m.file_position_of(DVec2::new(a_max, 0.0)).x,
-        if turning { ", every azimuth of the spiral" } else { "" },
-        if scale { ", lateral scale within ±2 %" } else { "" }
+        if turning {
+            ", every azimuth of the spiral"
+        } else {
+            ""
+        },
+        if scale {
+            ", lateral scale within ±2 %"
+        } else {
+            ""
+        }
     ));
 
     // The wide search on one simulation — every azimuth (turning) or the line's own.
     // Where the profile resolves the marks, they alone place it (the form taken out of
     // both): a form error the job lacks — a decentre's cone, a radius error — would
     // otherwise pull the axis, and on a sphere an axis shift is a tilt to first order.
-    let rows = if turning { SCAN_ROWS } else { line_rows(line_azimuth)?.0 };
+    let rows = if turning {
+        SCAN_ROWS
+    } else {
+        line_rows(line_azimuth)?.0
+    };
     let mut model = ForwardModel::covering(job, r_model, rows, m.instrument, engine)?;
     let surface = model.simulate(&|_| {})?;
     let seen = |trace: Trace| match marks {
@@ -213,7 +230,10 @@ fn locate_line(
             .map(|j| (TAU * j as f64 / rows as f64, seen(surface.trace_along(j))))
             .collect()
     } else {
-        vec![(line_azimuth, seen(surface.trace_along(line_rows(line_azimuth)?.1)))]
+        vec![(
+            line_azimuth,
+            seen(surface.trace_along(line_rows(line_azimuth)?.1)),
+        )]
     };
     let raw = subsample(m, REFINE_POINTS);
     let m = &match marks {
@@ -222,7 +242,13 @@ fn locate_line(
     };
     let step = typical.map_or((a_max - lo).max(hi - a_min) / 200.0, |f| f / 8.0);
     let power = options.terms.power;
-    let starts = wide_scan(m, &traces, grid(a_min, a_max, step), power, typical.unwrap_or(step));
+    let starts = wide_scan(
+        m,
+        &traces,
+        grid(a_min, a_max, step),
+        power,
+        typical.unwrap_or(step),
+    );
     if starts.is_empty() {
         return Err(DiagnoseError::DoesNotFit(
             "no placement of the profile keeps its points on the simulated part".into(),
@@ -248,15 +274,22 @@ fn locate_line(
     // with the next, so the scale is searched only short of that (and within ±2 %).
     let scale_bound = |a: f64| -> Option<f64> {
         let f = marks.filter(|_| scale)?;
-        let far = fine.along_mm.iter().map(|x| (x - a).abs()).fold(0.0, f64::max);
+        let far = fine
+            .along_mm
+            .iter()
+            .map(|x| (x - a).abs())
+            .fold(0.0, f64::max);
         Some((0.5 * f / far.max(f)).min(SCALE_BOUND))
     };
-    let mut refine = |a: f64, azimuth: f64, bound: Option<f64>| -> Result<Option<(Placement, LineFit)>, DiagnoseError> {
+    let mut refine = |a: f64,
+                      azimuth: f64,
+                      bound: Option<f64>|
+     -> Result<Option<(Placement, LineFit)>, DiagnoseError> {
         let mut best: Option<(Placement, LineFit)> = None;
         let mut at_azimuth = |phi: f64| -> Result<f64, DiagnoseError> {
             let start = best.as_ref().map_or((a, 1.0), |b| (b.1.along, b.1.scale));
             let (as_simulated, judged) = trace_at(phi)?;
-            let mut fit = refine_line(&fine, &judged, start, power, bound);
+            let mut fit = refine_line(&fine, &judged, start, (a_min, a_max), power, bound);
             fit.with_form = line_objective(&raw, &as_simulated, fit.along, fit.scale, power);
             let value = fit.objective;
             if best.as_ref().is_none_or(|b| value < b.1.objective) {
@@ -274,8 +307,12 @@ fn locate_line(
     for &(_, t, a) in &starts {
         placements.extend(refine(a, traces[t].0, scale_bound(a))?);
     }
-    let placements =
-        distinct_placements(placements, typical.unwrap_or(step), row_step, marks.is_some());
+    let placements = distinct_placements(
+        placements,
+        typical.unwrap_or(step),
+        row_step,
+        marks.is_some(),
+    );
     let (mut best, mut fit) = placements[0].clone();
     // The scale is kept only when 2σ from 1 (on a sphere a scale is a power term: an
     // uncertain one would bend the form); else the placement is found again at 1.
@@ -284,28 +321,35 @@ fn locate_line(
     if scale_bound(fit.along).is_some() {
         scale_sigma = line_sigmas(&fine, &fit, None, power, true).scale;
         scale_held = (fit.scale - 1.0).abs() < 2.0 * scale_sigma;
-        if scale_held
-            && let Some(again) = refine(fit.along, best.azimuth_rad, None)?
-        {
+        if scale_held && let Some(again) = refine(fit.along, best.azimuth_rad, None)? {
             (best, fit) = again;
         }
     }
     // Uncertainties of the axis and the azimuth (a central difference of the trace).
     let azimuth_column = if turning {
         let h = 0.02 * row_step;
-        let (ahead, behind) = (trace_at(best.azimuth_rad + h)?.1, trace_at(best.azimuth_rad - h)?.1);
+        let (ahead, behind) = (
+            trace_at(best.azimuth_rad + h)?.1,
+            trace_at(best.azimuth_rad - h)?.1,
+        );
         let (a, b) = (
             ahead.sample(&fine.along_mm, fit.along, fit.scale),
             behind.sample(&fine.along_mm, fit.along, fit.scale),
         );
-        Some(a.iter().zip(&b).map(|(p, q)| (p - q) / (2.0 * h)).collect::<Vec<f64>>())
+        Some(
+            a.iter()
+                .zip(&b)
+                .map(|(p, q)| (p - q) / (2.0 * h))
+                .collect::<Vec<f64>>(),
+        )
     } else {
         None
     };
     let sigmas = line_sigmas(&fine, &fit, azimuth_column.as_deref(), power, false);
     log(&format!(
         "axis at {:.4} mm of the file (± {:.4}), lateral scale {:.4}{}, residual {:.1} nm RMS",
-        m.file_position_of(best.frame.shift_mm.dot(m.line_direction()) * DVec2::X).x,
+        m.file_position_of(best.frame.shift_mm.dot(m.line_direction()) * DVec2::X)
+            .x,
         sigmas.along * m.file_per_mm,
         best.frame.scale,
         if turning {
@@ -597,13 +641,14 @@ struct LineFit {
     with_form: f64,
 }
 
-/// Gauss–Newton on the axis position and scale (with piston, tilt and power solved in
-/// the same linear step), from `start`; a step is kept only while it lowers the
+/// Gauss–Newton on the axis position (within `a_min..=a_max`) and scale (with piston,
+/// tilt and power solved in the same linear step), from `start`; a step is kept only while it lowers the
 /// trimmed objective, else halved (twice).
 fn refine_line(
     m: &Measurement,
     trace: &Trace,
     start: (f64, f64),
+    (a_min, a_max): (f64, f64),
     power: bool,
     scale_bound: Option<f64>,
 ) -> LineFit {
@@ -621,7 +666,7 @@ fn refine_line(
         let mut improved = false;
         for shrink in [1.0, 0.5, 0.25] {
             let (a, s) = (
-                along + shrink * step_along,
+                (along + shrink * step_along).clamp(a_min, a_max),
                 (scale + shrink * step_scale).clamp(1.0 - bound, 1.0 + bound),
             );
             let value = line_objective(m, trace, a, s, power);

@@ -32,12 +32,13 @@ use crate::engine::RemovalEngine;
 use crate::io::job::Job;
 use candidates::{Candidate, NotDiagnosable, candidates_for};
 use fit::{AzimuthPrior, Fit, Problem, width};
-use forward::{ForwardError, ForwardModel, SimulatedSurface, shift_room_mm};
+use forward::{ForwardError, ForwardModel};
 use glam::DVec2;
 use measurement::{Measurement, Shape};
-use register::{Registered, ShiftSearch, Terms, register};
+use register::{Registered, ShiftSearch, Terms};
 use report::*;
 use search::Search;
+use std::rc::Rc;
 use std::time::Instant;
 use zones::{Zones, band_cutoffs, bands, pv, radii, rms, white_noise_mm};
 
@@ -56,6 +57,8 @@ pub struct Options {
     pub calibrate_on_mm: Option<(f64, f64)>,
     /// Fit the instrument's lateral scale (within ±2 %) where the part's marks fix it.
     pub lateral_scale: bool,
+    /// Register and compare only: no effect is fitted.
+    pub compare_only: bool,
 }
 
 impl Default for Options {
@@ -70,6 +73,7 @@ impl Default for Options {
             only: Vec::new(),
             calibrate_on_mm: None,
             lateral_scale: true,
+            compare_only: false,
         }
     }
 }
@@ -137,10 +141,15 @@ pub fn diagnose(
         log,
     )?;
     let on_part = check_coverage(job, &measurement.placed(located.frame))?;
-    let (fitted, held_out) = split(&on_part, options.calibrate_on_mm)?;
+    let fitted = on_part;
+    let calibration = calibration_mask(&fitted, options.calibrate_on_mm)?;
     let period = mark_period_mm(job, &fitted);
-    let folds = validate::folds(&fitted, DVec2::ZERO);
-    let mut model = ForwardModel::new(job, &on_part, engine)?;
+    let folds = validate::folds(
+        &fitted,
+        DVec2::ZERO,
+        calibration.as_deref().map(Vec::as_slice),
+    );
+    let mut model = ForwardModel::new(job, &fitted, engine)?;
     if located.azimuth_fitted {
         model.set_azimuth(located.azimuth_rad);
     }
@@ -151,6 +160,7 @@ pub fn diagnose(
         options.terms,
         local_search(DVec2::ZERO, period),
     );
+    problem.calibrate_on(calibration.clone());
     let spiral = located.azimuth_fitted && fitted.is_line();
     if spiral
         && let Shape::Line { azimuth_rad } = measurement.shape
@@ -176,7 +186,7 @@ pub fn diagnose(
         .into_iter()
         .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
         .collect();
-    let found = if check.fits {
+    let found = if check.fits && !options.compare_only {
         search::search(
             &mut problem,
             &base,
@@ -259,18 +269,15 @@ pub fn diagnose(
         ));
     }
     let indistinguishable = indistinguishable(&found.singles, &baseline.registered);
-    let held = match (&held_out, check.fits) {
-        (Some(held), true) => Some(judge_held_out(
-            &mut problem.model,
-            held,
-            accepted,
-            options.terms,
-            period,
-        )?),
+    let held = match (&calibration, check.fits) {
+        (Some(calibration), true) => {
+            Some(judge_held_out(&mut problem, calibration, &base, accepted)?)
+        }
         _ => None,
     };
     let fragment = effects_fragment(job, accepted);
     let verdict = verdict::verdict(
+        options.compare_only.then_some(&comparison),
         &check,
         accepted,
         &before_info,
@@ -293,8 +300,13 @@ pub fn diagnose(
         job: JobInfo {
             name: job.name.clone(),
             process: process_name(job).into(),
+            carried_effects: None,
         },
-        measurement: MeasurementInfo::of(&on_part, measurement, &fitted, held_out.as_ref()),
+        measurement: MeasurementInfo::of(
+            &fitted,
+            measurement,
+            calibration.as_deref().map(Vec::as_slice),
+        ),
         registration,
         comparison,
         fit_check: check,
@@ -358,24 +370,6 @@ fn mark_period_mm(job: &Job, m: &Measurement) -> f64 {
         .min(m.extent_mm() / 8.0)
 }
 
-/// The nominal registration's search: most of the simulation's room for a shift,
-/// scanned at an eighth of the mark period (coarser on maps, whose scan is
-/// two-dimensional).
-fn wide_search(m: &Measurement, period: f64) -> ShiftSearch {
-    let half = 0.8 * shift_room_mm(m);
-    let step = if m.is_line() {
-        (0.125 * period).max(half / 400.0)
-    } else {
-        (0.125 * period).max(half / 12.0)
-    };
-    ShiftSearch {
-        start: DVec2::ZERO,
-        half_width_mm: half,
-        step_mm: step,
-        refine: 3,
-    }
-}
-
 /// A fit's search for the axis: within half a mark period of where the last
 /// registration put it.
 fn local_search(start: DVec2, period: f64) -> ShiftSearch {
@@ -415,25 +409,26 @@ fn check_coverage(job: &Job, m: &Measurement) -> Result<Measurement, DiagnoseErr
     Ok(m.subset(on))
 }
 
-/// Splits into the fitted part and the held-out rest.
-fn split(
+/// The points to fit on when `--calibrate-on FROM:TO` holds the rest out (positions
+/// along the profile, or X of a map, in the file's frame); None without a range.
+fn calibration_mask(
     m: &Measurement,
     range: Option<(f64, f64)>,
-) -> Result<(Measurement, Option<Measurement>), DiagnoseError> {
+) -> Result<Option<Rc<Vec<bool>>>, DiagnoseError> {
     let Some((from, to)) = range else {
-        return Ok((m.clone(), None));
+        return Ok(None);
     };
-    let position = |i: usize| m.file_position_mm(i).x;
-    let fitted = m.subset(|i| (from..=to).contains(&position(i)));
-    let held = m.subset(|i| !(from..=to).contains(&position(i)));
-    if fitted.len() < 16 || held.len() < 16 {
+    let mask: Vec<bool> = (0..m.len())
+        .map(|i| (from..=to).contains(&m.file_position_mm(i).x))
+        .collect();
+    let fitted = mask.iter().filter(|k| **k).count();
+    if fitted < 16 || m.len() - fitted < 16 {
         return Err(DiagnoseError::DoesNotFit(format!(
-            "calibrating on {from}–{to} mm leaves {} points to fit and {} held out; each needs at least 16",
-            fitted.len(),
-            held.len()
+            "calibrating on {from}–{to} mm leaves {fitted} points to fit and {} held out; each needs at least 16",
+            m.len() - fitted
         )));
     }
-    Ok((fitted, Some(held)))
+    Ok(Some(Rc::new(mask)))
 }
 
 /// A fitted effect (member `i` of a fit) as a result row.
@@ -526,48 +521,41 @@ fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<Strin
         .collect()
 }
 
-/// Judges the fitted effects on the held-out points: each registered on its own
-/// (metrology, not calibration), with and without the effects.
+/// Judges the fitted effects on the points held out from the fit, with and without
+/// them (each trial registered on all the points, as every fit is).
 fn judge_held_out(
-    model: &mut ForwardModel,
-    held: &Measurement,
+    problem: &mut Problem,
+    calibration: &[bool],
+    base: &Fit,
     fit: Option<&Fit>,
-    terms: Terms,
-    period: f64,
 ) -> Result<HeldOut, DiagnoseError> {
-    let search = wide_search(held, period);
-    let nominal: SimulatedSurface = model.simulate(&|_| {})?;
-    let before = register(held, &nominal, terms, Some(search));
+    let m = problem.measurement;
+    let held: Vec<usize> = (0..m.len()).filter(|&i| !calibration[i]).collect();
+    let mut residual = |f: &Fit| -> Result<Vec<f64>, DiagnoseError> {
+        problem.shift = f.frame;
+        problem.clear_cache();
+        let e = problem.evaluate(&f.set, &f.values)?;
+        Ok(held.iter().map(|&i| e.registered.residual_mm[i]).collect())
+    };
+    let before = residual(base)?;
     let after = match fit {
-        Some(f) => {
-            let apply = |job: &mut Job| {
-                for i in 0..f.set.len() {
-                    f.set[i].apply(f.values_of(i).0, job);
-                }
-            };
-            let sim = model.simulate(&apply)?;
-            register(held, &sim, terms, Some(search))
-        }
+        Some(f) => residual(f)?,
         None => before.clone(),
     };
-    let position = |i: usize| {
-        if held.is_line() {
-            held.along_mm[i]
-        } else {
-            held.xy_mm[i].x
-        }
-    };
-    let (from, to) = (0..held.len()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), i| {
-        (a.min(position(i)), b.max(position(i)))
-    });
+    let (from, to) = held
+        .iter()
+        .map(|&i| m.file_position_mm(i).x)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(x), b.max(x))
+        });
     Ok(HeldOut {
         points: held.len(),
         from_mm: from,
         to_mm: to,
-        before_pv_nm: pv(&before.residual_mm) * 1e6,
-        before_rms_nm: rms(&before.residual_mm) * 1e6,
-        after_pv_nm: pv(&after.residual_mm) * 1e6,
-        after_rms_nm: rms(&after.residual_mm) * 1e6,
+        before_pv_nm: pv(&before) * 1e6,
+        before_rms_nm: rms(&before) * 1e6,
+        after_pv_nm: pv(&after) * 1e6,
+        after_rms_nm: rms(&after) * 1e6,
     })
 }
 

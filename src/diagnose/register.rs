@@ -113,7 +113,7 @@ pub fn register(
                 .map(|k| {
                     let centre = search.start + offsets[k] * d;
                     let along = |a: f64| objective(m, centre + a * d);
-                    let a = golden_section(&along, -width, width, 24);
+                    let a = golden_section(&along, -width, width, 14);
                     (along(a), centre + a * d)
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0))

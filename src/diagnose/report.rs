@@ -52,6 +52,9 @@ pub struct Diagnosis {
 pub struct JobInfo {
     pub name: String,
     pub process: String,
+    /// The effects file carried from an earlier part (`--effects`), if any: the job
+    /// was simulated with it.
+    pub carried_effects: Option<String>,
 }
 
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -79,19 +82,16 @@ pub struct MeasurementInfo {
 }
 
 impl MeasurementInfo {
-    pub fn of(
-        on_part: &Measurement,
-        all: &Measurement,
-        fitted: &Measurement,
-        held: Option<&Measurement>,
-    ) -> Self {
+    /// `calibration`: the points fitted when some were held out.
+    pub fn of(on_part: &Measurement, all: &Measurement, calibration: Option<&[bool]>) -> Self {
+        let fitted = calibration.map_or(on_part.len(), |c| c.iter().filter(|k| **k).count());
         Self {
             shape: if all.is_line() { "profile" } else { "map" }.into(),
             points_in_file: all.total_points,
             valid_points: all.len(),
             points_on_part: on_part.len(),
-            points_fitted: fitted.len(),
-            points_held_out: held.map_or(0, Measurement::len),
+            points_fitted: fitted,
+            points_held_out: on_part.len() - fitted,
             extent_mm: on_part.extent_mm(),
             max_radius_mm: on_part.max_radius_mm(),
             spacing_um: on_part.spacing_mm() * 1e3,

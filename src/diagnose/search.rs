@@ -66,7 +66,10 @@ pub fn search<'a>(
     for c in candidates {
         log(&format!("fitting {}", c.label()));
         if let Some(fit) = fit_new(problem, &base.set, &base.values, *c, job, fitted)? {
-            eprintln!("DEBUG {:?} {:?} obj {:e} prior {:?}", fit.set, fit.values, fit.objective, problem.prior);
+            eprintln!(
+                "DEBUG {:?} {:?} obj {:e} prior {:?}",
+                fit.set, fit.values, fit.objective, problem.prior
+            );
             fits.push(refit_if_axis_moves(
                 problem,
                 fit,
@@ -82,7 +85,10 @@ pub fn search<'a>(
         }
     }
     // The combinations start in the frame of the single that fits best.
-    if let Some(best) = fits.iter().min_by(|a, b| a.objective.total_cmp(&b.objective)) {
+    if let Some(best) = fits
+        .iter()
+        .min_by(|a, b| a.objective.total_cmp(&b.objective))
+    {
         problem.shift = best.frame;
         problem.clear_cache();
     }
@@ -210,7 +216,11 @@ fn greedy_round(
         .iter()
         .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
         .count();
-    for (single, _) in singles {
+    for (single, evidence) in singles {
+        // An effect that explains nothing alone is not looked for beside others.
+        if *evidence <= 0.0 {
+            continue;
+        }
         let c = *single.set.last().expect("a single has its candidate");
         let is_waviness = matches!(c, Candidate::EdgeWaviness { .. });
         let taken = effects.iter().any(|t| t.kind() == c.kind());
@@ -293,7 +303,11 @@ fn refit_if_axis_moves(
         refine: 3,
     };
     let spiral = fit.set.iter().position(|c| *c == Candidate::SpiralAzimuth);
-    let turns: &[f64] = if spiral.is_some() { &[0.0, 180.0] } else { &[0.0] };
+    let turns: &[f64] = if spiral.is_some() {
+        &[0.0, 180.0]
+    } else {
+        &[0.0]
+    };
     let mut best: Option<(f64, Vec<f64>, DVec2)> = None;
     for &turn in turns {
         let mut values = fit.values.clone();
@@ -404,8 +418,7 @@ fn common_effective_points(
 /// Evidence `fit` adds over a model leaving `rss_before` with `k_before` parameters.
 pub fn evidence(rss_before: f64, k_before: usize, fit: &Fit, n_eff: f64) -> f64 {
     let used = fit.evaluation.registered.used;
-    bic(rss_before, used, n_eff, k_before)
-        - bic(fit.objective, used, n_eff, fit.values.len())
+    bic(rss_before, used, n_eff, k_before) - bic(fit.objective, used, n_eff, fit.values.len())
 }
 
 /// Whether member `member`'s parameters stand 3σ clear of zero together.
@@ -429,7 +442,7 @@ pub fn labels(set: &[Candidate]) -> String {
 
 /// Harmonic orders to screen for edge waviness: from half a cycle over the edge angles
 /// the measured region uses to a wavelength of a quarter of one mark's contact, in
-/// steps that shift the phase by at most a quarter cycle across the range (at most 30).
+/// steps that shift the phase by at most a quarter cycle across the range (at most 20).
 fn waviness_orders(job: &Job, m: &Measurement) -> Vec<f64> {
     let Some(turning) = job.process.turning() else {
         return Vec::new();
@@ -459,7 +472,7 @@ fn waviness_orders(job: &Job, m: &Measurement) -> Vec<f64> {
     if k_max <= k_min {
         return Vec::new();
     }
-    let step = (0.5 * std::f64::consts::PI / span).max((k_max - k_min) / 30.0);
+    let step = (0.5 * std::f64::consts::PI / span).max((k_max - k_min) / 20.0);
     let count = ((k_max - k_min) / step).floor() as usize + 1;
     (0..count).map(|i| k_min + i as f64 * step).collect()
 }

@@ -39,8 +39,26 @@ pub struct Fold {
     pub held: Vec<bool>,
 }
 
-/// The folds of `m` (placed on the part, its axis at `axis_mm`).
-pub fn folds(m: &Measurement, axis_mm: DVec2) -> Vec<Fold> {
+/// The folds of `m` (placed on the part, its axis at `axis_mm`), cut from the points of
+/// `calibration` when some are held out of the whole fit.
+pub fn folds(m: &Measurement, axis_mm: DVec2, calibration: Option<&[bool]>) -> Vec<Fold> {
+    let fitted = m.subset(|i| calibration.is_none_or(|c| c[i]));
+    let index: Vec<usize> = (0..m.len())
+        .filter(|&i| calibration.is_none_or(|c| c[i]))
+        .collect();
+    folds_of(&fitted, axis_mm)
+        .into_iter()
+        .map(|f| {
+            let mut held = vec![false; m.len()];
+            for (k, &i) in index.iter().enumerate() {
+                held[i] = f.held[k];
+            }
+            Fold { name: f.name, held }
+        })
+        .collect()
+}
+
+fn folds_of(m: &Measurement, axis_mm: DVec2) -> Vec<Fold> {
     let mut folds = Vec::new();
     let side = |i: usize| -> f64 {
         if m.is_line() {
@@ -210,6 +228,8 @@ fn judge_fold(
 ) -> Result<FoldCheck, ForwardError> {
     let n = width(&set[set.len() - 1]);
     let held = Rc::new(fold.held.clone());
+    // The rest of the fitted points (the problem keeps any calibration's held-out part
+    // out of every fit by itself).
     let rest = Rc::new(fold.held.iter().map(|h| !h).collect::<Vec<bool>>());
     problem.judge_on(Some(rest));
     let fitted = problem.fit(set, values.to_vec(), &[])?;

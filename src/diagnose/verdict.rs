@@ -2,8 +2,10 @@
 //! only when it was accepted (it predicts data it was not fitted on); when what is
 //! accepted leaves most of the gap standing, or nothing is accepted while the residual
 //! stands well above the noise, the verdict says the gap is unexplained and where it
-//! lies — an honest "unknown" beats a proxy that makes the next part worse.
+//! lies — an honest "unknown" beats a proxy that makes the next part worse. A
+//! comparison alone (`compare-profile`) says how far the job's prediction is off.
 
+use super::compare::Comparison;
 use super::fit::Fit;
 use super::report::{FitCheck, HeldOut, ResidualInfo, Verdict};
 use super::zones::ZoneStats;
@@ -13,6 +15,7 @@ use super::zones::ZoneStats;
 const EXPLAINED: f64 = 0.8;
 
 pub fn verdict(
+    compared_only: Option<&Comparison>,
     check: &FitCheck,
     fit: Option<&Fit>,
     before: &ResidualInfo,
@@ -37,6 +40,26 @@ pub fn verdict(
             advice: vec!["check the units, the part and the job before diagnosing".into()],
         };
     }
+    if let Some(c) = compared_only {
+        return Verdict {
+            status: "compared".into(),
+            sentence: format!(
+                "Measured PV {:.0} nm, RMS {:.1} nm; the job predicts PV {:.0} nm ({:+.1} %), RMS {:.1} nm ({:+.1} %){}; no effect was fitted (toolmark diagnose fits them).",
+                c.measured.pv_nm,
+                c.measured.rms_nm,
+                c.simulated.pv_nm,
+                100.0 * (c.simulated.pv_nm / c.measured.pv_nm - 1.0),
+                c.simulated.rms_nm,
+                100.0 * (c.simulated.rms_nm / c.measured.rms_nm - 1.0),
+                c.mark_spacing_ratio.map_or(String::new(), |q| format!(
+                    "; the marks lie {q:.4}× as far apart as the job puts them (median of {} bands)",
+                    c.mark_spacing.len()
+                ))
+            ),
+            advice: Vec::new(),
+        };
+    }
+
     let noise = after.white_noise_nm.max(1e-3);
     let excess = |r: &ResidualInfo| (r.rms_nm.powi(2) - noise.powi(2)).max(0.0);
     let explained = 1.0 - excess(after) / excess(before).max(1e-300);
