@@ -31,7 +31,8 @@ pub struct CaseScore {
     /// How far from the truth the diagnosis put the spindle axis (µm; in the plane for
     /// a map).
     pub axis_error_um: f64,
-    /// The lateral scale found, and the instrument's true one.
+    /// The instrument's lateral scale as synth states it (file distance per true
+    /// distance): found (the inverse of `registration.lateral_scale`) and true.
     pub lateral_scale: f64,
     pub lateral_scale_truth: f64,
     pub rms_before_nm: f64,
@@ -202,7 +203,7 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
         status,
         parameters_within_2_sigma: covered && effect_case,
         axis_error_um,
-        lateral_scale: registration["lateral_scale"].as_f64().unwrap_or(f64::NAN),
+        lateral_scale: 1.0 / registration["lateral_scale"].as_f64().unwrap_or(f64::NAN),
         lateral_scale_truth: truth.measurement.lateral_scale,
         truth: truth_names,
         ranked_first,
