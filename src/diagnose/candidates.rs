@@ -29,6 +29,11 @@ pub enum Candidate {
     /// azimuth from C = 0) sets where the marks fall. Re-fitted with every effect, as
     /// piston and tilt are re-solved, because a decentre, say, moves the marks too.
     SpiralAzimuth,
+    /// Not an effect but registration: the instrument's lateral scale, as a correction
+    /// (ppm) to where the placement put it. Fitted with the effects where the marks
+    /// fix the scale: on a sphere a nose-radius error moves the marks out along the
+    /// radius as a scale does (by Δρ/R), and it bends the form only half as much.
+    LateralScale,
 }
 
 /// One fitted parameter.
@@ -142,6 +147,7 @@ impl Candidate {
             Candidate::SpindleTram => "spindle_tram",
             Candidate::RadialRunout => "radial_runout",
             Candidate::SpiralAzimuth => "spiral_azimuth",
+            Candidate::LateralScale => "lateral_scale",
         }
     }
 
@@ -155,7 +161,7 @@ impl Candidate {
 
     /// A registration term fitted like an effect, never reported as one.
     pub fn is_registration(&self) -> bool {
-        matches!(self, Candidate::SpiralAzimuth)
+        matches!(self, Candidate::SpiralAzimuth | Candidate::LateralScale)
     }
 
     /// A name for tables.
@@ -170,6 +176,14 @@ impl Candidate {
 
     /// The parameters, bounded as the job files bound them.
     pub fn parameters(&self, job: &Job) -> Vec<Parameter> {
+        if *self == Candidate::LateralScale {
+            return vec![parameter(
+                "error",
+                "ppm",
+                100.0,
+                super::locate::SCALE_BOUND * 1e6,
+            )];
+        }
         match (&job.process, self) {
             (Process::Turning(t), _) => {
                 let nose_um = t.tool.nose_radius_mm * 1e3;
@@ -236,6 +250,9 @@ impl Candidate {
 
     /// Adds the effect at `values` (report units) to the job's own effects.
     pub fn apply(&self, values: &[f64], job: &mut Job) {
+        if *self == Candidate::LateralScale {
+            return; // registration: it stretches the measurement, not the job
+        }
         match (&mut job.process, self) {
             (Process::Turning(t), _) => {
                 let e = &mut t.effects;
@@ -303,7 +320,7 @@ impl Candidate {
                 );
             }
             Candidate::InclinationError => ("error_deg", values[0]),
-            Candidate::SpiralAzimuth => return String::new(),
+            Candidate::SpiralAzimuth | Candidate::LateralScale => return String::new(),
             Candidate::EdgeWaviness { order } => {
                 let (amplitude, phase) = amplitude_phase(values);
                 return format!(
@@ -418,6 +435,10 @@ impl Candidate {
                 "the profile lies {}° round the spiral from where registration first put it",
                 pm(v, s)
             ),
+            Candidate::LateralScale => format!(
+                "the lateral scale is {} ppm off where registration first put it",
+                pm(v, s)
+            ),
         }
     }
 
@@ -463,7 +484,7 @@ impl Candidate {
                 "re-seat the tool or clean the collet: {:.2} µm of runout",
                 values[0].hypot(values[1])
             ),
-            Candidate::SpiralAzimuth => String::new(),
+            Candidate::SpiralAzimuth | Candidate::LateralScale => String::new(),
         }
     }
 }

@@ -10,7 +10,7 @@
 //! search bound is flagged as such, never reported as a fit.
 
 use super::candidates::{Candidate, Parameter};
-use super::forward::{ForwardError, ForwardModel};
+use super::forward::{ForwardError, ForwardModel, SimulatedSurface};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
 use super::zones::correlation_length;
@@ -23,6 +23,8 @@ use std::rc::Rc;
 /// remove and where it may look for the axis.
 /// Golden-section steps refining a scan (the bracket shrinks to 0.618^n).
 const GOLDEN_STEPS: usize = 10;
+/// Simulations a problem keeps for re-registration.
+const SIMULATIONS_KEPT: usize = 32;
 
 pub struct Problem<'a, 'e> {
     pub measurement: &'a Measurement,
@@ -38,6 +40,9 @@ pub struct Problem<'a, 'e> {
     calibration: Option<Rc<Vec<bool>>>,
     pub prior: Option<AzimuthPrior>,
     cache: HashMap<(String, Vec<u64>), Rc<Evaluation>>,
+    /// Simulations by the job the set makes (a lateral scale trial re-registers the
+    /// same simulation); emptied when it grows past [`SIMULATIONS_KEPT`].
+    simulations: HashMap<(String, Vec<u64>), Rc<SimulatedSurface>>,
 }
 
 /// One trial: the effect values and the registered residual they leave.
@@ -188,6 +193,61 @@ fn spiral_compensation_rad(set: &[Candidate], values: &[f64], job: &crate::io::j
     -std::f64::consts::TAU * shift_mm / turning.path.pass_spacing_mm()
 }
 
+/// The fit's lateral scale member as a factor on the placement's scale, and its one σ
+/// relative to 1 (1 and 0 without the member).
+pub fn fitted_stretch(fit: &Fit) -> (f64, f64) {
+    match fit.set.iter().position(|c| *c == Candidate::LateralScale) {
+        Some(member) => {
+            let (v, s) = fit.values_of(member);
+            (1.0 + v[0] * 1e-6, s[0] * 1e-6)
+        }
+        None => (1.0, 0.0),
+    }
+}
+
+/// The indices of the parameters of `set`'s members that are `kind`.
+fn member_parameters(set: &[Candidate], kind: Candidate) -> Vec<usize> {
+    let mut at = 0;
+    let mut found = Vec::new();
+    for c in set {
+        if *c == kind {
+            found.extend(at..at + width(c));
+        }
+        at += width(c);
+    }
+    found
+}
+
+/// Registers `m`, stretched by the set's lateral scale member, to `sim`.
+fn register_trial(
+    m: &Measurement,
+    sim: &SimulatedSurface,
+    terms: Terms,
+    shift: ShiftSearch,
+    set: &[Candidate],
+    values: &[f64],
+) -> Registered {
+    let stretch = lateral_stretch(set, values);
+    if stretch == 1.0 {
+        return register(m, sim, terms, Some(shift));
+    }
+    register(&m.stretched(stretch), sim, terms, Some(shift))
+}
+
+/// The factor the set's lateral scale member stretches the measurement by (1 without
+/// one).
+pub fn lateral_stretch(set: &[Candidate], values: &[f64]) -> f64 {
+    let mut at = 0;
+    let mut stretch = 1.0;
+    for c in set {
+        if *c == Candidate::LateralScale {
+            stretch *= 1.0 + values[at] * 1e-6;
+        }
+        at += width(c);
+    }
+    stretch
+}
+
 /// Parameters a candidate takes.
 pub fn width(candidate: &Candidate) -> usize {
     match candidate {
@@ -219,6 +279,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             calibration: None,
             prior: None,
             cache: HashMap::new(),
+            simulations: HashMap::new(),
         }
     }
 
@@ -271,8 +332,9 @@ impl<'a, 'e> Problem<'a, 'e> {
         if let Some(hit) = self.cache.get(&key) {
             return Ok(hit.clone());
         }
-        let sim = self.model.simulate(&|job| apply_set(set, values, job))?;
-        let registered = register(self.measurement, &sim, self.terms, Some(self.shift));
+        let sim = self.simulation(set, values)?;
+        let registered =
+            register_trial(self.measurement, &sim, self.terms, self.shift, set, values);
         let evaluation = Rc::new(Evaluation {
             values: values.to_vec(),
             registered,
@@ -297,8 +359,18 @@ impl<'a, 'e> Problem<'a, 'e> {
                 missing.push(trial);
             }
         }
+        self.forget_simulations(missing.len());
+        let mut to_simulate: Vec<&(Vec<Candidate>, Vec<f64>)> = Vec::new();
+        for trial in &missing {
+            let key = job_key(&trial.0, &trial.1);
+            if !self.simulations.contains_key(&key)
+                && !to_simulate.iter().any(|t| job_key(&t.0, &t.1) == key)
+            {
+                to_simulate.push(trial);
+            }
+        }
         type Modify<'b> = Box<dyn Fn(&mut crate::io::job::Job) + Sync + 'b>;
-        let modifies: Vec<Modify> = missing
+        let modifies: Vec<Modify> = to_simulate
             .iter()
             .map(|(set, values)| {
                 Box::new(move |job: &mut crate::io::job::Job| apply_set(set, values, job)) as Modify
@@ -307,10 +379,18 @@ impl<'a, 'e> Problem<'a, 'e> {
         let refs: Vec<&(dyn Fn(&mut crate::io::job::Job) + Sync)> =
             modifies.iter().map(|m| m.as_ref()).collect();
         let sims = self.model.simulate_many(&refs)?;
+        for ((set, values), sim) in to_simulate.into_iter().zip(sims) {
+            self.simulations.insert(job_key(set, values), Rc::new(sim));
+        }
+        let sims: Vec<&SimulatedSurface> = missing
+            .iter()
+            .map(|(set, values)| self.simulations[&job_key(set, values)].as_ref())
+            .collect();
         let (m, terms, shift) = (self.measurement, self.terms, self.shift);
-        let registered: Vec<Registered> = sims
+        let registered: Vec<Registered> = missing
             .par_iter()
-            .map(|sim| register(m, sim, terms, Some(shift)))
+            .zip(sims)
+            .map(|((set, values), sim)| register_trial(m, sim, terms, shift, set, values))
             .collect();
         for ((set, values), registered) in missing.into_iter().zip(registered) {
             let evaluation = Rc::new(Evaluation {
@@ -321,6 +401,30 @@ impl<'a, 'e> Problem<'a, 'e> {
             self.cache.insert(cache_key(set, values), evaluation);
         }
         Ok(())
+    }
+
+    /// The simulation of the job `set` at `values` makes (kept for trials that differ
+    /// only in registration members).
+    fn simulation(
+        &mut self,
+        set: &[Candidate],
+        values: &[f64],
+    ) -> Result<Rc<SimulatedSurface>, ForwardError> {
+        let key = job_key(set, values);
+        if let Some(sim) = self.simulations.get(&key) {
+            return Ok(sim.clone());
+        }
+        let sim = Rc::new(self.model.simulate(&|job| apply_set(set, values, job))?);
+        self.forget_simulations(1);
+        self.simulations.insert(key, sim.clone());
+        Ok(sim)
+    }
+
+    /// Makes room for `coming` simulations among those kept.
+    fn forget_simulations(&mut self, coming: usize) {
+        if self.simulations.len() + coming > SIMULATIONS_KEPT {
+            self.simulations.clear();
+        }
     }
 
     /// The prior's pseudo-residual for `set` at `values` (0 without a prior, or when the
@@ -350,7 +454,12 @@ impl<'a, 'e> Problem<'a, 'e> {
             .iter()
             .flat_map(|c| c.parameters(self.model.base_job()))
             .collect();
-        let others: Vec<usize> = (0..start.len()).filter(|j| !scan.contains(j)).collect();
+        // The lateral scale is not re-adjusted linearly along a scan: the marks make the
+        // residual far from linear in it, and a linear step there misjudges every trial.
+        let scale_member = member_parameters(set, Candidate::LateralScale);
+        let others: Vec<usize> = (0..start.len())
+            .filter(|j| !scan.contains(j) && !scale_member.contains(j))
+            .collect();
         let mut values = start;
         for &j in scan {
             values = self.scan(set, &parameters, &values, j, &others)?;
@@ -833,6 +942,20 @@ fn normal_matrix(jacobian: &[Vec<f64>], free: &[usize]) -> Vec<Vec<f64>> {
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The key of the job a set makes: its members but the lateral scale, and their values.
+fn job_key(set: &[Candidate], values: &[f64]) -> (String, Vec<u64>) {
+    let mut at = 0;
+    let (mut members, mut kept) = (Vec::new(), Vec::new());
+    for c in set {
+        if *c != Candidate::LateralScale {
+            members.push(*c);
+            kept.extend_from_slice(&values[at..at + width(c)]);
+        }
+        at += width(c);
+    }
+    cache_key(&members, &kept)
 }
 
 fn cache_key(set: &[Candidate], values: &[f64]) -> (String, Vec<u64>) {

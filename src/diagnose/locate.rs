@@ -36,6 +36,11 @@ const SCAN_POINTS: usize = 800;
 const REFINE_POINTS: usize = 6000;
 /// Local minima of the wide search refined.
 const CANDIDATES: usize = 8;
+/// The wide search refines this many times [`CANDIDATES`] of its minima on its
+/// subsample before choosing the candidates.
+const POLISHED: usize = 8;
+/// Most lateral scales the wide search tries on each side of 1.
+const SCALE_STEPS: i64 = 24;
 /// Share of the points that must lie on the simulated part in any placement.
 const ON_PART: f64 = 0.9;
 
@@ -90,12 +95,24 @@ impl Located {
 
     /// What became of the lateral scale, in words.
     pub fn scale_status(&self) -> &'static str {
-        match (self.scale_fitted, self.scale_held, self.scale_at_bound()) {
+        let near_one = (self.frame.scale - 1.0).abs() < 2.0 * self.sigma_scale;
+        match (self.scale_fitted, self.scale_at_bound(), near_one) {
             (false, _, _) => "not searched (the data carries no marks to fix it)",
-            (true, true, _) => "within 2σ of 1: held at 1",
-            (true, false, true) => "at the search bound (±2 %): not a fit",
+            (true, true, _) => "at the search bound (±2 %): not a fit",
+            (true, false, true) => "fitted, within 2σ of 1",
             (true, false, false) => "fitted",
         }
+    }
+
+    /// The placement with the lateral scale the final fit left: `stretch` times the
+    /// located one, `sigma` its one σ relative to 1 (the fit's lateral scale member).
+    pub fn with_fitted_scale(&self, stretch: f64, sigma: f64) -> Located {
+        let mut placed = self.clone();
+        if self.scale_fitted {
+            placed.frame.scale *= stretch;
+            placed.sigma_scale = sigma * placed.frame.scale;
+        }
+        placed
     }
 }
 
@@ -225,30 +242,38 @@ fn locate_line(
         Some(f) => high_passed_trace(trace, 2.5 * f),
         None => trace,
     };
-    let traces: Vec<(f64, Trace)> = if turning {
+    let traces: Vec<ScanTrace> = if turning {
         (0..rows)
-            .map(|j| (TAU * j as f64 / rows as f64, seen(surface.trace_along(j))))
+            .map(|j| ScanTrace::new(TAU * j as f64 / rows as f64, surface.trace_along(j), &seen))
             .collect()
     } else {
-        vec![(
+        let row = line_rows(line_azimuth)?.1;
+        vec![ScanTrace::new(
             line_azimuth,
-            seen(surface.trace_along(line_rows(line_azimuth)?.1)),
+            surface.trace_along(row),
+            &seen,
         )]
     };
     let raw = subsample(m, REFINE_POINTS);
-    let m = &match marks {
+    let judged = match marks {
         Some(f) => high_passed(m, 2.5 * f),
         None => m.clone(),
     };
     let step = typical.map_or((a_max - lo).max(hi - a_min) / 200.0, |f| f / 8.0);
     let power = options.terms.power;
+    let scales = match marks.filter(|_| scale) {
+        Some(f) => scale_grid(f, hi - lo),
+        None => vec![1.0],
+    };
     let starts = wide_scan(
-        m,
+        (&judged, marks.is_some().then_some(m)),
         &traces,
         grid(a_min, a_max, step),
+        &scales,
         power,
         typical.unwrap_or(step),
     );
+    let m = &judged;
     if starts.is_empty() {
         return Err(DiagnoseError::DoesNotFit(
             "no placement of the profile keeps its points on the simulated part".into(),
@@ -270,27 +295,18 @@ fn locate_line(
         };
         Ok((as_simulated.clone(), seen(as_simulated)))
     };
-    // Marks repeat: a scale that moves the farthest point by half a mark aligns it
-    // with the next, so the scale is searched only short of that (and within ±2 %).
-    let scale_bound = |a: f64| -> Option<f64> {
-        let f = marks.filter(|_| scale)?;
-        let far = fine
-            .along_mm
-            .iter()
-            .map(|x| (x - a).abs())
-            .fold(0.0, f64::max);
-        Some((0.5 * f / far.max(f)).min(SCALE_BOUND))
-    };
+    let scale_range = scale.then_some((1.0 - SCALE_BOUND, 1.0 + SCALE_BOUND));
     let mut refine = |a: f64,
+                      s: f64,
                       azimuth: f64,
-                      bound: Option<f64>|
+                      range: Option<(f64, f64)>|
      -> Result<Option<(Placement, LineFit)>, DiagnoseError> {
         let mut best: Option<(Placement, LineFit)> = None;
         let mut at_azimuth = |phi: f64| -> Result<f64, DiagnoseError> {
-            let start = best.as_ref().map_or((a, 1.0), |b| (b.1.along, b.1.scale));
+            let start = best.as_ref().map_or((a, s), |b| (b.1.along, b.1.scale));
             let (as_simulated, judged) = trace_at(phi)?;
-            let mut fit = refine_line(&fine, &judged, start, (a_min, a_max), power, bound);
-            fit.with_form = line_objective(&raw, &as_simulated, fit.along, fit.scale, power);
+            let mut fit = refine_line(&fine, &judged, start, (a_min, a_max), power, range);
+            fit.with_form = line_objective(&raw, &as_simulated, fit.along, fit.scale, true);
             let value = fit.objective;
             if best.as_ref().is_none_or(|b| value < b.1.objective) {
                 best = Some((placement(m, &fit, phi), fit));
@@ -304,8 +320,9 @@ fn locate_line(
         Ok(best)
     };
     let mut placements: Vec<(Placement, LineFit)> = Vec::new();
-    for &(_, t, a) in &starts {
-        placements.extend(refine(a, traces[t].0, scale_bound(a))?);
+    for start in &starts {
+        let azimuth = traces[start.trace].azimuth_rad;
+        placements.extend(refine(start.along, start.scale, azimuth, scale_range)?);
     }
     let placements = distinct_placements(
         placements,
@@ -318,10 +335,10 @@ fn locate_line(
     // uncertain one would bend the form); else the placement is found again at 1.
     let mut scale_sigma = 0.0;
     let mut scale_held = false;
-    if scale_bound(fit.along).is_some() {
+    if scale {
         scale_sigma = line_sigmas(&fine, &fit, None, power, true).scale;
         scale_held = (fit.scale - 1.0).abs() < 2.0 * scale_sigma;
-        if scale_held && let Some(again) = refine(fit.along, best.azimuth_rad, None)? {
+        if scale_held && let Some(again) = refine(fit.along, 1.0, best.azimuth_rad, None)? {
             (best, fit) = again;
         }
     }
@@ -373,34 +390,127 @@ fn locate_line(
     })
 }
 
-/// The wide search: every trace (azimuth) at every axis position, the trimmed mean
-/// square residual of a subsample; the best local minima, distinct in axis position
-/// by a third of `apart` (a mark spacing) on neighbouring azimuths.
-fn wide_scan(
-    m: &Measurement,
-    traces: &[(f64, Trace)],
-    positions: Vec<f64>,
-    power: bool,
-    apart: f64,
-) -> Vec<(f64, usize, f64)> {
-    let coarse = ScanPoints::new(&subsample(m, SCAN_POINTS));
-    let scan: Vec<Vec<f64>> = traces
-        .par_iter()
-        .map(|(_, trace)| {
-            let mut scratch = Vec::new();
-            positions
-                .iter()
-                .map(|&a| coarse.objective(trace, a, 1.0, power, &mut scratch))
-                .collect()
-        })
-        .collect();
-    let mut starts: Vec<(f64, usize, f64)> = Vec::new();
-    for (t, values) in scan.iter().enumerate() {
-        for k in local_minima(values) {
-            starts.push((values[k], t, positions[k]));
+/// Lateral scales the wide search tries: within ±[`SCALE_BOUND`], spaced so that the
+/// marks at the two ends of a profile `span_mm` long move a third of a mark `mark_mm`
+/// against each other between neighbours (a scale off by more than half a mark over
+/// the span is a different alignment of the marks, which refinement from 1 cannot
+/// reach); at most [`SCALE_STEPS`] each side.
+fn scale_grid(mark_mm: f64, span_mm: f64) -> Vec<f64> {
+    let step = mark_mm / (3.0 * span_mm.max(mark_mm));
+    let n = ((SCALE_BOUND / step).ceil() as i64).clamp(1, SCALE_STEPS);
+    (-n..=n)
+        .map(|k| 1.0 + SCALE_BOUND * k as f64 / n as f64)
+        .collect()
+}
+
+/// A simulated trace at one azimuth as the wide search uses it: as simulated (the form
+/// in) and as judged (the form out where the marks rule).
+struct ScanTrace {
+    azimuth_rad: f64,
+    simulated: Trace,
+    judged: Trace,
+}
+
+impl ScanTrace {
+    fn new(azimuth_rad: f64, simulated: Trace, seen: &dyn Fn(Trace) -> Trace) -> Self {
+        Self {
+            azimuth_rad,
+            judged: seen(simulated.clone()),
+            simulated,
         }
     }
-    starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+}
+
+/// A local minimum of the wide search: its objective, the same placement with the form
+/// left in, the trace (azimuth), axis position and scale.
+#[derive(Debug, Clone, Copy)]
+struct Start {
+    value: f64,
+    with_form: f64,
+    trace: usize,
+    along: f64,
+    scale: f64,
+}
+
+/// The wide search: every trace (azimuth) at every axis position and scale, the
+/// trimmed mean square residual of a subsample of `judged` (the measurement as the
+/// marks objective sees it; `raw` the same with its form in, where they differ).
+/// Its best local minima along the axis, distinct in axis position by a third of
+/// `apart` (a mark spacing) on neighbouring azimuths, are refined (axis and scale, on
+/// the subsample) and the best [`CANDIDATES`] returned. Minima the marks cannot tell
+/// apart (within half again of the best: whole marks along, or half a mark and half a
+/// turn) are ranked by the form beyond power (see [`distinct_placements`]), so that
+/// the right one among them is kept.
+fn wide_scan(
+    (judged, raw): (&Measurement, Option<&Measurement>),
+    traces: &[ScanTrace],
+    positions: Vec<f64>,
+    scales: &[f64],
+    power: bool,
+    apart: f64,
+) -> Vec<Start> {
+    let coarse = subsample(judged, SCAN_POINTS);
+    let points = ScanPoints::new(&coarse);
+    let rows: Vec<(usize, f64)> = (0..traces.len())
+        .flat_map(|t| scales.iter().map(move |&s| (t, s)))
+        .collect();
+    let mut minima: Vec<Start> = rows
+        .par_iter()
+        .flat_map_iter(|&(t, s)| {
+            let mut scratch = Vec::new();
+            let values: Vec<f64> = positions
+                .iter()
+                .map(|&a| points.objective(&traces[t].judged, a, s, power, &mut scratch))
+                .collect();
+            local_minima(&values)
+                .into_iter()
+                .map(|k| Start {
+                    value: values[k],
+                    with_form: values[k],
+                    trace: t,
+                    along: positions[k],
+                    scale: s,
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    minima.sort_by(|a, b| a.value.total_cmp(&b.value));
+    let minima = distinct(minima, apart / 3.0, traces.len(), POLISHED * CANDIDATES);
+    let bounds = (positions[0], positions[positions.len() - 1]);
+    let free_scale = scales.len() > 1;
+    let coarse_raw = raw.map(|r| subsample(r, SCAN_POINTS));
+    let mut starts: Vec<Start> = minima
+        .par_iter()
+        .map(|start| {
+            let trace = &traces[start.trace];
+            let range = free_scale.then_some((1.0 - SCALE_BOUND, 1.0 + SCALE_BOUND));
+            let fit = refine_line(
+                &coarse,
+                &trace.judged,
+                (start.along, start.scale),
+                bounds,
+                power,
+                range,
+            );
+            let with_form = coarse_raw.as_ref().map_or(fit.objective, |r| {
+                line_objective(r, &trace.simulated, fit.along, fit.scale, true)
+            });
+            Start {
+                value: fit.objective,
+                with_form,
+                along: fit.along,
+                scale: fit.scale,
+                ..*start
+            }
+        })
+        .collect();
+    starts.sort_by(|a, b| a.value.total_cmp(&b.value));
+    if raw.is_some()
+        && let Some(first) = starts.first().map(|s| s.value)
+    {
+        let split = starts.partition_point(|s| s.value <= 1.5 * first);
+        starts[..split].sort_by(|a, b| a.with_form.total_cmp(&b.with_form));
+    }
     distinct(starts, apart / 3.0, traces.len(), CANDIDATES)
 }
 
@@ -420,8 +530,11 @@ fn placement(m: &Measurement, fit: &LineFit, azimuth_rad: f64) -> Placement {
 /// eighth of a mark, azimuth within two rows); best first. Where the marks placed the
 /// line, placements whose marks fit within half again of the best are alike to the
 /// marks (a whole mark along, or half a mark and half a turn: a spiral of even feed
-/// repeats but at its centre): among those the form decides — its higher orders
-/// (a sphere's r⁴) fix the axis where the marks cannot.
+/// repeats but at its centre): among those the form decides — its orders beyond
+/// power (a sphere's r⁴) fix the axis where the marks cannot. Power is left out of
+/// that judgement always: a lateral scale is a power error on a sphere, as is a
+/// nose-radius error, so with power in the form would pick the placement whose scale
+/// best hides an effect.
 fn distinct_placements(
     mut placements: Vec<(Placement, LineFit)>,
     marks: f64,
@@ -602,26 +715,21 @@ fn local_minima(values: &[f64]) -> Vec<usize> {
         .collect()
 }
 
-/// The best `count` starts (value, trace, axis), dropping any within `apart` of
-/// a better one on the same or a neighbouring trace (of `traces`, in a circle).
-fn distinct(
-    sorted: Vec<(f64, usize, f64)>,
-    apart: f64,
-    traces: usize,
-    count: usize,
-) -> Vec<(f64, usize, f64)> {
+/// The first `count` starts, dropping any within `apart` of one kept before on the
+/// same or a neighbouring trace (of `traces`, in a circle).
+fn distinct(sorted: Vec<Start>, apart: f64, traces: usize, count: usize) -> Vec<Start> {
     let neighbours = |a: usize, b: usize| {
         let d = a.abs_diff(b);
         d.min(traces - d) <= 1
     };
-    let mut kept: Vec<(f64, usize, f64)> = Vec::new();
+    let mut kept: Vec<Start> = Vec::new();
     for s in sorted {
         if kept.len() == count {
             break;
         }
         if !kept
             .iter()
-            .any(|k| neighbours(k.1, s.1) && (k.2 - s.2).abs() < apart)
+            .any(|k| neighbours(k.trace, s.trace) && (k.along - s.along).abs() < apart)
         {
             kept.push(s);
         }
@@ -650,10 +758,10 @@ fn refine_line(
     start: (f64, f64),
     (a_min, a_max): (f64, f64),
     power: bool,
-    scale_bound: Option<f64>,
+    scale_range: Option<(f64, f64)>,
 ) -> LineFit {
-    let fit_scale = scale_bound.is_some();
-    let bound = scale_bound.unwrap_or(0.0);
+    let fit_scale = scale_range.is_some();
+    let (s_min, s_max) = scale_range.unwrap_or((1.0, 1.0));
     let (mut along, mut scale) = (start.0, if fit_scale { start.1 } else { 1.0 });
     let mut best = line_objective(m, trace, along, scale, power);
     for _ in 0..12 {
@@ -667,7 +775,7 @@ fn refine_line(
         for shrink in [1.0, 0.5, 0.25] {
             let (a, s) = (
                 (along + shrink * step_along).clamp(a_min, a_max),
-                (scale + shrink * step_scale).clamp(1.0 - bound, 1.0 + bound),
+                (scale + shrink * step_scale).clamp(s_min, s_max),
             );
             let value = line_objective(m, trace, a, s, power);
             if value < best {

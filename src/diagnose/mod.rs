@@ -173,11 +173,18 @@ pub fn diagnose(
     );
     problem.calibrate_on(calibration.clone());
     let spiral = located.azimuth_fitted && fitted.is_line();
+    let members: Vec<Candidate> = [
+        (spiral, Candidate::SpiralAzimuth),
+        (located.scale_fitted, Candidate::LateralScale),
+    ]
+    .into_iter()
+    .filter_map(|(on, c)| on.then_some(c))
+    .collect();
     if spiral
         && let Shape::Line { azimuth_rad } = measurement.shape
         && measurement.azimuth_stated
     {
-        let first = search::registration_base(&mut problem, spiral)?;
+        let first = search::registration_base(&mut problem, &members)?;
         let noise = white_noise_mm(&fitted, &first.evaluation.registered.residual_mm);
         problem.prior = Some(AzimuthPrior {
             centre_deg: (azimuth_rad - located.azimuth_rad).to_degrees(),
@@ -186,7 +193,7 @@ pub fn diagnose(
         });
         problem.clear_cache();
     }
-    let base = search::registration_base(&mut problem, spiral)?;
+    let base = search::registration_base(&mut problem, &members)?;
     let nominal = base.evaluation.registered.clone();
     let spacing = |from: f64, to: f64| locate::local_mark_spacing_mm(job, from, to);
     let comparison = compare::compare(&fitted, &nominal, options.terms.power, &spacing);
@@ -299,6 +306,8 @@ pub fn diagnose(
     let final_fit = accepted.unwrap_or(&base);
     let turn_deg =
         fit::spiral_turn_deg(&final_fit.set, &final_fit.values, problem.model.base_job());
+    let (stretch, stretch_sigma) = fit::fitted_stretch(final_fit);
+    let located = located.with_fitted_scale(stretch, stretch_sigma);
     let registration = RegistrationInfo::new(
         term_names(options.terms),
         &located,

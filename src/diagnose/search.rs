@@ -1,8 +1,9 @@
 //! Which effect (DESIGN §8.3): every candidate is fitted alone and ranked by the evidence
 //! it adds (ΔBIC on the residual's effective point count); then effects are combined
 //! greedily. An effect is accepted only when it adds ΔBIC above the threshold, stands 3σ
-//! from zero, sits inside its search range (a value at the bound is not a fit), and
-//! predicts the data it was not fitted on (`validate`). A last backward pass drops an
+//! from zero, sits inside its search range (a value at the bound is not a fit), removes
+//! at least a tenth of the residual's RMS, and predicts the data it was not fitted on
+//! (`validate`). A last backward pass drops an
 //! effect the others have come to explain.
 
 use super::candidates::Candidate;
@@ -21,6 +22,8 @@ use glam::DVec2;
 const MAX_WAVINESS_ORDERS: usize = 3;
 /// Candidates of one greedy round tried for acceptance, best evidence first.
 const TRIES_PER_ROUND: usize = 3;
+/// Least share of the residual's RMS an accepted effect removes.
+const MIN_REDUCTION: f64 = 0.1;
 
 /// What the search found.
 #[derive(Default)]
@@ -37,13 +40,13 @@ pub struct Search {
 }
 
 /// The job as given, registered: the registration terms that are fitted like effects
-/// (a turned profile's azimuth on the spiral) fitted alone; an empty set otherwise.
-pub fn registration_base(problem: &mut Problem, spiral: bool) -> Result<Fit, ForwardError> {
-    if spiral {
-        problem.fit(&[Candidate::SpiralAzimuth], vec![0.0], &[])
-    } else {
-        problem.fit(&[], Vec::new(), &[])
-    }
+/// (`members`: a turned profile's azimuth on the spiral, the lateral scale) fitted
+/// alone, from where the placement put them.
+pub fn registration_base(
+    problem: &mut Problem,
+    members: &[Candidate],
+) -> Result<Fit, ForwardError> {
+    problem.fit(members, vec![0.0; members.len()], &[])
 }
 
 /// Runs the search on `problem` from `base` (the job as given, registered in the
@@ -128,7 +131,9 @@ pub fn search<'a>(
             }
             let member = fit.set.len() - 1;
             let label = fit.set[member].label();
-            if let Some(why) = not_a_fit(&fit, member) {
+            if let Some(why) =
+                not_a_fit(&fit, member).or_else(|| too_small(rss_before, fit.objective))
+            {
                 log(&format!("{label}: {why}"));
                 found.refused.push((label, why));
                 continue;
@@ -185,6 +190,21 @@ fn not_a_fit(fit: &Fit, member: usize) -> Option<String> {
         return Some("within 3σ of zero".into());
     }
     None
+}
+
+/// Why an effect that lowers the residual's Σr² from `before` to `after` explains too
+/// little to act on, if it does: less than [`MIN_REDUCTION`] of the residual's RMS.
+/// Such an effect, however significant, is a fit to the residual's own structure (a
+/// correlated noise, a small unmodelled feature) as often as a cause.
+fn too_small(before: f64, after: f64) -> Option<String> {
+    let reduction = 1.0 - (after / before.max(1e-300)).max(0.0).sqrt();
+    (reduction < MIN_REDUCTION).then(|| {
+        format!(
+            "it removes {:.1} % of the residual's RMS, less than the {:.0} % an effect must remove to be acted on",
+            100.0 * reduction,
+            100.0 * MIN_REDUCTION
+        )
+    })
 }
 
 /// A fold-tested effect's σ is at least half the spread of its values over the folds.

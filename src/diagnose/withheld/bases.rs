@@ -12,6 +12,9 @@ pub struct Base {
     /// Whether the case tells the diagnosis the line's azimuth on the part (a profile
     /// cut out of a map by hand does not).
     pub azimuth_stated: bool,
+    /// Whether the case is diagnosed with power removed (`--remove-power`), as a user
+    /// diagnoses a white-light line whose lateral calibration is uncertain.
+    pub remove_power: bool,
     /// Files the job reads, written beside it: (name, text).
     pub files: fn() -> Vec<(&'static str, String)>,
 }
@@ -56,6 +59,7 @@ dropout_fraction = 0.01
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
+    remove_power: false,
     files: no_files,
 };
 
@@ -93,6 +97,7 @@ dropout_fraction = 0.01
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
+    remove_power: false,
     files: no_files,
 };
 
@@ -131,6 +136,7 @@ dropout_fraction = 0.01
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
+    remove_power: false,
     files: no_files,
 };
 
@@ -167,6 +173,7 @@ dropout_fraction = 0.01
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
+    remove_power: false,
     files: no_files,
 };
 
@@ -203,6 +210,7 @@ dropout_fraction = 0.01
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
+    remove_power: false,
     files: no_files,
 };
 
@@ -241,6 +249,7 @@ dropout_fraction = 0.01
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
+    remove_power: false,
     files: no_files,
 };
 
@@ -261,6 +270,7 @@ dropout_fraction = 0.01
     format: "x3p",
     axis_along_um: CENTRED,
     azimuth_stated: true,
+    remove_power: false,
     files: no_files,
 };
 
@@ -281,6 +291,7 @@ dropout_fraction = 0.01
     format: "gsf",
     axis_along_um: CENTRED,
     azimuth_stated: true,
+    remove_power: false,
     files: no_files,
 };
 
@@ -318,6 +329,7 @@ dropout_fraction = 0.01
     format: "exr",
     axis_along_um: CENTRED,
     azimuth_stated: true,
+    remove_power: false,
     files: no_files,
 };
 
@@ -377,6 +389,7 @@ dropout_fraction = 0.01
     format: "csv",
     axis_along_um: [350.0, 650.0],
     azimuth_stated: false,
+    remove_power: true,
     files: varying_feed_program,
 };
 

@@ -43,6 +43,9 @@ pub struct PublicCase {
     pub measured: String,
     pub placement: Placement,
     pub instrument: Instrument,
+    /// Diagnose with power removed (`--remove-power`).
+    #[serde(default)]
+    pub remove_power: bool,
 }
 
 /// The sealed truth of one case.
@@ -307,6 +310,7 @@ fn write_case(
             axis_at_mm: None,
         },
         instrument: model.instrument(),
+        remove_power: spec.base.remove_power,
     };
     write_text(
         &folder.join("case.toml"),
@@ -444,7 +448,9 @@ pub fn diagnose_suite(
             &case.placement,
             case.instrument,
         )?;
-        let outcome = diagnose(&job, &measurement, engine, &Options::default(), &|_| {});
+        let mut options = Options::default();
+        options.terms.power = case.remove_power;
+        let outcome = diagnose(&job, &measurement, engine, &options, &|_| {});
         let (status, simulations) = match outcome {
             Ok(mut outcome) => {
                 merge_source(&mut outcome.diagnosis.measurement, &source);
