@@ -9,6 +9,7 @@ use crate::engine::cpu::CpuEngine;
 use crate::engine::gpu::GpuEngine;
 use crate::io::job::Job;
 use crate::run::{prepare_scenes, remove_all, simulate};
+use std::path::Path;
 use std::time::Instant;
 
 /// A flat facing job of the given aperture radius (mm) used for scaling and tiling.
@@ -92,6 +93,14 @@ fn processor_name() -> String {
         .unwrap_or_else(|| "unknown processor".into())
 }
 
+/// The 1-minute load average (other work sharing the cores), or "unknown".
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|text| text.split_whitespace().next().map(str::to_string))
+        .unwrap_or_else(|| "unknown".into())
+}
+
 pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
     let mut engines: Vec<Box<dyn RemovalEngine>> = Vec::new();
     if cpu {
@@ -101,9 +110,10 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
         engines.push(Box::new(GpuEngine::new().map_err(|e| e.to_string())?));
     }
     println!(
-        "host: {} ({} threads)",
+        "host: {} ({} threads), load average {}",
         processor_name(),
-        std::thread::available_parallelism().map_or(1, |n| n.get())
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        load_average()
     );
     for engine in &engines {
         let info = engine.info();
@@ -111,6 +121,10 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
             "{}: {} [{} {}] {}",
             info.kind, info.adapter, info.backend, info.device_type, info.driver
         );
+    }
+
+    if cpu && let Err(err) = numpy_comparison(&[32, 256]) {
+        println!("\n(the NumPy comparison did not run: {err})");
     }
 
     println!("\n## default job (seed-002 asphere, XZ), whole pipeline without file output");
@@ -219,4 +233,132 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// The NumPy reference sweep (`benches/numpy_facing.py`) and the job it runs.
+const NUMPY_FACING: &str = include_str!("../benches/numpy_facing.py");
+const FLAT_FACING: &str = include_str!("../examples/flat_facing.toml");
+
+/// What the NumPy sweep reports, with the field it wrote.
+struct NumpySweep {
+    pairs: u64,
+    sweep_s: f64,
+    numpy: String,
+    depth_mm: Vec<f64>,
+    pass: Vec<u32>,
+}
+
+/// Runs the NumPy sweep of the flat-facing example at `azimuths` in `dir`.
+fn numpy_sweep(python: &str, dir: &Path, azimuths: u32) -> Result<NumpySweep, String> {
+    let (script, job, out) = (
+        dir.join("numpy_facing.py"),
+        dir.join("flat_facing.toml"),
+        dir.join("facing"),
+    );
+    std::fs::write(&script, NUMPY_FACING).map_err(|e| e.to_string())?;
+    std::fs::write(&job, FLAT_FACING).map_err(|e| e.to_string())?;
+    let output = std::process::Command::new(python)
+        .arg(&script)
+        .arg(&job)
+        .arg("--out")
+        .arg(&out)
+        .args(["--azimuths", &azimuths.to_string()])
+        .output()
+        .map_err(|e| format!("{python}: {e}"))?;
+    if !output.status.success() {
+        return Err(String::from_utf8_lossy(&output.stderr).into_owned());
+    }
+    let report: serde_json::Value =
+        serde_json::from_slice(&output.stdout).map_err(|e| format!("NumPy sweep output: {e}"))?;
+    let read = |suffix: &str| {
+        std::fs::read(out.with_extension(suffix)).map_err(|e| format!("{suffix}: {e}"))
+    };
+    let depth_mm = read("depth_mm.f64")?
+        .chunks_exact(8)
+        .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+        .collect();
+    let pass = read("pass.u32")?
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")))
+        .collect();
+    Ok(NumpySweep {
+        pairs: report["pairs"].as_u64().unwrap_or(0),
+        sweep_s: report["sweep_s"].as_f64().unwrap_or(f64::NAN),
+        numpy: report["numpy"].as_str().unwrap_or("?").to_string(),
+        depth_mm,
+        pass,
+    })
+}
+
+/// Median of `runs` timings of `f`.
+fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), String>) -> Result<f64, String> {
+    let mut times = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let started = Instant::now();
+        f()?;
+        times.push(started.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times[runs / 2])
+}
+
+/// The CPU engine against the NumPy sweep of the same flat-facing job, in the same run:
+/// time per pair on both, and how far their fields differ.
+pub fn numpy_comparison(azimuth_counts: &[u32]) -> Result<(), String> {
+    let python = std::env::var("TOOLMARK_PYTHON").unwrap_or_else(|_| "python3".into());
+    let dir = std::env::temp_dir().join(format!("toolmark-bench-numpy-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    println!(
+        "\n## CPU removal against a vectorised NumPy sweep of the same pairs (benches/numpy_facing.py): flat facing example, Ø10 mm, 1 µm pitch"
+    );
+    println!(
+        "| azimuths | pairs | NumPy s | NumPy ns/pair | CPU s (median of 5) | CPU ns/pair | CPU ÷ NumPy speed | max \\|Δ depth\\| nm | pass ids differing |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    let result = azimuth_counts.iter().try_for_each(|&azimuths| {
+        let reference = numpy_sweep(&python, &dir, azimuths)?;
+        let job = Job::from_toml_str(
+            &FLAT_FACING.replace("azimuths = 32", &format!("azimuths = {azimuths}")),
+            "bench",
+        )
+        .map_err(|e| e.to_string())?;
+        let scenes = prepare_scenes(&job);
+        let pairs: u64 = scenes.iter().map(|s| s.pair_count()).sum();
+        let mut field = None;
+        let seconds = median_seconds(5, || {
+            field = Some(remove_all(&scenes, &mut CpuEngine, &|_, _| {}).map_err(|e| e.to_string())?);
+            Ok(())
+        })?;
+        let field = field.expect("ran");
+        if reference.pairs != pairs || reference.depth_mm.len() != field.depth_mm.len() {
+            return Err(format!(
+                "the NumPy sweep evaluated {} pairs on {} samples, the engine {pairs} on {}",
+                reference.pairs,
+                reference.depth_mm.len(),
+                field.depth_mm.len()
+            ));
+        }
+        let max_nm = field
+            .depth_mm
+            .iter()
+            .zip(&reference.depth_mm)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+            * 1e6;
+        let pass_differ = field.pass.iter().zip(&reference.pass).filter(|(a, b)| a != b).count();
+        println!(
+            "| {azimuths} | {:.3e} | {:.3} | {:.1} | {:.4} | {:.2} | {:.1}× | {max_nm:.1e} | {pass_differ} |",
+            pairs as f64,
+            reference.sweep_s,
+            reference.sweep_s / pairs as f64 * 1e9,
+            seconds,
+            seconds / pairs as f64 * 1e9,
+            reference.sweep_s / seconds
+        );
+        if azimuths == azimuth_counts[azimuth_counts.len() - 1] {
+            println!("(NumPy {}, one thread; the CPU engine on {} threads)", reference.numpy, rayon::current_num_threads());
+        }
+        Ok(())
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+    result
 }

@@ -148,6 +148,16 @@ struct PassWindow {
     table_end: Option<i64>,
 }
 
+impl PassWindow {
+    const EMPTY: PassWindow = PassWindow {
+        node0: 0,
+        t: 0.0,
+        first: 1,
+        last: 0,
+        table_end: None,
+    };
+}
+
 /// A turning scene ready for the lanes.
 pub struct TurningKernel<'a> {
     scene: &'a TurningScene,
@@ -232,15 +242,18 @@ impl<'a> TurningKernel<'a> {
     fn fill_lanes(&self, azimuth: u32, first_ring: usize, depths: &mut [f64], passes: &mut [u32]) {
         debug_assert_eq!(first_ring % LANES, 0);
         let azimuth_rad = self.scene.grid.azimuth_rad(azimuth);
+        // On centre every ring of a row has the same pass phase: one window per branch.
+        let on_centre = (self.scene.edge_plane_y_mm == 0.0)
+            .then(|| [Branch::Direct, Branch::Mirrored].map(|b| self.window(0, azimuth_rad, b)));
         let blocks = depths.chunks_mut(LANES).zip(passes.chunks_mut(LANES));
         for (block, (depths, passes)) in blocks.enumerate() {
             let ring = first_ring + block * LANES;
             let (depth, pass) = if self.scalar_only {
                 self.scalar_block(azimuth_rad, ring)
-            } else if self.scene.edge_plane_y_mm == 0.0 {
-                self.block::<false>(azimuth_rad, ring)
+            } else if let Some(row) = &on_centre {
+                self.block::<false>(azimuth_rad, ring, row)
             } else {
-                self.block::<true>(azimuth_rad, ring)
+                self.block::<true>(azimuth_rad, ring, &[PassWindow::EMPTY; 2])
             };
             depths.copy_from_slice(&depth[..depths.len()]);
             passes.copy_from_slice(&pass[..passes.len()]);
@@ -268,6 +281,7 @@ impl<'a> TurningKernel<'a> {
         &self,
         azimuth_rad: f64,
         first_ring: usize,
+        row: &[PassWindow; 2],
     ) -> (Lanes, [u32; LANES]) {
         let scene = self.scene;
         let mut best = [scene.stock_top_mm; LANES];
@@ -280,25 +294,22 @@ impl<'a> TurningKernel<'a> {
             if revs.iter().all(|r| r.is_empty()) {
                 continue;
             }
-            // On centre every ring of the row shares the phase, so one window serves all.
-            let shared = (!OFF_CENTRE).then(|| self.window(first_ring, azimuth_rad, branch));
-            let windows: [PassWindow; LANES] = std::array::from_fn(|l| {
-                let window = shared.unwrap_or_else(|| {
-                    self.window(
-                        (first_ring + l).min(scene.rings.len() - 1),
-                        azimuth_rad,
-                        branch,
-                    )
-                });
-                PassWindow {
-                    first: window.first.max(revs[l].first as i64),
-                    last: window.last.min(revs[l].last as i64),
-                    table_end: window
-                        .table_end
-                        .filter(|&rev| rev >= revs[l].first as i64 && rev <= revs[l].last as i64),
+            let mut windows = [PassWindow::EMPTY; LANES];
+            for (l, lane) in windows.iter_mut().enumerate() {
+                let window = if OFF_CENTRE {
+                    let ring = (first_ring + l).min(scene.rings.len() - 1);
+                    self.window(ring, azimuth_rad, branch)
+                } else {
+                    row[branch as usize]
+                };
+                let (first, last) = (revs[l].first as i64, revs[l].last as i64);
+                *lane = PassWindow {
+                    first: window.first.max(first),
+                    last: window.last.min(last),
+                    table_end: window.table_end.filter(|rev| (first..=last).contains(rev)),
                     ..window
-                }
-            });
+                };
+            }
             self.run::<OFF_CENTRE>(first_ring, branch, &windows, &mut best, &mut best_pass);
             for (l, window) in windows.iter().enumerate() {
                 if let Some(rev) = window.table_end {
@@ -351,37 +362,43 @@ impl<'a> TurningKernel<'a> {
         let steps = self.scene.poses.steps_per_rev as i64;
         let sign = branch.x_sign();
         let ray = RayLanes::new(&self.rings, first_ring);
+        let (lane_first, lane_last) = (windows.map(|w| w.first), windows.map(|w| w.last));
         for rev in first..=last {
-            let (mut pose_x, mut pose_z) = ([0.0; LANES], [0.0; LANES]);
-            let mut tip = [[0.0; 2]; LANES];
+            let mut pose = PoseLanes::default();
             if OFF_CENTRE {
-                for l in 0..LANES {
-                    let window = &windows[l];
+                for (l, window) in windows.iter().enumerate() {
                     let node = (window.node0 + rev * steps).clamp(0, self.nodes.x.len() as i64 - 1);
                     let (x, z, b) = self.nodes.lerp(node as usize, window.t);
-                    (pose_x[l], pose_z[l]) = (x, z);
-                    tip[l] = self.tip(branch, b);
+                    let [tip_x, tip_y] = self.tip(branch, b);
+                    (pose.x[l], pose.z[l], pose.tip_x[l], pose.tip_y[l]) = (x, z, tip_x, tip_y);
                 }
             } else {
                 // One pose (and tip) for the whole block.
                 let window = &windows[0];
                 let node = (window.node0 + rev * steps).clamp(0, self.nodes.x.len() as i64 - 1);
                 let (x, z, b) = self.nodes.lerp(node as usize, window.t);
-                (pose_x, pose_z) = ([x; LANES], [z; LANES]);
-                tip = [self.tip(branch, b); LANES];
+                let [tip_x, tip_y] = self.tip(branch, b);
+                pose = PoseLanes {
+                    x: [x; LANES],
+                    z: [z; LANES],
+                    tip_x: [tip_x; LANES],
+                    tip_y: [tip_y; LANES],
+                };
             }
+            // A trip count the compiler cannot see, so that it vectorises this loop whole
+            // rather than unrolling it into scalar code.
             let mut depth = [0.0; LANES];
-            for l in 0..LANES {
-                depth[l] =
-                    self.edge_entry::<OFF_CENTRE>(&ray, l, sign, pose_x[l], pose_z[l], tip[l]);
+            let lanes = std::hint::black_box(LANES).min(LANES);
+            #[allow(clippy::needless_range_loop)]
+            for l in 0..lanes {
+                let tip = [pose.tip_x[l], pose.tip_y[l]];
+                depth[l] = self.edge_entry::<OFF_CENTRE>(&ray, l, sign, pose.x[l], pose.z[l], tip);
             }
             let pass_id = rev as u32 * PASS_ID_STRIDE + branch as u32;
             for l in 0..LANES {
-                let inside = rev >= windows[l].first && rev <= windows[l].last;
-                if inside && depth[l] < best[l] {
-                    best[l] = depth[l];
-                    best_pass[l] = pass_id;
-                }
+                let better = rev >= lane_first[l] && rev <= lane_last[l] && depth[l] < best[l];
+                best[l] = if better { depth[l] } else { best[l] };
+                best_pass[l] = if better { pass_id } else { best_pass[l] };
             }
         }
     }
@@ -516,6 +533,15 @@ impl<'a> TurningKernel<'a> {
             && !(hit[0] * tip[0] + hit[1] * tip[1] < radius * edge.cos_half_span);
         (d, hit)
     }
+}
+
+/// One pass's pose per lane: the nose centre and the tip direction in the branch's frame.
+#[derive(Default)]
+struct PoseLanes {
+    x: Lanes,
+    z: Lanes,
+    tip_x: Lanes,
+    tip_y: Lanes,
 }
 
 /// One block's rings, loaded once.
