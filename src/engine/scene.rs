@@ -283,9 +283,9 @@ fn revolution_reach(
         };
         let first_ring = laterals.partition_point(|&q| q < x_lo - reach);
         let end_ring = laterals.partition_point(|&q| q <= x_hi + reach);
-        for index in first_ring..end_ring {
-            let ring = &grid.rings[index];
-            let q = laterals[index];
+        let window = first_ring..end_ring.max(first_ring);
+        let candidates = grid.rings[window.clone()].iter().zip(&laterals[window]);
+        for (index, (ring, &q)) in (first_ring..).zip(candidates) {
             let dx = (x_lo - q).max(q - x_hi).max(0.0);
             if edge_reaches(ring) && within(dx, dz(ring), reach) {
                 reached(index, branch);
