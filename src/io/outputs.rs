@@ -19,10 +19,13 @@ use super::colour::ColourMap;
 use super::exr_io::{ExrImage, write_exr};
 use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
 use super::png_out::{FalseColourPlot, MapGeometry, write_map_png, write_png16_gray};
-use crate::analysis::{Raster, top_view, top_view_within};
+use crate::analysis::Raster;
+use crate::analysis::maps::{RowSource, full_half_width_mm, top_views_within};
 use crate::correct::part_sphere;
+use crate::field::PolarGrid;
 use crate::process::Process;
 use crate::run::RunResult;
+use rayon::prelude::*;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -114,15 +117,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let grid = result.grid();
     let pixels = result.job.map_pixels as usize;
 
-    let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
-    let scallop_nm: Vec<f64> = result.scallops.map_mm.iter().map(|d| d * 1e6).collect();
-    let protrusion_nm: Vec<f64> = result.protrusion.map_mm.iter().map(|d| d * 1e6).collect();
     let rings = grid.ring_count();
-    let diameter_mm: Option<Vec<f64>> = result.cutting_diameter_mm.as_ref().map(|d| {
-        d.iter()
-            .map(|v| if v.is_finite() { *v } else { 0.0 })
-            .collect()
-    });
     let TopViews {
         deviation_nm: deviation_map,
         scallop_nm: scallop_map,
@@ -186,37 +181,17 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         "units".into(),
         "deviation_nm: nm along the outward normal, + = material left; scallop_nm: nm; protrusion_nm: nm above the surround inside the central feature; pass: revolution·4 + branch (0 direct, 1 mirrored past the axis, 2 flank; −1 = uncut)".into(),
     );
-    write_exr(
-        &file("polar.exr"),
-        &ExrImage {
-            width: rings,
-            height: grid.azimuths as usize,
-            channels: vec![
-                (
-                    "deviation_nm".into(),
-                    deviation_nm.iter().map(|&v| v as f32).collect(),
-                ),
-                (
-                    "scallop_nm".into(),
-                    scallop_nm.iter().map(|&v| v as f32).collect(),
-                ),
-                (
-                    "protrusion_nm".into(),
-                    protrusion_nm.iter().map(|&v| v as f32).collect(),
-                ),
-                ("pass".into(), result.field.pass_channel()),
-            ]
-            .into_iter()
-            .chain(diameter_mm.as_ref().map(|d| {
-                (
-                    "cutting_diameter_mm".to_string(),
-                    d.iter().map(|&v| v as f32).collect(),
-                )
-            }))
-            .collect(),
-            attributes: polar_attributes,
-        },
-    )?;
+    if polar_exr_written(grid) {
+        write_exr(
+            &file("polar.exr"),
+            &ExrImage {
+                width: rings,
+                height: grid.azimuths as usize,
+                channels: polar_channels(result),
+                attributes: polar_attributes,
+            },
+        )?;
+    }
 
     let png_scale = write_deviation_png16(&file("deviation.png"), &deviation_map, &attributes)?;
     let stats = &result.deviation;
@@ -367,8 +342,8 @@ pub fn write_centre_map(
 ) -> io::Result<(f32, f32)> {
     const PIXELS: usize = 512;
     let grid = result.grid();
-    let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
-    let map = top_view_within(grid, &deviation_nm, PIXELS, half_width_mm);
+    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
+    let map = top_views_within(grid, &[&deviation], PIXELS, half_width_mm).remove(0);
     let (low, high, mean) = valid_range(&map);
     let range = range.unwrap_or_else(|| {
         let half = (high - mean).max(mean - low).max(1.0);
@@ -602,36 +577,112 @@ pub struct TopViews {
     pub cutting_diameter_mm: Option<Raster>,
 }
 
-/// Every top view of a run (what `surface.exr` holds).
+/// Every top view of a run (what `surface.exr` holds), made together: each quantity is
+/// produced row by row as the maps read it (no full-resolution copy), and the maps share
+/// their resampling weights.
 pub fn top_views(result: &RunResult) -> TopViews {
     let grid = result.grid();
+    let field = &result.field;
     let pixels = result.job.map_pixels as usize;
-    let nm = |v: &[f64]| v.iter().map(|d| d * 1e6).collect::<Vec<f64>>();
-    let rings = grid.ring_count();
-    let height_mm: Vec<f64> = result
-        .field
-        .depth_mm
-        .iter()
-        .enumerate()
-        .map(|(sample, depth)| {
-            let ring = &grid.rings[sample % rings];
-            ring.height_mm + depth / ring.normal.y
-        })
-        .collect();
-    let diameter = result.cutting_diameter_mm.as_ref().map(|d| {
-        let finite: Vec<f64> = d
-            .iter()
-            .map(|v| if v.is_finite() { *v } else { 0.0 })
-            .collect();
-        top_view(grid, &finite, pixels)
-    });
-    TopViews {
-        deviation_nm: top_view(grid, &nm(&result.field.depth_mm), pixels),
-        scallop_nm: top_view(grid, &nm(&result.scallops.map_mm), pixels),
-        height_mm: top_view(grid, &height_mm, pixels),
-        protrusion_nm: top_view(grid, &nm(&result.protrusion.map_mm), pixels),
-        cutting_diameter_mm: diameter,
+    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
+    let scallop = |row: u32, out: &mut [f64]| {
+        result.scallops.row_mm(grid, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let height = |row: u32, out: &mut [f64]| {
+        let (depths, _) = field.row(grid, row);
+        for ((out, depth), ring) in out.iter_mut().zip(depths).zip(&grid.rings) {
+            *out = ring.height_mm + depth / ring.normal.y;
+        }
+    };
+    let protrusion = |row: u32, out: &mut [f64]| {
+        result.protrusion.row_mm(grid, field, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let diameter = |row: u32, out: &mut [f64]| diameter_row_mm(result, row, out);
+    let mut sources: Vec<RowSource> = vec![&deviation, &scallop, &height, &protrusion];
+    if result.cutting_diameter_mm.is_some() {
+        sources.push(&diameter);
     }
+    let mut maps = top_views_within(grid, &sources, pixels, full_half_width_mm(grid)).into_iter();
+    let mut next = || maps.next().expect("one map per quantity");
+    TopViews {
+        deviation_nm: next(),
+        scallop_nm: next(),
+        height_mm: next(),
+        protrusion_nm: next(),
+        cutting_diameter_mm: result.cutting_diameter_mm.as_ref().map(|_| next()),
+    }
+}
+
+/// One azimuth row of the deviation (nm).
+fn deviation_row_nm(result: &RunResult, row: u32, out: &mut [f64]) {
+    let (depths, _) = result.field.row(result.grid(), row);
+    for (out, depth) in out.iter_mut().zip(depths) {
+        *out = depth * 1e6;
+    }
+}
+
+/// One azimuth row of the milling cutting diameter (mm; 0 where uncut).
+fn diameter_row_mm(result: &RunResult, row: u32, out: &mut [f64]) {
+    let rings = result.grid().ring_count();
+    let start = row as usize * rings;
+    if let Some(diameters) = &result.cutting_diameter_mm {
+        for (out, v) in out.iter_mut().zip(&diameters[start..start + rings]) {
+            *out = if v.is_finite() { *v } else { 0.0 };
+        }
+    }
+}
+
+/// The native grid's samples above which `polar.exr` is not written: its f32 channels
+/// (and the encoder's copy of them) would need gigabytes; the top views, profile and
+/// statistics still cover the whole field. Recorded in `summary.json`.
+pub const POLAR_EXR_MAX_SAMPLES: usize = 50_000_000;
+
+/// Whether a run on `grid` writes `polar.exr`.
+pub fn polar_exr_written(grid: &PolarGrid) -> bool {
+    grid.sample_count() <= POLAR_EXR_MAX_SAMPLES
+}
+
+/// The channels of `polar.exr`, filled row by row in parallel.
+fn polar_channels(result: &RunResult) -> Vec<(String, Vec<f32>)> {
+    let grid = result.grid();
+    let rings = grid.ring_count();
+    let field = &result.field;
+    let channel = |fill: &(dyn Fn(u32, &mut [f64]) + Sync)| -> Vec<f32> {
+        let mut samples = vec![0.0f32; grid.sample_count()];
+        samples
+            .par_chunks_mut(rings)
+            .enumerate()
+            .for_each(|(row, samples)| {
+                let mut values = vec![0.0; rings];
+                fill(row as u32, &mut values);
+                for (sample, value) in samples.iter_mut().zip(&values) {
+                    *sample = *value as f32;
+                }
+            });
+        samples
+    };
+    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
+    let scallop = |row: u32, out: &mut [f64]| {
+        result.scallops.row_mm(grid, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let protrusion = |row: u32, out: &mut [f64]| {
+        result.protrusion.row_mm(grid, field, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let mut channels = vec![
+        ("deviation_nm".to_string(), channel(&deviation)),
+        ("scallop_nm".to_string(), channel(&scallop)),
+        ("protrusion_nm".to_string(), channel(&protrusion)),
+        ("pass".to_string(), field.pass_channel()),
+    ];
+    if result.cutting_diameter_mm.is_some() {
+        let diameter = |row: u32, out: &mut [f64]| diameter_row_mm(result, row, out);
+        channels.push(("cutting_diameter_mm".to_string(), channel(&diameter)));
+    }
+    channels
 }
 
 /// `summary.json` of a run without writing anything (the timing of the output step is 0).
