@@ -392,11 +392,14 @@ impl<'a> TurningKernel<'a> {
             #[allow(clippy::needless_range_loop)]
             for l in 0..lanes {
                 let tip = [pose.tip_x[l], pose.tip_y[l]];
-                depth[l] = self.edge_entry::<OFF_CENTRE>(&ray, l, sign, pose.x[l], pose.z[l], tip);
+                let entry =
+                    self.edge_entry::<OFF_CENTRE>(&ray, l, sign, pose.x[l], pose.z[l], tip);
+                let inside = rev >= lane_first[l] && rev <= lane_last[l];
+                depth[l] = if inside { entry } else { f64::INFINITY };
             }
             let pass_id = rev as u32 * PASS_ID_STRIDE + branch as u32;
             for l in 0..LANES {
-                let better = rev >= lane_first[l] && rev <= lane_last[l] && depth[l] < best[l];
+                let better = depth[l] < best[l];
                 best[l] = if better { depth[l] } else { best[l] };
                 best_pass[l] = if better { pass_id } else { best_pass[l] };
             }
