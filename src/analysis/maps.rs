@@ -92,36 +92,52 @@ impl RadialBands {
                 i
             }
         };
-        let smooth = |row: &[f64], out: &mut [f64]| {
-            for (k, ((from, weights), out)) in windows.iter().zip(out).enumerate() {
-                let (mut sum, mut total) = (0.0, 0.0);
-                for (w, v) in weights.iter().zip(&row[*from..]) {
-                    sum += w * v;
-                    total += w;
+        // Each window's total weight, summed in ring order as every row's sum is.
+        let totals: Vec<f64> = windows.iter().map(|(_, w)| w.iter().sum::<f64>()).collect();
+        // Rows are smoothed ROWS_PER_TASK at a time, their values interleaved ring by
+        // ring, so each window's weights run over all of them at once: every row's sum
+        // is still taken in ring order (the same value as alone), the rows side by side.
+        let smooth = |tile: &[[f64; ROWS_PER_TASK]], out: &mut [f64]| {
+            for (k, (from, weights)) in windows.iter().enumerate() {
+                let mut sums = [0.0; ROWS_PER_TASK];
+                for (w, values) in weights.iter().zip(&tile[*from..]) {
+                    for (sum, v) in sums.iter_mut().zip(values) {
+                        *sum += w * v;
+                    }
                 }
-                *out = if total > 1e-12 {
-                    sum / total
-                } else {
-                    // Rings sparser than the pixels: the nearest ring.
-                    row[nearest(low + k as f64 * step_mm)]
-                };
+                for (row, sum) in sums.iter().enumerate() {
+                    out[row * points + k] = if totals[k] > 1e-12 {
+                        sum / totals[k]
+                    } else {
+                        // Rings sparser than the pixels: the nearest ring.
+                        tile[nearest(low + k as f64 * step_mm)][row]
+                    };
+                }
             }
         };
         let rows = grid.azimuths as usize;
         let values = quantities
             .iter()
             .map(|quantity| {
-                let mut bands = vec![0.0; points * rows];
+                let mut bands = vec![0.0; points * rows.next_multiple_of(ROWS_PER_TASK)];
                 bands
                     .par_chunks_mut(points * ROWS_PER_TASK)
                     .enumerate()
                     .for_each(|(task, bands)| {
                         let mut row_values = vec![0.0; rings];
-                        for (offset, out) in bands.chunks_mut(points).enumerate() {
-                            quantity((task * ROWS_PER_TASK + offset) as u32, &mut row_values);
-                            smooth(&row_values, out);
+                        let mut tile = vec![[0.0; ROWS_PER_TASK]; rings];
+                        for offset in 0..ROWS_PER_TASK {
+                            let row = task * ROWS_PER_TASK + offset;
+                            if row < rows {
+                                quantity(row as u32, &mut row_values);
+                                for (ring, value) in tile.iter_mut().zip(&row_values) {
+                                    ring[offset] = *value;
+                                }
+                            }
                         }
+                        smooth(&tile, bands);
                     });
+                bands.truncate(points * rows);
                 bands
             })
             .collect();

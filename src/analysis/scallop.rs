@@ -89,10 +89,16 @@ impl ScallopAnalysis {
         out.fill(0.0);
         match self.direction {
             ScallopDirection::Meridian => {
+                // Positions increase along the row: walk the cusps with them.
                 let line = Line::meridian(grid, row);
                 let cusps = self.line_cusps(row as usize);
+                let mut passed = 0;
                 for (i, value) in out.iter_mut().enumerate() {
-                    *value = height_between(cusps, line.position(i)).unwrap_or(0.0);
+                    let s = line.position(i);
+                    while cusps.get(passed).is_some_and(|c| c.position_mm < s) {
+                        passed += 1;
+                    }
+                    *value = height_between(&cusps[passed.saturating_sub(1)..], s).unwrap_or(0.0);
                 }
             }
             ScallopDirection::Ring => {

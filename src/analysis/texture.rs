@@ -212,6 +212,14 @@ pub fn psd(heights: &[f64], pitch_mm: f64, wavelengths_mm: &[f64]) -> Vec<(f64, 
         .map(|i| 0.5 - 0.5 * (TAU * i as f64 / n as f64).cos())
         .collect();
     let power_norm = window.iter().map(|w| w * w).sum::<f64>() / n as f64;
+    // Every phase is 2π·m/n for a whole m < n: its cosine and sine looked up, not recomputed.
+    let (cos, sin): (Vec<f64>, Vec<f64>) = (0..n)
+        .into_par_iter()
+        .map(|m| {
+            let phase = TAU * m as f64 / n as f64;
+            (phase.cos(), phase.sin())
+        })
+        .unzip();
     let mut seen = Vec::new();
     let mut out = Vec::new();
     for &wavelength in wavelengths_mm {
@@ -222,9 +230,9 @@ pub fn psd(heights: &[f64], pitch_mm: f64, wavelengths_mm: &[f64]) -> Vec<(f64, 
         seen.push(k);
         let (mut re, mut im) = (0.0, 0.0);
         for (i, (h, w)) in heights.iter().zip(&window).enumerate() {
-            let phase = TAU * (k * i % n) as f64 / n as f64;
-            re += (h - mean) * w * phase.cos();
-            im -= (h - mean) * w * phase.sin();
+            let m = k * i % n;
+            re += (h - mean) * w * cos[m];
+            im -= (h - mean) * w * sin[m];
         }
         let one_sided = if 2 * k == n { 1.0 } else { 2.0 };
         let value = one_sided * (re * re + im * im) * pitch_mm / (n as f64 * power_norm);
@@ -265,7 +273,7 @@ pub fn noll_to_nm(j: usize) -> (i32, i32) {
     (n as i32, signed)
 }
 
-/// Noll's RMS-normalised Zernike polynomial j at (ρ, θ).
+/// Noll's RMS-normalised Zernike polynomial j (1..=15: orders up to 4) at (ρ, θ).
 pub fn zernike(j: usize, rho: f64, theta: f64) -> f64 {
     Zernike::new(j).at(rho, theta)
 }
@@ -284,6 +292,10 @@ struct Zernike {
 impl Zernike {
     fn new(j: usize) -> Self {
         let (n, m) = noll_to_nm(j);
+        assert!(
+            n <= 4,
+            "Zernike terms are evaluated to order 4 (Noll j ≤ 15), not j = {j}"
+        );
         let am = m.unsigned_abs() as i32;
         let radial = (0..=((n - am) / 2))
             .map(|s| {
@@ -307,14 +319,37 @@ impl Zernike {
     }
 
     fn at(&self, rho: f64, theta: f64) -> f64 {
-        let radial = self
-            .radial
-            .iter()
-            .fold(0.0, |sum, &(c, power)| sum + c * rho.powi(power));
+        self.at_point(&ZernikePoint::new(rho, theta))
+    }
+
+    fn at_point(&self, point: &ZernikePoint) -> f64 {
+        let radial = self.radial.iter().fold(0.0, |sum, &(c, power)| {
+            sum + c * point.rho_powers[power as usize]
+        });
+        let k = self.frequency as usize;
         match self.m {
             0 => self.norm * radial,
-            m if m > 0 => self.norm * radial * (self.frequency * theta).cos(),
-            _ => self.norm * radial * (self.frequency * theta).sin(),
+            m if m > 0 => self.norm * radial * point.cos[k],
+            _ => self.norm * radial * point.sin[k],
+        }
+    }
+}
+
+/// What every polynomial (to order 4) needs at a point: ρ^p as `powi` gives it, and
+/// cos kθ, sin kθ — each evaluated once per point instead of once per polynomial.
+struct ZernikePoint {
+    rho_powers: [f64; 5],
+    cos: [f64; 5],
+    sin: [f64; 5],
+}
+
+impl ZernikePoint {
+    fn new(rho: f64, theta: f64) -> Self {
+        let at = |k: usize| f64::from(k as u32) * theta;
+        ZernikePoint {
+            rho_powers: std::array::from_fn(|p| rho.powi(p as i32)),
+            cos: std::array::from_fn(|k| at(k).cos()),
+            sin: std::array::from_fn(|k| at(k).sin()),
         }
     }
 }
@@ -366,8 +401,9 @@ pub fn fit_zernike(
     let mut rhs = vec![0.0; TERMS];
     let mut z = [0.0; TERMS];
     for ((&(rho, theta), &v), &w) in points.iter().zip(values_nm).zip(weights) {
+        let point = ZernikePoint::new(rho, theta);
         for (z, term) in z.iter_mut().zip(&basis) {
-            *z = term.at(rho, theta);
+            *z = term.at_point(&point);
         }
         for a in 0..TERMS {
             rhs[a] += w * z[a] * v;
@@ -494,7 +530,8 @@ fn zernike_of_field(grid: &PolarGrid, field: &DexelField) -> (Vec<ZernikeTerm>, 
         .zip(&values)
         .zip(&w)
         .map(|((&(rho, theta), v), weight)| {
-            let model: f64 = basis.iter().map(|(c, z)| c * z.at(rho, theta)).sum();
+            let point = ZernikePoint::new(rho, theta);
+            let model: f64 = basis.iter().map(|(c, z)| c * z.at_point(&point)).sum();
             weight * (v - model).powi(2)
         })
         .collect::<Vec<f64>>()

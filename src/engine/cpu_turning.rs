@@ -392,8 +392,7 @@ impl<'a> TurningKernel<'a> {
             #[allow(clippy::needless_range_loop)]
             for l in 0..lanes {
                 let tip = [pose.tip_x[l], pose.tip_y[l]];
-                let entry =
-                    self.edge_entry::<OFF_CENTRE>(&ray, l, sign, pose.x[l], pose.z[l], tip);
+                let entry = self.edge_entry::<OFF_CENTRE>(&ray, l, sign, pose.x[l], pose.z[l], tip);
                 let inside = rev >= lane_first[l] && rev <= lane_last[l];
                 depth[l] = if inside { entry } else { f64::INFINITY };
             }
