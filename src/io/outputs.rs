@@ -110,47 +110,69 @@ fn clear_outputs(dir: &Path) -> io::Result<Vec<PathBuf>> {
     Ok(removed)
 }
 
-/// Writes all outputs of a run into `dir` and returns the paths written.
+/// Writes all outputs of a run into `dir` and returns the paths written. Independent
+/// groups (the EXR files, the map PNGs, the centre zoom and tables, the texture figures
+/// for the summary) run side by side; the summary and report come last.
 pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
     let started = Instant::now();
     std::fs::create_dir_all(dir)?;
+    let maps = top_views(result);
+    let attributes = common_attributes(result, &maps.deviation_nm);
+    let ((exrs, pngs), (centre, texture)) = rayon::join(
+        || {
+            rayon::join(
+                || write_exrs(dir, result, &maps, &attributes),
+                || write_map_pngs(dir, result, &maps, &attributes),
+            )
+        },
+        || {
+            rayon::join(
+                || write_centre_and_tables(dir, result),
+                || texture_of(result),
+            )
+        },
+    );
+    let ((png_scale, pngs), mut written) = (pngs?, exrs?);
+    written.extend(pngs);
+    written.extend(centre?);
+
+    let output_s = started.elapsed().as_secs_f64();
+    let summary = summary_json(result, &maps.deviation_nm, png_scale, output_s, texture);
+    let text = serde_json::to_string_pretty(&summary).map_err(io::Error::other)?;
+    write_bytes_atomically(&dir.join("summary.json"), text.as_bytes())?;
+    written.push(dir.join("summary.json"));
+    written.push(super::html::write_run_html(dir, &summary)?);
+    Ok(written)
+}
+
+/// `surface.exr` and (below [`POLAR_EXR_MAX_SAMPLES`]) `polar.exr`.
+fn write_exrs(
+    dir: &Path,
+    result: &RunResult,
+    maps: &TopViews,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<Vec<PathBuf>> {
     let grid = result.grid();
     let pixels = result.job.map_pixels as usize;
-
     let rings = grid.ring_count();
-    let TopViews {
-        deviation_nm: deviation_map,
-        scallop_nm: scallop_map,
-        height_mm: height_map,
-        protrusion_nm: protrusion_map,
-        cutting_diameter_mm: diameter_map,
-    } = top_views(result);
-
-    let attributes = common_attributes(result, &deviation_map);
-    let mut written = Vec::new();
-    let mut file = |name: &str| {
-        let path = dir.join(name);
-        written.push(path.clone());
-        path
-    };
-
-    let valid_channel: Vec<f32> = deviation_map
+    let valid_channel: Vec<f32> = maps
+        .deviation_nm
         .valid
         .iter()
         .map(|&v| v as u8 as f32)
         .collect();
     let mut surface_channels = vec![
-        ("deviation_nm".into(), deviation_map.values.clone()),
-        ("height_mm".into(), height_map.values.clone()),
-        ("scallop_nm".into(), scallop_map.values.clone()),
-        ("protrusion_nm".into(), protrusion_map.values.clone()),
+        ("deviation_nm".into(), maps.deviation_nm.values.clone()),
+        ("height_mm".into(), maps.height_mm.values.clone()),
+        ("scallop_nm".into(), maps.scallop_nm.values.clone()),
+        ("protrusion_nm".into(), maps.protrusion_nm.values.clone()),
         ("valid".into(), valid_channel),
     ];
-    if let Some(map) = &diameter_map {
+    if let Some(map) = &maps.cutting_diameter_mm {
         surface_channels.push(("cutting_diameter_mm".into(), map.values.clone()));
     }
     write_exr(
-        &file("surface.exr"),
+        &dir.join("surface.exr"),
         &ExrImage {
             width: pixels,
             height: pixels,
@@ -183,7 +205,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     );
     if polar_exr_written(grid) {
         write_exr(
-            &file("polar.exr"),
+            &dir.join("polar.exr"),
             &ExrImage {
                 width: rings,
                 height: grid.azimuths as usize,
@@ -193,21 +215,37 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         )?;
     }
 
-    let png_scale = write_deviation_png16(&file("deviation.png"), &deviation_map, &attributes)?;
+    Ok([dir.join("surface.exr")]
+        .into_iter()
+        .chain(polar_exr_written(grid).then(|| dir.join("polar.exr")))
+        .collect())
+}
+
+/// The map PNGs: the 16-bit deviation (whose scale it returns), the false-colour
+/// deviation and scallop maps, and the milling cutting diameter.
+fn write_map_pngs(
+    dir: &Path,
+    result: &RunResult,
+    maps: &TopViews,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<(Png16Scale, Vec<PathBuf>)> {
+    let pixels = result.job.map_pixels as usize;
+    let png_scale =
+        write_deviation_png16(&dir.join("deviation.png"), &maps.deviation_nm, &attributes)?;
     let stats = &result.deviation;
     // Diverging colours centred on the map's mean (white), so form shows even when the
     // whole surface sits above nominal; the bar is labelled in true deviation values and
     // spans at least ±1 nm, so a clean part is white rather than its numerical dust.
-    let (low, high, mean) = valid_range(&deviation_map);
+    let (low, high, mean) = valid_range(&maps.deviation_nm);
     // The colour bar spans 99.8 % of the pixels: a single pixel at the axis must not
     // wash out the rest of the map; the footer says how many lie beyond the bar's ends.
-    let (p_low, p_high) = percentiles(&deviation_map, 0.001);
+    let (p_low, p_high) = percentiles(&maps.deviation_nm, 0.001);
     let half_range = (p_high - mean).max(mean - p_low).max(1.0);
-    let beyond = pixels_beyond(&deviation_map, mean - half_range, mean + half_range);
+    let beyond = pixels_beyond(&maps.deviation_nm, mean - half_range, mean + half_range);
     let footer = format!(
         "map PV {:.2} nm  RMS {:.2} nm  white = mean {mean:.2} nm{},  all samples PV {:.1} nm  RMS {:.1} nm{}  {} engine",
         high - low,
-        raster_rms(&deviation_map),
+        raster_rms(&maps.deviation_nm),
         match beyond {
             0 => String::new(),
             n => format!(" ({n} pixels beyond the bar, drawn at its ends)"),
@@ -217,12 +255,12 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         finer_than_pixels(stats.pv_nm, f64::from(high - low)),
         result.engine.kind
     );
-    let geometry = MapGeometry::centred(deviation_map.half_width_mm, pixels);
+    let geometry = MapGeometry::centred(maps.deviation_nm.half_width_mm, pixels);
     write_map_png(
-        &file("deviation_colour.png"),
+        &dir.join("deviation_colour.png"),
         &FalseColourPlot {
-            values: &deviation_map.values,
-            valid: &deviation_map.valid,
+            values: &maps.deviation_nm.values,
+            valid: &maps.deviation_nm.valid,
             width: pixels as u32,
             height: pixels as u32,
             range: (mean - half_range, mean + half_range),
@@ -234,7 +272,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         &geometry,
         &png_text(&attributes),
     )?;
-    let (scallop_low, scallop_high, _) = valid_range(&scallop_map);
+    let (scallop_low, scallop_high, _) = valid_range(&maps.scallop_nm);
     let scallop_footer = match &result.scallops.stats {
         Some(s) => format!(
             "map {scallop_low:.1} to {scallop_high:.1} nm (pixel means),  cusps max {:.1} nm  mean {:.1} nm",
@@ -243,10 +281,10 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         None => "scallops not resolved by the grid".to_string(),
     };
     write_map_png(
-        &file("scallop_colour.png"),
+        &dir.join("scallop_colour.png"),
         &FalseColourPlot {
-            values: &scallop_map.values,
-            valid: &scallop_map.valid,
+            values: &maps.scallop_nm.values,
+            valid: &maps.scallop_nm.valid,
             width: pixels as u32,
             height: pixels as u32,
             range: (scallop_low, scallop_high),
@@ -259,11 +297,11 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         &png_text(&attributes),
     )?;
 
-    if let Some(map) = &diameter_map {
+    if let Some(map) = &maps.cutting_diameter_mm {
         let (low, high, _) = valid_range(map);
         let stats = cutting_diameter_stats(result);
         write_map_png(
-            &file("cutting_diameter.png"),
+            &dir.join("cutting_diameter.png"),
             &FalseColourPlot {
                 values: &map.values,
                 valid: &map.valid,
@@ -290,17 +328,31 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
             &png_text(&attributes),
         )?;
     }
-    let half_width = centre_half_width_mm(result);
-    write_centre_map(&file("deviation_centre.png"), result, half_width, None)?;
-    write_centre_profile(&file("centre_profile.png"), &[("", result)], half_width)?;
+    let names = [
+        "deviation.png",
+        "deviation_colour.png",
+        "scallop_colour.png",
+    ];
+    let diameter = maps
+        .cutting_diameter_mm
+        .as_ref()
+        .map(|_| "cutting_diameter.png");
+    let paths = names.into_iter().chain(diameter).map(|n| dir.join(n));
+    Ok((png_scale, paths.collect()))
+}
 
+/// The centre zoom and profile, `radial_profile.csv` and `job.resolved.toml`.
+fn write_centre_and_tables(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
+    let half_width = centre_half_width_mm(result);
+    write_centre_map(&dir.join("deviation_centre.png"), result, half_width, None)?;
+    write_centre_profile(&dir.join("centre_profile.png"), &[("", result)], half_width)?;
     write_bytes_atomically(
-        &file("radial_profile.csv"),
+        &dir.join("radial_profile.csv"),
         radial_profile_csv(result).as_bytes(),
     )?;
     let resolved = toml::to_string_pretty(&result.job.resolved).map_err(io::Error::other)?;
     write_bytes_atomically(
-        &file("job.resolved.toml"),
+        &dir.join("job.resolved.toml"),
         format!(
             "# {} — resolved by toolmark {}\n{resolved}",
             result.job.name,
@@ -308,13 +360,23 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         )
         .as_bytes(),
     )?;
+    Ok([
+        "deviation_centre.png",
+        "centre_profile.png",
+        "radial_profile.csv",
+        "job.resolved.toml",
+    ]
+    .map(|name| dir.join(name))
+    .to_vec())
+}
 
-    let output_s = started.elapsed().as_secs_f64();
-    let summary = summary_json(result, &deviation_map, png_scale, output_s);
-    let text = serde_json::to_string_pretty(&summary).map_err(io::Error::other)?;
-    write_bytes_atomically(&file("summary.json"), text.as_bytes())?;
-    written.push(super::html::write_run_html(dir, &summary)?);
-    Ok(written)
+/// The texture figures of a run's field (for the summary).
+fn texture_of(result: &RunResult) -> crate::analysis::texture::Texture {
+    crate::analysis::texture::analyse_texture(
+        result.grid(),
+        &result.field,
+        result.job.process.pass_spacing_mm(),
+    )
 }
 
 /// Half-width of the central zoom: three times the central feature's radius, or a
@@ -687,7 +749,13 @@ fn polar_channels(result: &RunResult) -> Vec<(String, Vec<f32>)> {
 
 /// `summary.json` of a run without writing anything (the timing of the output step is 0).
 pub fn summary(result: &RunResult, deviation_map: &Raster) -> serde_json::Value {
-    summary_json(result, deviation_map, png16_scale(deviation_map), 0.0)
+    summary_json(
+        result,
+        deviation_map,
+        png16_scale(deviation_map),
+        0.0,
+        texture_of(result),
+    )
 }
 
 fn write_deviation_png16(
@@ -752,6 +820,7 @@ fn summary_json(
     map: &Raster,
     png_scale: Png16Scale,
     output_s: f64,
+    texture: crate::analysis::texture::Texture,
 ) -> serde_json::Value {
     let grid = result.grid();
     let job = &result.job;
@@ -798,11 +867,7 @@ fn summary_json(
         "deviation": result.deviation,
         "scallop": scallop,
         "protrusion": result.protrusion,
-        "texture": crate::analysis::texture::analyse_texture(
-            grid,
-            &result.field,
-            job.process.pass_spacing_mm(),
-        ),
+        "texture": texture,
         "cutting_diameter": cutting_diameter_stats(result),
         "maps": {
             "pixels": map.pixels,
