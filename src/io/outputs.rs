@@ -231,7 +231,7 @@ fn write_map_pngs(
 ) -> io::Result<(Png16Scale, Vec<PathBuf>)> {
     let pixels = result.job.map_pixels as usize;
     let png_scale =
-        write_deviation_png16(&dir.join("deviation.png"), &maps.deviation_nm, &attributes)?;
+        write_deviation_png16(&dir.join("deviation.png"), &maps.deviation_nm, attributes)?;
     let stats = &result.deviation;
     // Diverging colours centred on the map's mean (white), so form shows even when the
     // whole surface sits above nominal; the bar is labelled in true deviation values and
@@ -270,7 +270,7 @@ fn write_map_pngs(
             footer: &footer,
         },
         &geometry,
-        &png_text(&attributes),
+        &png_text(attributes),
     )?;
     let (scallop_low, scallop_high, _) = valid_range(&maps.scallop_nm);
     let scallop_footer = match &result.scallops.stats {
@@ -294,7 +294,7 @@ fn write_map_pngs(
             footer: &scallop_footer,
         },
         &geometry,
-        &png_text(&attributes),
+        &png_text(attributes),
     )?;
 
     if let Some(map) = &maps.cutting_diameter_mm {
@@ -325,7 +325,7 @@ fn write_map_pngs(
                 },
             },
             &geometry,
-            &png_text(&attributes),
+            &png_text(attributes),
         )?;
     }
     let names = [
