@@ -362,3 +362,91 @@ pub fn numpy_comparison(azimuth_counts: &[u32]) -> Result<(), String> {
     let _ = std::fs::remove_dir_all(&dir);
     result
 }
+
+/// The issue-10 target job: the seed-002 asphere (the default job's surface, tool and
+/// spiral, XZ) over its full Ø20 mm at 0.5 µm along the meridian × `azimuths` rows.
+/// 8192 azimuths is the full job (47 409 rings, 3.88e8 samples); fewer scale it down
+/// with the same rings and passes per sample.
+pub fn target_job(azimuths: u32) -> Result<Job, String> {
+    let text = crate::io::job::DEFAULT_JOB_TOML
+        .replace("pitch_um = 0.8", "pitch_um = 0.5")
+        .replace("azimuths = 32", &format!("azimuths = {azimuths}"))
+        .replace(
+            "name = \"seed-002 asphere, XZ\"",
+            &format!("name = \"seed-002 full aperture, 0.5 um x {azimuths}\""),
+        );
+    Job::from_toml_str(&text, "target").map_err(|e| e.to_string())
+}
+
+/// Peak resident memory of this process so far (Linux `VmHWM`, bytes), if known.
+fn peak_rss_bytes() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024.0)
+}
+
+/// `toolmark bench --target`: the target job end to end on the CPU engine (prepare,
+/// removal, analysis, every output file), with each stage's wall time, the removal's
+/// time per pair and the process's peak resident memory. Outputs go to `out`, or to a
+/// temporary folder removed afterwards.
+pub fn run_target(azimuths: u32, out: Option<&Path>) -> Result<(), String> {
+    let job = target_job(azimuths)?;
+    println!(
+        "host: {} ({} threads), load average {}",
+        processor_name(),
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        load_average()
+    );
+    println!(
+        "\n## target job: {} ({} rings × {} azimuths = {:.3e} samples), CPU engine, end to end",
+        job.name,
+        prepare_scenes_ring_count(&job),
+        azimuths,
+        job.sample_count() as f64
+    );
+    let temporary = std::env::temp_dir().join(format!("toolmark-target-{}", std::process::id()));
+    let dir = out.unwrap_or(&temporary);
+    let started = Instant::now();
+    let result = simulate(job, &mut CpuEngine, &|_, _| {}).map_err(|e| e.to_string())?;
+    let outputs = Instant::now();
+    crate::io::outputs::prepare_output_dir(dir).map_err(|e| e.to_string())?;
+    let written = crate::io::outputs::write_outputs(dir, &result).map_err(|e| e.to_string())?;
+    let output_s = outputs.elapsed().as_secs_f64();
+    let wall = started.elapsed().as_secs_f64();
+    let t = result.timings;
+    let pairs = result.pair_count();
+    println!(
+        "| samples | pairs | prepare s | removal s | ns/pair | analysis s | output s | wall s | peak RSS GiB | files |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    println!(
+        "| {:.3e} | {:.3e} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} |",
+        result.grid().sample_count() as f64,
+        pairs as f64,
+        t.prepare_s,
+        t.removal_s,
+        t.removal_s / pairs as f64 * 1e9,
+        t.analysis_s,
+        output_s,
+        wall,
+        peak_rss_bytes().map_or("unknown".into(), |b| format!("{:.2}", b / 1024f64.powi(3))),
+        written.len()
+    );
+    if !crate::io::outputs::polar_exr_written(result.grid()) {
+        println!(
+            "(polar.exr is not written above {} samples; the top views, profile and statistics cover the whole field)",
+            crate::io::outputs::POLAR_EXR_MAX_SAMPLES
+        );
+    }
+    if out.is_none() {
+        let _ = std::fs::remove_dir_all(&temporary);
+    }
+    Ok(())
+}
+
+/// Rings of a job's grid (for the header, before the run).
+fn prepare_scenes_ring_count(job: &Job) -> usize {
+    let groundwork = crate::run::Groundwork::of(job);
+    crate::run::job_grid(job, &groundwork).ring_count()
+}
