@@ -47,7 +47,7 @@ struct RadialBands {
 }
 
 /// Rows smoothed at a time by one worker.
-const ROWS_PER_TASK: usize = 8;
+const ROWS_PER_TASK: usize = 16;
 
 impl RadialBands {
     /// Bands over radii [low, high] (clipped to the rings), for every row of every
