@@ -92,13 +92,13 @@ impl ScallopAnalysis {
                 // Positions increase along the row: walk the cusps with them.
                 let line = Line::meridian(grid, row);
                 let cusps = self.line_cusps(row as usize);
-                let mut passed = 0;
+                let mut next = 0;
                 for (i, value) in out.iter_mut().enumerate() {
                     let s = line.position(i);
-                    while cusps.get(passed).is_some_and(|c| c.position_mm < s) {
-                        passed += 1;
+                    while cusps.get(next).is_some_and(|c| c.position_mm < s) {
+                        next += 1;
                     }
-                    *value = height_between(&cusps[passed.saturating_sub(1)..], s).unwrap_or(0.0);
+                    *value = height_at(cusps, next, s).unwrap_or(0.0);
                 }
             }
             ScallopDirection::Ring => {
@@ -364,14 +364,12 @@ impl Quadratic {
     fn through(line: &Line, depths: &[f64], range: std::ops::Range<usize>) -> Self {
         let origin = line.position(range.start);
         let scale = line.pitch_mm;
-        let points: Vec<(f64, f64)> = range
-            .map(|i| ((line.position(i) - origin) / scale, depths[i]))
-            .collect();
+        let points = range.map(|i| ((line.position(i) - origin) / scale, depths[i]));
         let order = points.len().min(3);
         // Normal equations Σ x^(i+j) c_j = Σ x^i y for the first `order` powers.
         let mut matrix = [[0.0; 3]; 3];
         let mut rhs = [0.0; 3];
-        for &(x, y) in &points {
+        for (x, y) in points {
             let powers = [1.0, x, x * x];
             for i in 0..order {
                 rhs[i] += powers[i] * y;
@@ -434,6 +432,9 @@ fn cusp_between(left: &Quadratic, right: &Quadratic, a: f64, b: f64) -> (f64, f6
     }
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
+        if mid == lo || mid == hi {
+            break; // the bracket is down to adjacent floats: nothing more would change
+        }
         if difference(mid).signum() == sign_lo {
             lo = mid;
         } else {
@@ -447,7 +448,11 @@ fn cusp_between(left: &Quadratic, right: &Quadratic, a: f64, b: f64) -> (f64, f6
 /// Scallop height at position `s` along a line with `cusps` (in order): linear between
 /// cusps, held flat beyond the first and last; `None` without cusps.
 fn height_between(cusps: &[Cusp], s: f64) -> Option<f64> {
-    let next = cusps.partition_point(|c| c.position_mm < s);
+    height_at(cusps, cusps.partition_point(|c| c.position_mm < s), s)
+}
+
+/// [`height_between`] with `next`, the first cusp at or beyond `s`, already known.
+fn height_at(cusps: &[Cusp], next: usize, s: f64) -> Option<f64> {
     Some(if next == 0 {
         cusps.first()?.scallop_mm
     } else if next == cusps.len() {
