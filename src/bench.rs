@@ -302,12 +302,83 @@ fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), String>) -> Res
     Ok(times[runs / 2])
 }
 
+/// The CPU engine against the NumPy sweep of one flat-facing job, run side by side.
+#[derive(Debug, Clone)]
+pub struct NumpyComparison {
+    pub azimuths: u32,
+    /// Dexel–pass pairs; the script and the engine evaluated the same count.
+    pub pairs: u64,
+    pub numpy_s: f64,
+    pub numpy_version: String,
+    /// Median of the engine's runs.
+    pub cpu_s: f64,
+    /// Largest |engine − NumPy| depth over the field, nm.
+    pub max_depth_difference_nm: f64,
+    /// Samples whose winning pass id differs.
+    pub passes_differing: usize,
+}
+
+/// Runs `benches/numpy_facing.py` on the flat-facing example at `azimuths` (with the
+/// interpreter in `TOOLMARK_PYTHON`, else `python3`), then the CPU engine on the same
+/// job (median of `cpu_runs`), and compares the two fields. An error when the script
+/// cannot run or the two evaluated different pairs.
+pub fn compare_with_numpy(azimuths: u32, cpu_runs: usize) -> Result<NumpyComparison, String> {
+    let python = std::env::var("TOOLMARK_PYTHON").unwrap_or_else(|_| "python3".into());
+    let dir = std::env::temp_dir().join(format!(
+        "toolmark-bench-numpy-{}-{azimuths}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    let reference = numpy_sweep(&python, &dir, azimuths);
+    let _ = std::fs::remove_dir_all(&dir);
+    let reference = reference?;
+    let job = Job::from_toml_str(
+        &FLAT_FACING.replace("azimuths = 32", &format!("azimuths = {azimuths}")),
+        "bench",
+    )
+    .map_err(|e| e.to_string())?;
+    let scenes = prepare_scenes(&job);
+    let pairs: u64 = scenes.iter().map(|s| s.pair_count()).sum();
+    let mut field = None;
+    let cpu_s = median_seconds(cpu_runs, || {
+        field = Some(remove_all(&scenes, &mut CpuEngine, &|_, _| {}).map_err(|e| e.to_string())?);
+        Ok(())
+    })?;
+    let field = field.expect("ran");
+    if reference.pairs != pairs || reference.depth_mm.len() != field.depth_mm.len() {
+        return Err(format!(
+            "the NumPy sweep evaluated {} pairs on {} samples, the engine {pairs} on {}",
+            reference.pairs,
+            reference.depth_mm.len(),
+            field.depth_mm.len()
+        ));
+    }
+    let max_depth_difference_nm = field
+        .depth_mm
+        .iter()
+        .zip(&reference.depth_mm)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+        * 1e6;
+    let passes_differing = field
+        .pass
+        .iter()
+        .zip(&reference.pass)
+        .filter(|(a, b)| a != b)
+        .count();
+    Ok(NumpyComparison {
+        azimuths,
+        pairs,
+        numpy_s: reference.sweep_s,
+        numpy_version: reference.numpy,
+        cpu_s,
+        max_depth_difference_nm,
+        passes_differing,
+    })
+}
+
 /// The CPU engine against the NumPy sweep of the same flat-facing job, in the same run:
 /// time per pair on both, and how far their fields differ.
 pub fn numpy_comparison(azimuth_counts: &[u32]) -> Result<(), String> {
-    let python = std::env::var("TOOLMARK_PYTHON").unwrap_or_else(|_| "python3".into());
-    let dir = std::env::temp_dir().join(format!("toolmark-bench-numpy-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
     println!(
         "\n## CPU removal against a vectorised NumPy sweep of the same pairs (benches/numpy_facing.py): flat facing example, Ø10 mm, 1 µm pitch"
     );
@@ -315,52 +386,27 @@ pub fn numpy_comparison(azimuth_counts: &[u32]) -> Result<(), String> {
         "| azimuths | pairs | NumPy s | NumPy ns/pair | CPU s (median of 5) | CPU ns/pair | CPU ÷ NumPy speed | max \\|Δ depth\\| nm | pass ids differing |"
     );
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
-    let result = azimuth_counts.iter().try_for_each(|&azimuths| {
-        let reference = numpy_sweep(&python, &dir, azimuths)?;
-        let job = Job::from_toml_str(
-            &FLAT_FACING.replace("azimuths = 32", &format!("azimuths = {azimuths}")),
-            "bench",
-        )
-        .map_err(|e| e.to_string())?;
-        let scenes = prepare_scenes(&job);
-        let pairs: u64 = scenes.iter().map(|s| s.pair_count()).sum();
-        let mut field = None;
-        let seconds = median_seconds(5, || {
-            field = Some(remove_all(&scenes, &mut CpuEngine, &|_, _| {}).map_err(|e| e.to_string())?);
-            Ok(())
-        })?;
-        let field = field.expect("ran");
-        if reference.pairs != pairs || reference.depth_mm.len() != field.depth_mm.len() {
-            return Err(format!(
-                "the NumPy sweep evaluated {} pairs on {} samples, the engine {pairs} on {}",
-                reference.pairs,
-                reference.depth_mm.len(),
-                field.depth_mm.len()
-            ));
-        }
-        let max_nm = field
-            .depth_mm
-            .iter()
-            .zip(&reference.depth_mm)
-            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
-            * 1e6;
-        let pass_differ = field.pass.iter().zip(&reference.pass).filter(|(a, b)| a != b).count();
+    let mut version = String::new();
+    for &azimuths in azimuth_counts {
+        let c = compare_with_numpy(azimuths, 5)?;
+        let pairs = c.pairs as f64;
         println!(
-            "| {azimuths} | {:.3e} | {:.3} | {:.1} | {:.4} | {:.2} | {:.1}× | {max_nm:.1e} | {pass_differ} |",
-            pairs as f64,
-            reference.sweep_s,
-            reference.sweep_s / pairs as f64 * 1e9,
-            seconds,
-            seconds / pairs as f64 * 1e9,
-            reference.sweep_s / seconds
+            "| {azimuths} | {pairs:.3e} | {:.3} | {:.1} | {:.4} | {:.2} | {:.1}× | {:.1e} | {} |",
+            c.numpy_s,
+            c.numpy_s / pairs * 1e9,
+            c.cpu_s,
+            c.cpu_s / pairs * 1e9,
+            c.numpy_s / c.cpu_s,
+            c.max_depth_difference_nm,
+            c.passes_differing
         );
-        if azimuths == azimuth_counts[azimuth_counts.len() - 1] {
-            println!("(NumPy {}, one thread; the CPU engine on {} threads)", reference.numpy, rayon::current_num_threads());
-        }
-        Ok(())
-    });
-    let _ = std::fs::remove_dir_all(&dir);
-    result
+        version = c.numpy_version;
+    }
+    println!(
+        "(NumPy {version}, one thread; the CPU engine on {} threads)",
+        rayon::current_num_threads()
+    );
+    Ok(())
 }
 
 /// The issue-10 target job: the seed-002 asphere (the default job's surface, tool and
