@@ -9,6 +9,7 @@ use crate::engine::cpu::CpuEngine;
 use crate::engine::gpu::GpuEngine;
 use crate::io::job::Job;
 use crate::run::{prepare_scenes, remove_all, simulate};
+use std::path::Path;
 use std::time::Instant;
 
 /// A flat facing job of the given aperture radius (mm) used for scaling and tiling.
@@ -92,6 +93,14 @@ fn processor_name() -> String {
         .unwrap_or_else(|| "unknown processor".into())
 }
 
+/// The 1-minute load average (other work sharing the cores), or "unknown".
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|text| text.split_whitespace().next().map(str::to_string))
+        .unwrap_or_else(|| "unknown".into())
+}
+
 pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
     let mut engines: Vec<Box<dyn RemovalEngine>> = Vec::new();
     if cpu {
@@ -101,9 +110,10 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
         engines.push(Box::new(GpuEngine::new().map_err(|e| e.to_string())?));
     }
     println!(
-        "host: {} ({} threads)",
+        "host: {} ({} threads), load average {}",
         processor_name(),
-        std::thread::available_parallelism().map_or(1, |n| n.get())
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        load_average()
     );
     for engine in &engines {
         let info = engine.info();
@@ -111,6 +121,10 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
             "{}: {} [{} {}] {}",
             info.kind, info.adapter, info.backend, info.device_type, info.driver
         );
+    }
+
+    if cpu && let Err(err) = numpy_comparison(&[32, 256]) {
+        println!("\n(the NumPy comparison did not run: {err})");
     }
 
     println!("\n## default job (seed-002 asphere, XZ), whole pipeline without file output");
@@ -219,4 +233,266 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
         }
     }
     Ok(())
+}
+
+/// The NumPy reference sweep (`benches/numpy_facing.py`) and the job it runs.
+const NUMPY_FACING: &str = include_str!("../benches/numpy_facing.py");
+const FLAT_FACING: &str = include_str!("../examples/flat_facing.toml");
+
+/// What the NumPy sweep reports, with the field it wrote.
+struct NumpySweep {
+    pairs: u64,
+    sweep_s: f64,
+    numpy: String,
+    depth_mm: Vec<f64>,
+    pass: Vec<u32>,
+}
+
+/// Runs the NumPy sweep of the flat-facing example at `azimuths` in `dir`.
+fn numpy_sweep(python: &str, dir: &Path, azimuths: u32) -> Result<NumpySweep, String> {
+    let (script, job, out) = (
+        dir.join("numpy_facing.py"),
+        dir.join("flat_facing.toml"),
+        dir.join("facing"),
+    );
+    std::fs::write(&script, NUMPY_FACING).map_err(|e| e.to_string())?;
+    std::fs::write(&job, FLAT_FACING).map_err(|e| e.to_string())?;
+    let output = std::process::Command::new(python)
+        .arg(&script)
+        .arg(&job)
+        .arg("--out")
+        .arg(&out)
+        .args(["--azimuths", &azimuths.to_string()])
+        .output()
+        .map_err(|e| format!("{python}: {e}"))?;
+    if !output.status.success() {
+        return Err(String::from_utf8_lossy(&output.stderr).into_owned());
+    }
+    let report: serde_json::Value =
+        serde_json::from_slice(&output.stdout).map_err(|e| format!("NumPy sweep output: {e}"))?;
+    let read = |suffix: &str| {
+        std::fs::read(out.with_extension(suffix)).map_err(|e| format!("{suffix}: {e}"))
+    };
+    let depth_mm = read("depth_mm.f64")?
+        .chunks_exact(8)
+        .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+        .collect();
+    let pass = read("pass.u32")?
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")))
+        .collect();
+    Ok(NumpySweep {
+        pairs: report["pairs"].as_u64().unwrap_or(0),
+        sweep_s: report["sweep_s"].as_f64().unwrap_or(f64::NAN),
+        numpy: report["numpy"].as_str().unwrap_or("?").to_string(),
+        depth_mm,
+        pass,
+    })
+}
+
+/// Median of `runs` timings of `f`.
+fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), String>) -> Result<f64, String> {
+    let mut times = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let started = Instant::now();
+        f()?;
+        times.push(started.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times[runs / 2])
+}
+
+/// The CPU engine against the NumPy sweep of one flat-facing job, run side by side.
+#[derive(Debug, Clone)]
+pub struct NumpyComparison {
+    pub azimuths: u32,
+    /// Dexel–pass pairs; the script and the engine evaluated the same count.
+    pub pairs: u64,
+    pub numpy_s: f64,
+    pub numpy_version: String,
+    /// Median of the engine's runs.
+    pub cpu_s: f64,
+    /// Largest |engine − NumPy| depth over the field, nm.
+    pub max_depth_difference_nm: f64,
+    /// Samples whose winning pass id differs.
+    pub passes_differing: usize,
+}
+
+/// Runs `benches/numpy_facing.py` on the flat-facing example at `azimuths` (with the
+/// interpreter in `TOOLMARK_PYTHON`, else `python3`), then the CPU engine on the same
+/// job (median of `cpu_runs`), and compares the two fields. An error when the script
+/// cannot run or the two evaluated different pairs.
+pub fn compare_with_numpy(azimuths: u32, cpu_runs: usize) -> Result<NumpyComparison, String> {
+    let python = std::env::var("TOOLMARK_PYTHON").unwrap_or_else(|_| "python3".into());
+    let dir = std::env::temp_dir().join(format!(
+        "toolmark-bench-numpy-{}-{azimuths}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    let reference = numpy_sweep(&python, &dir, azimuths);
+    let _ = std::fs::remove_dir_all(&dir);
+    let reference = reference?;
+    let job = Job::from_toml_str(
+        &FLAT_FACING.replace("azimuths = 32", &format!("azimuths = {azimuths}")),
+        "bench",
+    )
+    .map_err(|e| e.to_string())?;
+    let scenes = prepare_scenes(&job);
+    let pairs: u64 = scenes.iter().map(|s| s.pair_count()).sum();
+    let mut field = None;
+    let cpu_s = median_seconds(cpu_runs, || {
+        field = Some(remove_all(&scenes, &mut CpuEngine, &|_, _| {}).map_err(|e| e.to_string())?);
+        Ok(())
+    })?;
+    let field = field.expect("ran");
+    if reference.pairs != pairs || reference.depth_mm.len() != field.depth_mm.len() {
+        return Err(format!(
+            "the NumPy sweep evaluated {} pairs on {} samples, the engine {pairs} on {}",
+            reference.pairs,
+            reference.depth_mm.len(),
+            field.depth_mm.len()
+        ));
+    }
+    let max_depth_difference_nm = field
+        .depth_mm
+        .iter()
+        .zip(&reference.depth_mm)
+        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+        * 1e6;
+    let passes_differing = field
+        .pass
+        .iter()
+        .zip(&reference.pass)
+        .filter(|(a, b)| a != b)
+        .count();
+    Ok(NumpyComparison {
+        azimuths,
+        pairs,
+        numpy_s: reference.sweep_s,
+        numpy_version: reference.numpy,
+        cpu_s,
+        max_depth_difference_nm,
+        passes_differing,
+    })
+}
+
+/// The CPU engine against the NumPy sweep of the same flat-facing job, in the same run:
+/// time per pair on both, and how far their fields differ.
+pub fn numpy_comparison(azimuth_counts: &[u32]) -> Result<(), String> {
+    println!(
+        "\n## CPU removal against a vectorised NumPy sweep of the same pairs (benches/numpy_facing.py): flat facing example, Ø10 mm, 1 µm pitch"
+    );
+    println!(
+        "| azimuths | pairs | NumPy s | NumPy ns/pair | CPU s (median of 5) | CPU ns/pair | CPU ÷ NumPy speed | max \\|Δ depth\\| nm | pass ids differing |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    let mut version = String::new();
+    for &azimuths in azimuth_counts {
+        let c = compare_with_numpy(azimuths, 5)?;
+        let pairs = c.pairs as f64;
+        println!(
+            "| {azimuths} | {pairs:.3e} | {:.3} | {:.1} | {:.4} | {:.2} | {:.1}× | {:.1e} | {} |",
+            c.numpy_s,
+            c.numpy_s / pairs * 1e9,
+            c.cpu_s,
+            c.cpu_s / pairs * 1e9,
+            c.numpy_s / c.cpu_s,
+            c.max_depth_difference_nm,
+            c.passes_differing
+        );
+        version = c.numpy_version;
+    }
+    println!(
+        "(NumPy {version}, one thread; the CPU engine on {} threads)",
+        rayon::current_num_threads()
+    );
+    Ok(())
+}
+
+/// The issue-10 target job: the seed-002 asphere (the default job's surface, tool and
+/// spiral, XZ) over its full Ø20 mm at 0.5 µm along the meridian × `azimuths` rows.
+/// 8192 azimuths is the full job (47 409 rings, 3.88e8 samples); fewer scale it down
+/// with the same rings and passes per sample.
+pub fn target_job(azimuths: u32) -> Result<Job, String> {
+    let text = crate::io::job::DEFAULT_JOB_TOML
+        .replace("pitch_um = 0.8", "pitch_um = 0.5")
+        .replace("azimuths = 32", &format!("azimuths = {azimuths}"))
+        .replace(
+            "name = \"seed-002 asphere, XZ\"",
+            &format!("name = \"seed-002 full aperture, 0.5 um x {azimuths}\""),
+        );
+    Job::from_toml_str(&text, "target").map_err(|e| e.to_string())
+}
+
+/// Peak resident memory of this process so far (Linux `VmHWM`, bytes), if known.
+fn peak_rss_bytes() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024.0)
+}
+
+/// `toolmark bench --target`: the target job end to end on the CPU engine (prepare,
+/// removal, analysis, every output file), with each stage's wall time, the removal's
+/// time per pair and the process's peak resident memory. Outputs go to `out`, or to a
+/// temporary folder removed afterwards.
+pub fn run_target(azimuths: u32, out: Option<&Path>) -> Result<(), String> {
+    let job = target_job(azimuths)?;
+    println!(
+        "host: {} ({} threads), load average {}",
+        processor_name(),
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        load_average()
+    );
+    println!(
+        "\n## target job: {} ({} rings × {} azimuths = {:.3e} samples), CPU engine, end to end",
+        job.name,
+        prepare_scenes_ring_count(&job),
+        azimuths,
+        job.sample_count() as f64
+    );
+    let temporary = std::env::temp_dir().join(format!("toolmark-target-{}", std::process::id()));
+    let dir = out.unwrap_or(&temporary);
+    let started = Instant::now();
+    let result = simulate(job, &mut CpuEngine, &|_, _| {}).map_err(|e| e.to_string())?;
+    let outputs = Instant::now();
+    crate::io::outputs::prepare_output_dir(dir).map_err(|e| e.to_string())?;
+    let written = crate::io::outputs::write_outputs(dir, &result).map_err(|e| e.to_string())?;
+    let output_s = outputs.elapsed().as_secs_f64();
+    let wall = started.elapsed().as_secs_f64();
+    let t = result.timings;
+    let pairs = result.pair_count();
+    println!(
+        "| samples | pairs | prepare s | removal s | ns/pair | analysis s | output s | wall s | peak RSS GiB | files |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    println!(
+        "| {:.3e} | {:.3e} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} |",
+        result.grid().sample_count() as f64,
+        pairs as f64,
+        t.prepare_s,
+        t.removal_s,
+        t.removal_s / pairs as f64 * 1e9,
+        t.analysis_s,
+        output_s,
+        wall,
+        peak_rss_bytes().map_or("unknown".into(), |b| format!("{:.2}", b / 1024f64.powi(3))),
+        written.len()
+    );
+    if !crate::io::outputs::polar_exr_written(result.grid()) {
+        println!(
+            "(polar.exr is not written above {} samples; the top views, profile and statistics cover the whole field)",
+            crate::io::outputs::POLAR_EXR_MAX_SAMPLES
+        );
+    }
+    if out.is_none() {
+        let _ = std::fs::remove_dir_all(&temporary);
+    }
+    Ok(())
+}
+
+/// Rings of a job's grid (for the header, before the run).
+fn prepare_scenes_ring_count(job: &Job) -> usize {
+    let groundwork = crate::run::Groundwork::of(job);
+    crate::run::job_grid(job, &groundwork).ring_count()
 }

@@ -67,6 +67,16 @@ struct BenchArgs {
     /// Skip the grid larger than one 128 MiB storage binding (tiling check).
     #[arg(long)]
     skip_large: bool,
+    /// Run only the target job (seed-002 full Ø20 mm aperture at 0.5 µm) end to end on
+    /// the CPU engine: stage times, ns per pair, peak memory.
+    #[arg(long)]
+    target: bool,
+    /// Azimuths of the target job (8192 = the full job; fewer scale it down).
+    #[arg(long, default_value_t = 8192, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    target_azimuths: u32,
+    /// Where the target job writes its outputs (default: a temporary folder, removed).
+    #[arg(long)]
+    target_out: Option<std::path::PathBuf>,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -105,6 +115,10 @@ fn main() -> ExitCode {
         Command::BenchDiagnose(args) => cli::diagnose::bench_diagnose_cmd(args),
         Command::Report(args) => cli::run::report(args),
         Command::Sweep(args) => cli::sweep::sweep(args),
+        Command::Bench(args) if args.target => {
+            bench::run_target(args.target_azimuths, args.target_out.as_deref())
+                .map_err(Failure::Runtime)
+        }
         Command::Bench(args) => bench::run_benchmarks(
             args.engine != BenchEngines::Gpu,
             args.engine != BenchEngines::Cpu,

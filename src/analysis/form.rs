@@ -4,6 +4,7 @@
 //! wavelength λc keeps half its amplitude) with the weights renormalised at the ends.
 
 use crate::field::{DexelField, PolarGrid};
+use rayon::prelude::*;
 
 /// α of the ISO Gaussian profile filter.
 const GAUSSIAN_ALPHA: f64 = 0.469_718_639_349_825_8;
@@ -43,6 +44,7 @@ pub fn gaussian_filter(values: &[f64], pitch: f64, cutoff: f64) -> Vec<f64> {
         .map(|k| (-std::f64::consts::PI * (k as f64 * pitch / width).powi(2)).exp())
         .collect();
     (0..values.len())
+        .into_par_iter()
         .map(|i| {
             let (mut sum, mut total) = (0.0, 0.0);
             for (k, w) in weights.iter().enumerate() {

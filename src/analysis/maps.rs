@@ -17,6 +17,7 @@
 //! at its radius. A purely radial field therefore gives a purely radial map (tested).
 
 use crate::field::{Layout, PolarGrid};
+use rayon::prelude::*;
 use std::f64::consts::TAU;
 
 /// A square raster over [−half_width, half_width]²; row 0 is the +Y edge.
@@ -35,27 +36,38 @@ const REACH_SIGMAS: f64 = 3.0;
 /// The narrowest Gaussian across rows, in row spacings.
 const MIN_ROW_SIGMA: f64 = 0.6;
 
-/// Every row smoothed along the radius (σ = `sigma_mm`) onto a uniform radius grid.
+/// Every row smoothed along the radius (σ = `sigma_mm`) onto a uniform radius grid,
+/// for each of several quantities.
 struct RadialBands {
     start_mm: f64,
     step_mm: f64,
-    /// Per row, `points` values.
-    values: Vec<f64>,
+    /// Per quantity, per row, `points` values.
+    values: Vec<Vec<f64>>,
     points: usize,
 }
 
+/// Rows smoothed at a time by one worker.
+const ROWS_PER_TASK: usize = 16;
+
 impl RadialBands {
-    /// Bands over radii [low, high] (clipped to the rings), for every row.
-    fn new(grid: &PolarGrid, values: &[f64], sigma_mm: f64, (low, high): (f64, f64)) -> Self {
+    /// Bands over radii [low, high] (clipped to the rings), for every row of every
+    /// quantity; rows in parallel, each quantity's row produced on demand.
+    fn new(
+        grid: &PolarGrid,
+        quantities: &[RowSource],
+        sigma_mm: f64,
+        (low, high): (f64, f64),
+    ) -> Self {
         let radii: Vec<f64> = grid.rings.iter().map(|ring| ring.radius_mm).collect();
         let (first, last) = (radii[0], radii[radii.len() - 1]);
         let (low, high) = (low.max(first), high.min(last).max(low.max(first)));
         let step_mm = 0.125 * sigma_mm;
         let points = ((high - low) / step_mm).ceil() as usize + 2;
         // The weights depend only on the ring radii: one window per grid point, shared
-        // by every row.
+        // by every row and quantity.
         let reach = REACH_SIGMAS * sigma_mm;
         let windows: Vec<(usize, Vec<f64>)> = (0..points)
+            .into_par_iter()
             .map(|k| {
                 let at = low + k as f64 * step_mm;
                 let from = radii.partition_point(|&r| r < at - reach);
@@ -80,36 +92,74 @@ impl RadialBands {
                 i
             }
         };
-        let mut out = Vec::with_capacity(points * grid.azimuths as usize);
-        for row in values.chunks(rings) {
+        // Each window's total weight, summed in ring order as every row's sum is.
+        let totals: Vec<f64> = windows.iter().map(|(_, w)| w.iter().sum::<f64>()).collect();
+        // Rows are smoothed ROWS_PER_TASK at a time, their values interleaved ring by
+        // ring, so each window's weights run over all of them at once: every row's sum
+        // is still taken in ring order (the same value as alone), the rows side by side.
+        let smooth = |tile: &[[f64; ROWS_PER_TASK]], out: &mut [f64]| {
             for (k, (from, weights)) in windows.iter().enumerate() {
-                let (mut sum, mut total) = (0.0, 0.0);
-                for (w, v) in weights.iter().zip(&row[*from..]) {
-                    sum += w * v;
-                    total += w;
+                let mut sums = [0.0; ROWS_PER_TASK];
+                for (w, values) in weights.iter().zip(&tile[*from..]) {
+                    for (sum, v) in sums.iter_mut().zip(values) {
+                        *sum += w * v;
+                    }
                 }
-                out.push(if total > 1e-12 {
-                    sum / total
-                } else {
-                    // Rings sparser than the pixels: the nearest ring.
-                    row[nearest(low + k as f64 * step_mm)]
-                });
+                for (row, sum) in sums.iter().enumerate() {
+                    out[row * points + k] = if totals[k] > 1e-12 {
+                        sum / totals[k]
+                    } else {
+                        // Rings sparser than the pixels: the nearest ring.
+                        tile[nearest(low + k as f64 * step_mm)][row]
+                    };
+                }
             }
-        }
+        };
+        let rows = grid.azimuths as usize;
+        let values = quantities
+            .iter()
+            .map(|quantity| {
+                let mut bands = vec![0.0; points * rows.next_multiple_of(ROWS_PER_TASK)];
+                bands
+                    .par_chunks_mut(points * ROWS_PER_TASK)
+                    .enumerate()
+                    .for_each(|(task, bands)| {
+                        let mut row_values = vec![0.0; rings];
+                        let mut tile = vec![[0.0; ROWS_PER_TASK]; rings];
+                        for offset in 0..ROWS_PER_TASK {
+                            let row = task * ROWS_PER_TASK + offset;
+                            if row < rows {
+                                quantity(row as u32, &mut row_values);
+                                for (ring, value) in tile.iter_mut().zip(&row_values) {
+                                    ring[offset] = *value;
+                                }
+                            }
+                        }
+                        smooth(&tile, bands);
+                    });
+                bands.truncate(points * rows);
+                bands
+            })
+            .collect();
         RadialBands {
             start_mm: low,
             step_mm,
-            values: out,
+            values,
             points,
         }
     }
 
-    /// Row `row`'s band-limited value at radius `r` (linear between grid points).
-    fn at(&self, row: usize, r: f64) -> f64 {
+    /// Where radius `r` falls between grid points: (index, fraction).
+    fn locate(&self, r: f64) -> (usize, f64) {
         let position = ((r - self.start_mm) / self.step_mm).clamp(0.0, (self.points - 1) as f64);
         let i = (position as usize).min(self.points.saturating_sub(2));
-        let t = position - i as f64;
-        let values = &self.values[row * self.points..(row + 1) * self.points];
+        (i, position - i as f64)
+    }
+
+    /// Quantity `q`'s band-limited value on row `row` at a located radius (linear
+    /// between grid points).
+    fn at(&self, q: usize, row: usize, (i, t): (usize, f64)) -> f64 {
+        let values = &self.values[q][row * self.points..(row + 1) * self.points];
         match values.get(i + 1) {
             Some(next) => values[i] + t * (next - values[i]),
             None => values[i],
@@ -117,8 +167,13 @@ impl RadialBands {
     }
 }
 
-/// Gaussian mean over rows at fractional row `position` (σ in rows), rows wrapping
-/// around the axis (`wrap`) or clipped to the part.
+/// A per-sample quantity, one azimuth row at a time: fills `out` (one value per ring)
+/// for row `row`, so no full-resolution copy of it is needed.
+pub type RowSource<'a> = &'a (dyn Fn(u32, &mut [f64]) + Sync);
+
+/// Gaussian means over rows at fractional row `position` (σ in rows) of every
+/// quantity, rows wrapping around the axis (`wrap`) or clipped to the part; the weights
+/// are computed once for all quantities.
 fn across_rows(
     bands: &RadialBands,
     rows: usize,
@@ -126,7 +181,8 @@ fn across_rows(
     sigma_rows: f64,
     wrap: bool,
     r: f64,
-) -> f64 {
+    out: &mut [f64],
+) {
     let reach = (REACH_SIGMAS * sigma_rows).ceil() as i64;
     let centre = position.round() as i64;
     let (low, high) = if wrap {
@@ -142,26 +198,41 @@ fn across_rows(
             (centre + reach).min(rows as i64 - 1),
         )
     };
-    let (mut sum, mut total) = (0.0, 0.0);
+    let located = bands.locate(r);
+    out.fill(0.0);
+    let mut total = 0.0;
     for at in low..=high {
         let w = (-0.5 * ((at as f64 - position) / sigma_rows).powi(2)).exp();
         let row = at.rem_euclid(rows as i64) as usize;
-        sum += w * bands.at(row, r);
+        for (q, sum) in out.iter_mut().enumerate() {
+            *sum += w * bands.at(q, row, located);
+        }
         total += w;
     }
-    sum / total.max(f64::MIN_POSITIVE)
+    for sum in out.iter_mut() {
+        *sum /= total.max(f64::MIN_POSITIVE);
+    }
 }
 
 /// Resamples a per-sample quantity (sample order of `grid`) to a `pixels`² top view.
 pub fn top_view(grid: &PolarGrid, values: &[f64], pixels: usize) -> Raster {
+    let rings = grid.ring_count();
+    let source = |row: u32, out: &mut [f64]| {
+        out.copy_from_slice(&values[row as usize * rings..(row as usize + 1) * rings]);
+    };
+    let half_width = full_half_width_mm(grid);
+    top_views_within(grid, &[&source], pixels, half_width).remove(0)
+}
+
+/// Half the side of a top view of the whole part.
+pub fn full_half_width_mm(grid: &PolarGrid) -> f64 {
     let outer = grid.rings[grid.ring_count() - 1].radius_mm;
-    let half_width = match grid.layout {
+    match grid.layout {
         Layout::Polar => outer,
         Layout::Extruded { length_mm } => outer
             .max(grid.rings[0].radius_mm.abs())
             .max(0.5 * length_mm),
-    };
-    top_view_within(grid, values, pixels, half_width)
+    }
 }
 
 /// A top view of the square [−half_width, half_width]² about the axis (a zoom on the
@@ -172,70 +243,96 @@ pub fn top_view_within(
     pixels: usize,
     half_width_mm: f64,
 ) -> Raster {
+    let rings = grid.ring_count();
+    let source = |row: u32, out: &mut [f64]| {
+        out.copy_from_slice(&values[row as usize * rings..(row as usize + 1) * rings]);
+    };
+    top_views_within(grid, &[&source], pixels, half_width_mm).remove(0)
+}
+
+/// Top views of several quantities at once over [−half_width, half_width]²: each
+/// quantity's rows are read once, smoothed in parallel, and every pixel's Gaussian
+/// weights serve all of them.
+pub fn top_views_within(
+    grid: &PolarGrid,
+    quantities: &[RowSource],
+    pixels: usize,
+    half_width_mm: f64,
+) -> Vec<Raster> {
     let pitch_mm = 2.0 * half_width_mm / pixels as f64;
     let sigma = pitch_mm;
-    let mut raster = Raster {
-        pixels,
-        pitch_mm,
-        half_width_mm,
-        values: vec![0.0; pixels * pixels],
-        valid: vec![false; pixels * pixels],
-    };
     let (inner, outer) = (
         grid.rings[0].radius_mm,
         grid.rings[grid.ring_count() - 1].radius_mm,
     );
     let rows = grid.azimuths as usize;
     let pixel_centre = |i: usize| -half_width_mm + (i as f64 + 0.5) * pitch_mm;
-    match grid.layout {
+    let bands = match grid.layout {
         Layout::Polar => {
             let reach = half_width_mm * std::f64::consts::SQRT_2 + REACH_SIGMAS * sigma;
-            let bands = RadialBands::new(grid, values, sigma, (inner - reach, reach));
-            for row in 0..pixels {
-                let y = -pixel_centre(row);
-                for column in 0..pixels {
-                    let x = pixel_centre(column);
-                    let r = x.hypot(y);
-                    if r < inner || r > outer {
-                        continue;
-                    }
-                    let position = y.atan2(x).rem_euclid(TAU) / TAU * rows as f64;
-                    let row_spacing_mm = r * TAU / rows as f64;
-                    let sigma_rows = (sigma / row_spacing_mm.max(1e-300)).max(MIN_ROW_SIGMA);
-                    let value = across_rows(&bands, rows, position, sigma_rows, true, r);
-                    raster.values[row * pixels + column] = value as f32;
-                    raster.valid[row * pixels + column] = true;
-                }
-            }
+            RadialBands::new(grid, quantities, sigma, (inner - reach, reach))
         }
-        Layout::Extruded { length_mm } => {
-            let bands = RadialBands::new(
-                grid,
-                values,
-                sigma,
-                (-half_width_mm - 3.0 * sigma, half_width_mm + 3.0 * sigma),
-            );
-            let row_pitch = length_mm / rows as f64;
-            let sigma_rows = (sigma / row_pitch).max(MIN_ROW_SIGMA);
-            for row in 0..pixels {
-                let y = -pixel_centre(row);
-                if y.abs() > 0.5 * length_mm {
-                    continue;
+        Layout::Extruded { .. } => RadialBands::new(
+            grid,
+            quantities,
+            sigma,
+            (-half_width_mm - 3.0 * sigma, half_width_mm + 3.0 * sigma),
+        ),
+    };
+    // Per pixel: where it samples the rows (position, σ in rows) and at which radius,
+    // or `None` outside the part.
+    let sampling = |row: usize, column: usize| -> Option<(f64, f64, bool, f64)> {
+        let (x, y) = (pixel_centre(column), -pixel_centre(row));
+        match grid.layout {
+            Layout::Polar => {
+                let r = x.hypot(y);
+                if r < inner || r > outer {
+                    return None;
                 }
+                let position = y.atan2(x).rem_euclid(TAU) / TAU * rows as f64;
+                let row_spacing_mm = r * TAU / rows as f64;
+                let sigma_rows = (sigma / row_spacing_mm.max(1e-300)).max(MIN_ROW_SIGMA);
+                Some((position, sigma_rows, true, r))
+            }
+            Layout::Extruded { length_mm } => {
+                if y.abs() > 0.5 * length_mm || x < inner || x > outer {
+                    return None;
+                }
+                let row_pitch = length_mm / rows as f64;
                 let position = (y + 0.5 * length_mm) / row_pitch - 0.5;
-                for column in 0..pixels {
-                    let x = pixel_centre(column);
-                    if x < inner || x > outer {
-                        continue;
-                    }
-                    let value = across_rows(&bands, rows, position, sigma_rows, false, x);
-                    raster.values[row * pixels + column] = value as f32;
-                    raster.valid[row * pixels + column] = true;
-                }
+                Some((position, (sigma / row_pitch).max(MIN_ROW_SIGMA), false, x))
             }
         }
-    }
-    raster
+    };
+    let count = quantities.len();
+    let mut values = vec![0.0f32; count * pixels * pixels];
+    let mut valid = vec![false; pixels * pixels];
+    values
+        .par_chunks_mut(count * pixels)
+        .zip(valid.par_chunks_mut(pixels))
+        .enumerate()
+        .for_each(|(row, (values, valid))| {
+            let mut pixel = vec![0.0; count];
+            for column in 0..pixels {
+                let Some((position, sigma_rows, wrap, r)) = sampling(row, column) else {
+                    continue;
+                };
+                across_rows(&bands, rows, position, sigma_rows, wrap, r, &mut pixel);
+                for (q, value) in pixel.iter().enumerate() {
+                    values[column * count + q] = *value as f32;
+                }
+                valid[column] = true;
+            }
+        });
+    (0..count)
+        .map(|q| Raster {
+            pixels,
+            pitch_mm,
+            half_width_mm,
+            values: values.iter().skip(q).step_by(count).copied().collect(),
+            valid: valid.clone(),
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -56,9 +56,22 @@ pub struct Protrusion {
     pub volume_um3: f64,
     /// RMS of the surround's residual (nm): the detection noise floor.
     pub surround_rms_nm: f64,
-    /// Per sample: deviation minus the surround line inside the feature, 0 outside (mm).
+    /// Per ring inside the feature (from the axis out): the surround model there (mm),
+    /// which [`Protrusion::row_mm`] subtracts from the deviation.
     #[serde(skip)]
-    pub map_mm: Vec<f64>,
+    pub surround_mm: Vec<f64>,
+}
+
+impl Protrusion {
+    /// The feature's map along one azimuth row: deviation minus the surround inside the
+    /// feature, 0 outside (mm). `out` holds a row (one value per ring).
+    pub fn row_mm(&self, grid: &PolarGrid, field: &DexelField, row: u32, out: &mut [f64]) {
+        let (depths, _) = field.row(grid, row);
+        out.fill(0.0);
+        for ((value, depth), surround) in out.iter_mut().zip(depths).zip(&self.surround_mm) {
+            *value = depth - surround;
+        }
+    }
 }
 
 impl std::fmt::Debug for Protrusion {
@@ -89,20 +102,18 @@ pub fn analyse_protrusion(
         radius_um: 0.0,
         volume_um3: 0.0,
         surround_rms_nm,
-        map_mm: vec![0.0; grid.sample_count()],
+        surround_mm: Vec::new(),
     };
     let extruded = matches!(grid.layout, crate::field::Layout::Extruded { .. });
     if extruded || radii[0] > 0.5 * grid.pitch_mm || rings < 8 {
         return none(0.0); // an annulus or an extruded part has no axis to carry a feature
     }
 
-    let mean: Vec<f64> = (0..rings)
-        .map(|i| {
-            (0..grid.azimuths)
-                .map(|j| field.depth_mm[grid.sample_index(i, j)])
-                .sum::<f64>()
-                / grid.azimuths as f64
-        })
+    let ring_stats = super::RingStats::of(grid, field);
+    let mean: Vec<f64> = ring_stats
+        .sum_mm
+        .iter()
+        .map(|sum| sum / grid.azimuths as f64)
         .collect();
     // Surround over [Z, 2Z].
     let surround: Vec<usize> = (0..rings)
@@ -125,13 +136,17 @@ pub fn analyse_protrusion(
         .sqrt();
     // A feature must stand out of the surround's texture (its scallops, taken per sample:
     // the azimuth mean would average a spiral's scallops away), not just its noise.
+    // (d − line) is monotone in d, so each ring's extremes give the samples' extremes.
     let (texture_low, texture_high) = surround
         .iter()
-        .flat_map(|&i| (0..grid.azimuths).map(move |j| (i, j)))
-        .map(|(i, j)| field.depth_mm[grid.sample_index(i, j)] - line(radii[i]))
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-            (lo.min(v), hi.max(v))
-        });
+        .map(|&i| {
+            let line = line(radii[i]);
+            (ring_stats.min_mm[i] - line, ring_stats.max_mm[i] - line)
+        })
+        .fold(
+            (f64::INFINITY, f64::NEG_INFINITY),
+            |(lo, hi), (low, high)| (lo.min(low), hi.max(high)),
+        );
     let threshold = (4.0 * surround_rms)
         .max(texture_high - texture_low)
         .max(0.5e-6);
@@ -201,7 +216,7 @@ pub fn analyse_protrusion(
     };
 
     let mut volume = 0.0;
-    let mut map_mm = vec![0.0; grid.sample_count()];
+    let mut surround_mm = Vec::new();
     for i in (0..rings).take_while(|&i| radii[i] <= radius) {
         // Annulus of width one pitch along the meridian: 2πr·ds (a disc of ds/2 at the axis).
         let area = if radii[i] > 0.0 {
@@ -210,10 +225,7 @@ pub fn analyse_protrusion(
             std::f64::consts::PI * (0.5 * grid.pitch_mm).powi(2)
         };
         volume += raw[i] * area;
-        for j in 0..grid.azimuths {
-            let s = grid.sample_index(i, j);
-            map_mm[s] = field.depth_mm[s] - line(radii[i]);
-        }
+        surround_mm.push(line(radii[i]));
     }
     Protrusion {
         shape,
@@ -221,7 +233,7 @@ pub fn analyse_protrusion(
         radius_um: radius * 1e3,
         volume_um3: volume * 1e9,
         surround_rms_nm: surround_rms * 1e6,
-        map_mm,
+        surround_mm,
     }
 }
 

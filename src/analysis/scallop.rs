@@ -14,6 +14,7 @@
 //! tilt (e.g. from a decentre) does not count as scallop.
 
 use crate::field::{DexelField, NO_PASS, PolarGrid};
+use rayon::prelude::*;
 
 /// The lines along which marks are crossed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -48,9 +49,13 @@ pub struct ScallopStats {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScallopAnalysis {
+    /// Line by line, in order along each line.
     pub cusps: Vec<Cusp>,
-    /// Per sample: the scallop height interpolated between the row's cusps (mm).
-    pub map_mm: Vec<f64>,
+    /// The lines the marks were crossed along.
+    pub direction: ScallopDirection,
+    /// `cusps[line_starts[k]..line_starts[k + 1]]` lie on line k (azimuth row k, or ring
+    /// k); empty when there are no lines.
+    line_starts: Vec<usize>,
     /// `None` when the grid does not resolve the scallops (see `resolution_note`).
     pub stats: Option<ScallopStats>,
     /// Why the statistics are missing, if they are.
@@ -59,12 +64,50 @@ pub struct ScallopAnalysis {
 
 impl ScallopAnalysis {
     /// No scallops to measure, and why.
-    pub fn none(grid: &PolarGrid, note: &str) -> Self {
+    pub fn none(_grid: &PolarGrid, note: &str) -> Self {
         Self {
             cusps: Vec::new(),
-            map_mm: vec![0.0; grid.sample_count()],
+            direction: ScallopDirection::Meridian,
+            line_starts: Vec::new(),
             stats: None,
             resolution_note: Some(note.to_string()),
+        }
+    }
+
+    /// The cusps on line `line` (an azimuth row or a ring, by direction).
+    fn line_cusps(&self, line: usize) -> &[Cusp] {
+        match (self.line_starts.get(line), self.line_starts.get(line + 1)) {
+            (Some(&start), Some(&end)) => &self.cusps[start..end],
+            _ => &[],
+        }
+    }
+
+    /// The scallop map along azimuth row `row` (mm; one value per ring into `out`):
+    /// linear between a line's cusps, held flat beyond its first and last, 0 on a line
+    /// without cusps. Computed on demand, so no full-resolution map is ever stored.
+    pub fn row_mm(&self, grid: &PolarGrid, row: u32, out: &mut [f64]) {
+        out.fill(0.0);
+        match self.direction {
+            ScallopDirection::Meridian => {
+                // Positions increase along the row: walk the cusps with them.
+                let line = Line::meridian(grid, row);
+                let cusps = self.line_cusps(row as usize);
+                let mut next = 0;
+                for (i, value) in out.iter_mut().enumerate() {
+                    let s = line.position(i);
+                    while cusps.get(next).is_some_and(|c| c.position_mm < s) {
+                        next += 1;
+                    }
+                    *value = height_at(cusps, next, s).unwrap_or(0.0);
+                }
+            }
+            ScallopDirection::Ring => {
+                for (ring, value) in out.iter_mut().enumerate() {
+                    let line = Line::ring(grid, ring);
+                    let at = line.position(row as usize);
+                    *value = height_between(self.line_cusps(ring), at).unwrap_or(0.0);
+                }
+            }
         }
     }
 }
@@ -72,11 +115,13 @@ impl ScallopAnalysis {
 /// Fewest samples a pass's segment needs, on median, for cusp fits to be trusted.
 const MIN_SAMPLES_PER_SEGMENT: f64 = 3.0;
 
-/// Samples along one line: their indices in the field, the first's position and the
-/// (even) spacing.
+/// Samples along one line: sample k is `first + k·stride` in the field; the first's
+/// position and the (even) spacing.
 struct Line {
     number: u32,
-    samples: Vec<usize>,
+    first: usize,
+    stride: usize,
+    len: usize,
     origin_mm: f64,
     pitch_mm: f64,
 }
@@ -85,59 +130,106 @@ impl Line {
     fn position(&self, i: usize) -> f64 {
         self.origin_mm + i as f64 * self.pitch_mm
     }
-}
 
-fn lines(grid: &PolarGrid, direction: ScallopDirection) -> Vec<Line> {
-    match direction {
-        ScallopDirection::Meridian => (0..grid.azimuths)
-            .map(|azimuth| Line {
-                number: azimuth,
-                samples: (0..grid.ring_count())
-                    .map(|ring| grid.sample_index(ring, azimuth))
-                    .collect(),
-                origin_mm: grid.rings[0].arc_length_mm,
-                pitch_mm: grid.pitch_mm,
-            })
-            .collect(),
-        ScallopDirection::Ring => grid
-            .rings
-            .iter()
-            .enumerate()
-            .filter(|(index, _)| grid.row_pitch_mm(*index) > 0.0)
-            .map(|(index, _)| Line {
-                number: index as u32,
-                samples: (0..grid.azimuths)
-                    .map(|azimuth| grid.sample_index(index, azimuth))
-                    .collect(),
-                origin_mm: 0.0,
-                pitch_mm: grid.row_pitch_mm(index),
-            })
-            .collect(),
+    fn sample(&self, i: usize) -> usize {
+        self.first + i * self.stride
+    }
+
+    /// Azimuth row `row`, along the meridian.
+    fn meridian(grid: &PolarGrid, row: u32) -> Line {
+        Line {
+            number: row,
+            first: grid.sample_index(0, row),
+            stride: 1,
+            len: grid.ring_count(),
+            origin_mm: grid.rings[0].arc_length_mm,
+            pitch_mm: grid.pitch_mm,
+        }
+    }
+
+    /// Ring `ring`, along the azimuth.
+    fn ring(grid: &PolarGrid, ring: usize) -> Line {
+        Line {
+            number: ring as u32,
+            first: ring,
+            stride: grid.ring_count(),
+            len: grid.azimuths as usize,
+            origin_mm: 0.0,
+            pitch_mm: grid.row_pitch_mm(ring),
+        }
     }
 }
+
+/// The lines marks are crossed along: every azimuth row, or every ring (a ring on the
+/// axis, of no length, gives an empty line).
+fn line_count(grid: &PolarGrid, direction: ScallopDirection) -> usize {
+    match direction {
+        ScallopDirection::Meridian => grid.azimuths as usize,
+        ScallopDirection::Ring => grid.ring_count(),
+    }
+}
+
+fn line(grid: &PolarGrid, direction: ScallopDirection, k: usize) -> Option<Line> {
+    match direction {
+        ScallopDirection::Meridian => Some(Line::meridian(grid, k as u32)),
+        ScallopDirection::Ring => (grid.row_pitch_mm(k) > 0.0).then(|| Line::ring(grid, k)),
+    }
+}
+
+/// One line's cusps and the lengths of its segments (in samples).
+fn analyse_line(field: &DexelField, line: &Line) -> (Vec<Cusp>, Vec<usize>) {
+    let depths: Vec<f64> = (0..line.len)
+        .map(|i| field.depth_mm[line.sample(i)])
+        .collect();
+    let passes: Vec<u32> = (0..line.len).map(|i| field.pass[line.sample(i)]).collect();
+    let segments = segments(&passes);
+    let lengths = segments.iter().map(|s| s.end - s.start).collect();
+    (line_cusps(line, &depths, &passes, &segments), lengths)
+}
+
+/// Lines handed to one worker at a time.
+const LINES_PER_TASK: usize = 64;
 
 pub fn analyse_scallops(
     grid: &PolarGrid,
     field: &DexelField,
     direction: ScallopDirection,
 ) -> ScallopAnalysis {
+    // Lines in parallel batches, kept in line order; segment lengths only counted.
     let mut cusps = Vec::new();
-    let mut map_mm = vec![0.0; grid.sample_count()];
-    let mut segment_lengths = Vec::new();
-    for line in lines(grid, direction) {
-        let depths: Vec<f64> = line.samples.iter().map(|&s| field.depth_mm[s]).collect();
-        let passes: Vec<u32> = line.samples.iter().map(|&s| field.pass[s]).collect();
-        let segments = segments(&passes);
-        segment_lengths.extend(segments.iter().map(|s| s.end - s.start));
-        let line_cusps = line_cusps(&line, &depths, &passes, &segments);
-        fill_line_map(&line, &line_cusps, &mut map_mm);
-        cusps.extend(line_cusps);
+    let mut line_starts = vec![0];
+    let mut length_counts: Vec<usize> = Vec::new();
+    let lines = line_count(grid, direction);
+    for batch in (0..lines).step_by(LINES_PER_TASK * 16) {
+        let results: Vec<(Vec<Cusp>, Vec<usize>)> = (batch
+            ..(batch + LINES_PER_TASK * 16).min(lines))
+            .into_par_iter()
+            .with_min_len(LINES_PER_TASK)
+            .map(|k| {
+                line(grid, direction, k).map_or_else(Default::default, |l| analyse_line(field, &l))
+            })
+            .collect();
+        for (line_cusps, lengths) in results {
+            cusps.extend(line_cusps);
+            line_starts.push(cusps.len());
+            for length in lengths {
+                if length >= length_counts.len() {
+                    length_counts.resize(length + 1, 0);
+                }
+                length_counts[length] += 1;
+            }
+        }
     }
 
-    segment_lengths.sort_unstable();
-    let median = segment_lengths
-        .get(segment_lengths.len() / 2)
-        .copied()
+    // The median segment length: the middle one in sorted order.
+    let segment_count: usize = length_counts.iter().sum();
+    let median = length_counts
+        .iter()
+        .scan(0, |seen, &count| {
+            *seen += count;
+            Some(*seen)
+        })
+        .position(|seen| seen > segment_count / 2)
         .unwrap_or(0) as f64;
     let resolution_note = if cusps.is_empty() {
         Some(
@@ -162,7 +254,8 @@ pub fn analyse_scallops(
     });
     ScallopAnalysis {
         cusps,
-        map_mm,
+        direction,
+        line_starts,
         stats,
         resolution_note,
     }
@@ -271,14 +364,12 @@ impl Quadratic {
     fn through(line: &Line, depths: &[f64], range: std::ops::Range<usize>) -> Self {
         let origin = line.position(range.start);
         let scale = line.pitch_mm;
-        let points: Vec<(f64, f64)> = range
-            .map(|i| ((line.position(i) - origin) / scale, depths[i]))
-            .collect();
+        let points = range.map(|i| ((line.position(i) - origin) / scale, depths[i]));
         let order = points.len().min(3);
         // Normal equations Σ x^(i+j) c_j = Σ x^i y for the first `order` powers.
         let mut matrix = [[0.0; 3]; 3];
         let mut rhs = [0.0; 3];
-        for &(x, y) in &points {
+        for (x, y) in points {
             let powers = [1.0, x, x * x];
             for i in 0..order {
                 rhs[i] += powers[i] * y;
@@ -341,6 +432,9 @@ fn cusp_between(left: &Quadratic, right: &Quadratic, a: f64, b: f64) -> (f64, f6
     }
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
+        if mid == lo || mid == hi {
+            break; // the bracket is down to adjacent floats: nothing more would change
+        }
         if difference(mid).signum() == sign_lo {
             lo = mid;
         } else {
@@ -351,25 +445,21 @@ fn cusp_between(left: &Quadratic, right: &Quadratic, a: f64, b: f64) -> (f64, f6
     (at, envelope(at))
 }
 
-/// Scallop height along a line: linear between cusps, held flat beyond the first/last.
-fn fill_line_map(line: &Line, cusps: &[Cusp], map_mm: &mut [f64]) {
-    if cusps.is_empty() {
-        return;
-    }
-    let mut next = 0;
-    for (i, &sample) in line.samples.iter().enumerate() {
-        let s = line.position(i);
-        while next < cusps.len() && cusps[next].position_mm < s {
-            next += 1;
-        }
-        map_mm[sample] = if next == 0 {
-            cusps[0].scallop_mm
-        } else if next == cusps.len() {
-            cusps[cusps.len() - 1].scallop_mm
-        } else {
-            let (a, b) = (cusps[next - 1], cusps[next]);
-            let t = (s - a.position_mm) / (b.position_mm - a.position_mm);
-            a.scallop_mm + t * (b.scallop_mm - a.scallop_mm)
-        };
-    }
+/// Scallop height at position `s` along a line with `cusps` (in order): linear between
+/// cusps, held flat beyond the first and last; `None` without cusps.
+fn height_between(cusps: &[Cusp], s: f64) -> Option<f64> {
+    height_at(cusps, cusps.partition_point(|c| c.position_mm < s), s)
+}
+
+/// [`height_between`] with `next`, the first cusp at or beyond `s`, already known.
+fn height_at(cusps: &[Cusp], next: usize, s: f64) -> Option<f64> {
+    Some(if next == 0 {
+        cusps.first()?.scallop_mm
+    } else if next == cusps.len() {
+        cusps[cusps.len() - 1].scallop_mm
+    } else {
+        let (a, b) = (cusps[next - 1], cusps[next]);
+        let t = (s - a.position_mm) / (b.position_mm - a.position_mm);
+        a.scallop_mm + t * (b.scallop_mm - a.scallop_mm)
+    })
 }

@@ -18,6 +18,7 @@
 
 use super::form::gaussian_filter;
 use crate::field::{DexelField, Layout, PolarGrid};
+use rayon::prelude::*;
 use std::f64::consts::TAU;
 
 /// ISO 25178-2 height parameters (nm; Ssk and Sku dimensionless).
@@ -34,36 +35,81 @@ pub struct Areal {
 
 /// Area-weighted height parameters of `values_nm` with `weights` about their mean.
 pub fn areal_parameters(values_nm: &[f64], weights: &[f64]) -> Areal {
-    let total: f64 = weights.iter().sum();
-    let mean = values_nm
-        .iter()
-        .zip(weights)
-        .map(|(v, w)| v * w)
-        .sum::<f64>()
-        / total;
-    let moment = |k: i32| {
-        values_nm
+    const CHUNK: usize = 1 << 16;
+    let tiles = values_nm.len().div_ceil(CHUNK);
+    areal_from_tiles(tiles, |tile| {
+        let range = tile * CHUNK..((tile + 1) * CHUNK).min(values_nm.len());
+        values_nm[range.clone()]
             .iter()
-            .zip(weights)
-            .map(|(v, w)| w * (v - mean).powi(k))
-            .sum::<f64>()
-            / total
+            .copied()
+            .zip(weights[range].iter().copied())
+    })
+}
+
+/// Area-weighted height parameters of the (value nm, weight) pairs `pairs(tile)` yields
+/// for tiles `0..tiles`: two passes (mean and extremes, then the moments about the
+/// mean), tiles in parallel, their sums combined in tile order (the same figures on
+/// every run).
+fn areal_from_tiles<I, F>(tiles: usize, pairs: F) -> Areal
+where
+    F: Fn(usize) -> I + Sync,
+    I: Iterator<Item = (f64, f64)>,
+{
+    let in_order = |sums: Vec<[f64; 4]>| {
+        sums.into_iter().fold([0.0; 4], |mut total, tile| {
+            for (total, part) in total.iter_mut().zip(tile) {
+                *total += part;
+            }
+            total
+        })
     };
-    let sa = values_nm
-        .iter()
-        .zip(weights)
-        .map(|(v, w)| w * (v - mean).abs())
-        .sum::<f64>()
-        / total;
-    let sq = moment(2).sqrt();
-    let sp = values_nm
-        .iter()
-        .fold(f64::NEG_INFINITY, |m, v| m.max(v - mean));
-    let sv = values_nm
-        .iter()
-        .fold(f64::NEG_INFINITY, |m, v| m.max(mean - v));
+    // Pass 1: Σw, Σw·v and the extremes of v.
+    let first: Vec<(f64, f64, f64, f64)> = (0..tiles)
+        .into_par_iter()
+        .map(|tile| {
+            pairs(tile).fold(
+                (0.0, 0.0, f64::INFINITY, f64::NEG_INFINITY),
+                |(w_sum, sum, low, high), (v, w)| (w_sum + w, sum + w * v, low.min(v), high.max(v)),
+            )
+        })
+        .collect();
+    let (total, sum, low, high) = first.iter().fold(
+        (0.0, 0.0, f64::INFINITY, f64::NEG_INFINITY),
+        |(w_sum, sum, low, high), part| {
+            (
+                w_sum + part.0,
+                sum + part.1,
+                low.min(part.2),
+                high.max(part.3),
+            )
+        },
+    );
+    let mean = sum / total;
+    // Pass 2: Σw|v − m| and Σw(v − m)^k for k = 2, 3, 4.
+    let moments = in_order(
+        (0..tiles)
+            .into_par_iter()
+            .map(|tile| {
+                pairs(tile).fold([0.0; 4], |mut m, (v, w)| {
+                    let d = v - mean;
+                    m[0] += w * d.abs();
+                    m[1] += w * d.powi(2);
+                    m[2] += w * d.powi(3);
+                    m[3] += w * d.powi(4);
+                    m
+                })
+            })
+            .collect(),
+    );
+    let sa = moments[0] / total;
+    let sq = (moments[1] / total).sqrt();
+    // max(v − m) = max(v) − m: subtracting m is monotone.
+    let (sp, sv) = (high - mean, mean - low);
     let (ssk, sku) = if sq > 0.0 {
-        (moment(3) / sq.powi(3), moment(4) / sq.powi(4))
+        (
+            moments[2] / total / sq.powi(3),
+            moments[3] / total / sq.powi(4),
+        )
     } else {
         (0.0, 0.0)
     };
@@ -166,6 +212,14 @@ pub fn psd(heights: &[f64], pitch_mm: f64, wavelengths_mm: &[f64]) -> Vec<(f64, 
         .map(|i| 0.5 - 0.5 * (TAU * i as f64 / n as f64).cos())
         .collect();
     let power_norm = window.iter().map(|w| w * w).sum::<f64>() / n as f64;
+    // Every phase is 2π·m/n for a whole m < n: its cosine and sine looked up, not recomputed.
+    let (cos, sin): (Vec<f64>, Vec<f64>) = (0..n)
+        .into_par_iter()
+        .map(|m| {
+            let phase = TAU * m as f64 / n as f64;
+            (phase.cos(), phase.sin())
+        })
+        .unzip();
     let mut seen = Vec::new();
     let mut out = Vec::new();
     for &wavelength in wavelengths_mm {
@@ -176,9 +230,9 @@ pub fn psd(heights: &[f64], pitch_mm: f64, wavelengths_mm: &[f64]) -> Vec<(f64, 
         seen.push(k);
         let (mut re, mut im) = (0.0, 0.0);
         for (i, (h, w)) in heights.iter().zip(&window).enumerate() {
-            let phase = TAU * (k * i % n) as f64 / n as f64;
-            re += (h - mean) * w * phase.cos();
-            im -= (h - mean) * w * phase.sin();
+            let m = k * i % n;
+            re += (h - mean) * w * cos[m];
+            im -= (h - mean) * w * sin[m];
         }
         let one_sided = if 2 * k == n { 1.0 } else { 2.0 };
         let value = one_sided * (re * re + im * im) * pitch_mm / (n as f64 * power_norm);
@@ -219,21 +273,84 @@ pub fn noll_to_nm(j: usize) -> (i32, i32) {
     (n as i32, signed)
 }
 
-/// Noll's RMS-normalised Zernike polynomial j at (ρ, θ).
+/// Noll's RMS-normalised Zernike polynomial j (1..=15: orders up to 4) at (ρ, θ).
 pub fn zernike(j: usize, rho: f64, theta: f64) -> f64 {
-    let (n, m) = noll_to_nm(j);
-    let am = m.unsigned_abs() as i32;
-    let mut radial = 0.0;
-    for s in 0..=((n - am) / 2) {
-        let sign = if s % 2 == 0 { 1.0 } else { -1.0 };
-        let num = factorial(n - s);
-        let den = factorial(s) * factorial((n + am) / 2 - s) * factorial((n - am) / 2 - s);
-        radial += sign * num / den * rho.powi(n - 2 * s);
+    Zernike::new(j).at(rho, theta)
+}
+
+/// One Zernike polynomial with its radial coefficients worked out once.
+struct Zernike {
+    m: i32,
+    /// |m| as a float, the angular frequency.
+    frequency: f64,
+    /// √(n + 1) for m = 0, √(2(n + 1)) otherwise.
+    norm: f64,
+    /// (coefficient, power of ρ) of the radial polynomial, highest power first.
+    radial: Vec<(f64, i32)>,
+}
+
+impl Zernike {
+    fn new(j: usize) -> Self {
+        let (n, m) = noll_to_nm(j);
+        assert!(
+            n <= 4,
+            "Zernike terms are evaluated to order 4 (Noll j ≤ 15), not j = {j}"
+        );
+        let am = m.unsigned_abs() as i32;
+        let radial = (0..=((n - am) / 2))
+            .map(|s| {
+                let sign = if s % 2 == 0 { 1.0 } else { -1.0 };
+                let num = factorial(n - s);
+                let den = factorial(s) * factorial((n + am) / 2 - s) * factorial((n - am) / 2 - s);
+                (sign * num / den, n - 2 * s)
+            })
+            .collect();
+        let norm = if m == 0 {
+            f64::from(n + 1).sqrt()
+        } else {
+            (2.0 * f64::from(n + 1)).sqrt()
+        };
+        Zernike {
+            m,
+            frequency: f64::from(am),
+            norm,
+            radial,
+        }
     }
-    match m {
-        0 => f64::from(n + 1).sqrt() * radial,
-        m if m > 0 => (2.0 * f64::from(n + 1)).sqrt() * radial * (f64::from(am) * theta).cos(),
-        _ => (2.0 * f64::from(n + 1)).sqrt() * radial * (f64::from(am) * theta).sin(),
+
+    fn at(&self, rho: f64, theta: f64) -> f64 {
+        self.at_point(&ZernikePoint::new(rho, theta))
+    }
+
+    fn at_point(&self, point: &ZernikePoint) -> f64 {
+        let radial = self.radial.iter().fold(0.0, |sum, &(c, power)| {
+            sum + c * point.rho_powers[power as usize]
+        });
+        let k = self.frequency as usize;
+        match self.m {
+            0 => self.norm * radial,
+            m if m > 0 => self.norm * radial * point.cos[k],
+            _ => self.norm * radial * point.sin[k],
+        }
+    }
+}
+
+/// What every polynomial (to order 4) needs at a point: ρ^p as `powi` gives it, and
+/// cos kθ, sin kθ — each evaluated once per point instead of once per polynomial.
+struct ZernikePoint {
+    rho_powers: [f64; 5],
+    cos: [f64; 5],
+    sin: [f64; 5],
+}
+
+impl ZernikePoint {
+    fn new(rho: f64, theta: f64) -> Self {
+        let at = |k: usize| f64::from(k as u32) * theta;
+        ZernikePoint {
+            rho_powers: std::array::from_fn(|p| rho.powi(p as i32)),
+            cos: std::array::from_fn(|k| at(k).cos()),
+            sin: std::array::from_fn(|k| at(k).sin()),
+        }
     }
 }
 
@@ -279,10 +396,15 @@ pub fn fit_zernike(
     weights: &[f64],
 ) -> Option<Vec<ZernikeTerm>> {
     const TERMS: usize = 15;
+    let basis: Vec<Zernike> = (1..=TERMS).map(Zernike::new).collect();
     let mut normal = vec![vec![0.0; TERMS]; TERMS];
     let mut rhs = vec![0.0; TERMS];
+    let mut z = [0.0; TERMS];
     for ((&(rho, theta), &v), &w) in points.iter().zip(values_nm).zip(weights) {
-        let z: Vec<f64> = (1..=TERMS).map(|j| zernike(j, rho, theta)).collect();
+        let point = ZernikePoint::new(rho, theta);
+        for (z, term) in z.iter_mut().zip(&basis) {
+            *z = term.at_point(&point);
+        }
         for a in 0..TERMS {
             rhs[a] += w * z[a] * v;
             for b in 0..TERMS {
@@ -336,13 +458,13 @@ pub fn analyse_texture(
     mark_spacing_mm: Option<f64>,
 ) -> Texture {
     let rings = grid.ring_count();
-    let values_nm: Vec<f64> = field.depth_mm.iter().map(|d| d * 1e6).collect();
-    let weights: Vec<f64> = (0..values_nm.len())
-        .map(|s| grid.area_weight(s % rings))
-        .collect();
-    let areal = areal_parameters(&values_nm, &weights);
+    let weights: Vec<f64> = (0..rings).map(|ring| grid.area_weight(ring)).collect();
+    let areal = areal_from_tiles(grid.azimuths as usize, |row| {
+        let (depths, _) = field.row(grid, row as u32);
+        depths.iter().map(|d| d * 1e6).zip(weights.iter().copied())
+    });
     // The azimuth-0 row along the meridian (evenly spaced in arc length).
-    let row = &values_nm[..rings];
+    let row: &Vec<f64> = &field.row(grid, 0).0.iter().map(|d| d * 1e6).collect();
     let (lambda_c, lambda_s) = iso_cutoffs(mark_spacing_mm.unwrap_or(grid.pitch_mm * 8.0));
     let profile = profile_roughness(row, grid.pitch_mm, lambda_c, lambda_s);
     let length = grid.pitch_mm * rings as f64;
@@ -360,7 +482,7 @@ pub fn analyse_texture(
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(w, _)| w * 1e3);
     let (zernike, residual) = match grid.layout {
-        Layout::Polar => zernike_of_field(grid, &values_nm, &weights),
+        Layout::Polar => zernike_of_field(grid, field),
         Layout::Extruded { .. } => (Vec::new(), None),
     };
     Texture {
@@ -378,41 +500,42 @@ pub fn analyse_texture(
 
 /// Zernike terms over the disc of the outer radius (a subsample of at most ~200 000
 /// points keeps the fit cheap), and the RMS left after them.
-fn zernike_of_field(
-    grid: &PolarGrid,
-    values_nm: &[f64],
-    weights: &[f64],
-) -> (Vec<ZernikeTerm>, Option<f64>) {
+fn zernike_of_field(grid: &PolarGrid, field: &DexelField) -> (Vec<ZernikeTerm>, Option<f64>) {
     let rings = grid.ring_count();
     let outer = grid.rings[rings - 1].radius_mm;
     let rows = grid.azimuths as usize;
-    let stride = (values_nm.len() / 200_000).max(1);
+    let samples = grid.sample_count();
+    let stride = (samples / 200_000).max(1);
     let mut points = Vec::new();
     let mut values = Vec::new();
     let mut w = Vec::new();
-    for sample in (0..values_nm.len()).step_by(stride) {
+    for sample in (0..samples).step_by(stride) {
         let (row, ring) = (sample / rings, sample % rings);
         let rho = grid.rings[ring].radius_mm / outer;
         let theta = TAU * row as f64 / rows as f64;
         points.push((rho, theta));
-        values.push(values_nm[sample]);
-        w.push(weights[sample]);
+        values.push(field.depth_mm[sample] * 1e6);
+        w.push(grid.area_weight(ring));
     }
     let Some(terms) = fit_zernike(&points, &values, &w) else {
         return (Vec::new(), None);
     };
+    let basis: Vec<(f64, Zernike)> = terms
+        .iter()
+        .map(|t| (t.coefficient_nm, Zernike::new(t.noll)))
+        .collect();
     let total: f64 = w.iter().sum();
     let residual = points
-        .iter()
+        .par_iter()
         .zip(&values)
         .zip(&w)
         .map(|((&(rho, theta), v), weight)| {
-            let model: f64 = terms
-                .iter()
-                .map(|t| t.coefficient_nm * zernike(t.noll, rho, theta))
-                .sum();
+            let point = ZernikePoint::new(rho, theta);
+            let model: f64 = basis.iter().map(|(c, z)| c * z.at_point(&point)).sum();
             weight * (v - model).powi(2)
         })
+        .collect::<Vec<f64>>()
+        .iter()
         .sum::<f64>()
         / total;
     (terms, Some(residual.sqrt()))

@@ -2,11 +2,12 @@
 //! absolute coordinates in f64 (no local-frame tricks needed), parallel over samples.
 
 use super::cpu_generating::generating_dexel;
+use super::cpu_turning::{LANES, TurningKernel};
 use super::milling_scene::milling_dexel;
 use super::scene::{Branch, PASS_ID_STRIDE, TurningScene};
 use super::{EngineError, EngineInfo, Progress, RemovalEngine, Scene};
 use crate::field::{DexelField, NO_PASS, Ring};
-use crate::geometry::tool::tip_direction;
+use crate::geometry::tool::{EdgeSolver, tip_direction};
 use crate::process::ToolPose;
 use glam::DVec2;
 use rayon::prelude::*;
@@ -42,15 +43,39 @@ impl RemovalEngine for CpuEngine {
         let mut depth_mm = vec![0.0; samples];
         let mut pass = vec![NO_PASS; samples];
         let done = AtomicU64::new(0);
+        let report = |finished: usize| {
+            let so_far = done.fetch_add(finished as u64, Ordering::Relaxed) + finished as u64;
+            progress(so_far, samples as u64);
+        };
         let rings = grid.ring_count();
+        if let Scene::Turning(scene) = scene {
+            // Rows, each in blocks of whole lane groups of rings.
+            let kernel = TurningKernel::new(scene);
+            let block = CHUNK.next_multiple_of(LANES);
+            depth_mm
+                .par_chunks_mut(rings)
+                .zip(pass.par_chunks_mut(rings))
+                .enumerate()
+                .for_each(|(azimuth, (depths, passes))| {
+                    depths
+                        .par_chunks_mut(block)
+                        .zip(passes.par_chunks_mut(block))
+                        .enumerate()
+                        .for_each(|(part, (depths, passes))| {
+                            kernel.fill(azimuth as u32, part * block, depths, passes);
+                            report(depths.len());
+                        });
+                });
+            return Ok(DexelField { depth_mm, pass });
+        }
         let dexel = |sample: usize| {
             let (ring, azimuth) = (sample % rings, (sample / rings) as u32);
             match scene {
-                Scene::Turning(scene) => sample_dexel(scene, ring, azimuth),
                 Scene::Generating(scene) => {
                     generating_dexel(scene, ring, scene.grid.azimuth_rad(azimuth))
                 }
                 Scene::Milling(scene) => milling_dexel(scene, ring, azimuth),
+                Scene::Turning(scene) => sample_dexel(scene, ring, azimuth),
             }
         };
         depth_mm
@@ -62,44 +87,73 @@ impl RemovalEngine for CpuEngine {
                 {
                     (*depth, *pass) = dexel(chunk * CHUNK + offset);
                 }
-                let finished = done.fetch_add(depths.len() as u64, Ordering::Relaxed);
-                progress(finished + depths.len() as u64, samples as u64);
+                report(depths.len());
             });
         Ok(DexelField { depth_mm, pass })
     }
 }
 
 /// The machined surface at one sample: the lowest entry of any pass into the sample's
-/// dexel ray, and which pass made it (`rev · PASS_ID_STRIDE + branch`).
+/// dexel ray, and which pass made it (`rev · PASS_ID_STRIDE + branch`). The scalar twin
+/// of the shader; the engine runs [`TurningKernel`], which gives the same bits.
 pub fn sample_dexel(scene: &TurningScene, ring_index: usize, azimuth: u32) -> (f64, u32) {
-    let ring = &scene.grid.rings[ring_index];
-    let passes = &scene.rings[ring_index];
+    let edge = scene.edge.solver();
     let azimuth_rad = scene.grid.azimuth_rad(azimuth);
-    let poses = &scene.poses.poses;
     let mut best = (scene.stock_top_mm, NO_PASS);
     for branch in Branch::ALL {
-        let range = passes.revs[branch as usize];
-        if range.is_empty() {
-            continue;
-        }
-        let phase = scene.pass_phase(ring_index, azimuth_rad, branch);
-        for rev in range.first..=range.last {
-            let Some((node, t)) = scene.pass_position(rev, phase) else {
-                continue;
-            };
-            let pose = poses[node].lerp(poses[node + 1], t);
-            let depth = match branch {
-                Branch::Flank => flank_entry(scene, ring, pose),
-                _ => edge_entry(scene, ring, passes.lateral_mm, pose, branch.x_sign()),
-            };
-            if let Some(depth) = depth
-                && depth < best.0
-            {
-                best = (depth, rev * PASS_ID_STRIDE + branch as u32);
-            }
-        }
+        branch_dexel(scene, &edge, ring_index, azimuth_rad, branch, &mut best);
     }
     best
+}
+
+/// Lowers `best` (depth, pass id) to the lowest entry of one branch's passes into the
+/// dexel ray of sample (`ring_index`, `azimuth_rad`), passes taken in revolution order.
+pub fn branch_dexel(
+    scene: &TurningScene,
+    edge: &EdgeSolver,
+    ring_index: usize,
+    azimuth_rad: f64,
+    branch: Branch,
+    best: &mut (f64, u32),
+) {
+    let range = scene.rings[ring_index].revs[branch as usize];
+    if range.is_empty() {
+        return;
+    }
+    let phase = scene.pass_phase(ring_index, azimuth_rad, branch);
+    for rev in range.first..=range.last {
+        let Some((node, t)) = scene.pass_position(rev, phase) else {
+            continue;
+        };
+        let pose = scene.poses.poses[node].lerp(scene.poses.poses[node + 1], t);
+        if let Some(depth) = pass_entry(scene, edge, ring_index, pose, branch)
+            && depth < best.0
+        {
+            *best = (depth, rev * PASS_ID_STRIDE + branch as u32);
+        }
+    }
+}
+
+/// Entry of the dexel ray of ring `ring_index` into the tool at `pose` in `branch`.
+pub fn pass_entry(
+    scene: &TurningScene,
+    edge: &EdgeSolver,
+    ring_index: usize,
+    pose: ToolPose,
+    branch: Branch,
+) -> Option<f64> {
+    let ring = &scene.grid.rings[ring_index];
+    match branch {
+        Branch::Flank => flank_entry(scene, ring, pose),
+        _ => edge_entry(
+            scene,
+            edge,
+            ring,
+            scene.rings[ring_index].lateral_mm,
+            pose,
+            branch.x_sign(),
+        ),
+    }
 }
 
 /// Entry of the dexel ray into the edge of one pass. The ray lives in the sample's
@@ -108,6 +162,7 @@ pub fn sample_dexel(scene: &TurningScene, ring_index: usize, azimuth: u32) -> (f
 /// ray's image is curved, so it is linearised at the sample and once more at the hit.
 fn edge_entry(
     scene: &TurningScene,
+    edge: &EdgeSolver,
     ring: &Ring,
     lateral: f64,
     pose: ToolPose,
@@ -123,7 +178,7 @@ fn edge_entry(
     } else {
         DVec2::new(r * n.x / lateral, n.y)
     };
-    let mut d = scene.edge.entry(origin - centre, direction, tip, sign)?;
+    let mut d = edge.entry(origin - centre, direction, tip, sign)?;
     if y0 != 0.0 {
         for _ in 0..RAY_REFINEMENTS {
             let rho = r + d * n.x;
@@ -136,7 +191,7 @@ fn edge_entry(
             let slope = DVec2::new(rho * n.x / q, n.y);
             // The line through the ray's image at d with the local slope, still in d.
             let from_pivot = origin - centre + DVec2::new(shift, d * n.y) - d * slope;
-            d = scene.edge.entry(from_pivot, slope, tip, sign)?;
+            d = edge.entry(from_pivot, slope, tip, sign)?;
         }
     }
     Some(d)

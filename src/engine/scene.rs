@@ -17,6 +17,7 @@
 use crate::field::PolarGrid;
 use crate::geometry::tool::{ArcNoseTool, EdgeModel};
 use crate::process::PoseTable;
+use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 /// The ways a pass can reach a sample.
@@ -62,6 +63,14 @@ impl RevRange {
 
     pub fn is_empty(self) -> bool {
         self.len() == 0
+    }
+
+    /// The smallest range holding both.
+    fn union(&mut self, other: RevRange) {
+        if !other.is_empty() {
+            self.include(other.first);
+            self.include(other.last);
+        }
     }
 
     fn include(&mut self, rev: u32) {
@@ -200,7 +209,8 @@ impl TurningScene {
 
 /// For each ring and branch, the revolutions whose nose centre comes within `reach`
 /// of the ring's point in that branch's frame (tested against each revolution's
-/// bounding box).
+/// bounding box). Revolutions are tested in parallel; a ring's range is the union of
+/// the revolutions that reach it, whatever order they are found in.
 fn reachable_revolutions(
     grid: &PolarGrid,
     poses: &PoseTable,
@@ -210,68 +220,104 @@ fn reachable_revolutions(
     edge_plane_y: f64,
 ) -> Vec<RingPasses> {
     let y0 = edge_plane_y;
-    let mut rings: Vec<RingPasses> = grid
+    let laterals: Vec<f64> = grid
         .rings
         .iter()
-        .map(|ring| {
-            let lateral = (ring.radius_mm * ring.radius_mm - y0 * y0).max(0.0).sqrt();
-            RingPasses {
-                lateral_mm: lateral,
-                direct_azimuth_rad: y0.atan2(lateral),
-                revs: [RevRange::EMPTY; 3],
-            }
-        })
+        .map(|ring| (ring.radius_mm * ring.radius_mm - y0 * y0).max(0.0).sqrt())
         .collect();
-    // Rings the edge reaches have r > |y₀|; those inside are the flank's (tool above centre).
-    let reached = |ring: &crate::field::Ring| y0 == 0.0 || ring.radius_mm > y0.abs();
-    let flank_active = y0 < 0.0;
-    let laterals: Vec<f64> = rings.iter().map(|r| r.lateral_mm).collect();
-    for rev in 0..rev_count {
-        let k = first_rev + rev as i64;
-        let Some(bounds) = revolution_bounds(poses, TAU * (k - 1) as f64, TAU * k as f64) else {
-            continue;
-        };
-        for branch in [Branch::Direct, Branch::Mirrored] {
-            let (x_lo, x_hi) = if branch == Branch::Direct {
-                (bounds.x_min, bounds.x_max)
-            } else {
-                (-bounds.x_max, -bounds.x_min)
-            };
-            let first_ring = laterals.partition_point(|&q| q < x_lo - reach);
-            let end_ring = laterals.partition_point(|&q| q <= x_hi + reach);
-            for index in first_ring..end_ring {
-                let ring = &grid.rings[index];
-                if !reached(ring) {
-                    continue;
+    let revs = (0..rev_count)
+        .into_par_iter()
+        .fold(
+            || vec![[RevRange::EMPTY; 3]; grid.ring_count()],
+            |mut revs, rev| {
+                let k = first_rev + rev as i64;
+                if let Some(bounds) = revolution_bounds(poses, TAU * (k - 1) as f64, TAU * k as f64)
+                {
+                    revolution_reach(grid, &laterals, &bounds, reach, y0, |ring, branch| {
+                        revs[ring][branch as usize].include(rev)
+                    });
                 }
-                let q = laterals[index];
-                let dx = (x_lo - q).max(q - x_hi).max(0.0);
-                let dz = (bounds.z_min - ring.height_mm)
-                    .max(ring.height_mm - bounds.z_max)
-                    .max(0.0);
-                if dx.hypot(dz) <= reach {
-                    rings[index].revs[branch as usize].include(rev);
-                }
+                revs
+            },
+        )
+        .reduce_with(|mut a, b| {
+            for (a, b) in a.iter_mut().flatten().zip(b.iter().flatten()) {
+                a.union(*b);
             }
-        }
-        // The flank touches the pip where the edge spans the axis (|x| < R).
-        if flank_active && bounds.x_min < reach && bounds.x_max > -reach {
-            for (index, ring) in grid
-                .rings
-                .iter()
-                .enumerate()
-                .take_while(|(_, r)| !reached(r))
-            {
-                let dz = (bounds.z_min - ring.height_mm)
-                    .max(ring.height_mm - bounds.z_max)
-                    .max(0.0);
-                if dz <= reach {
-                    rings[index].revs[Branch::Flank as usize].include(rev);
-                }
+            a
+        })
+        .unwrap_or_else(|| vec![[RevRange::EMPTY; 3]; grid.ring_count()]);
+    laterals
+        .iter()
+        .zip(revs)
+        .map(|(&lateral, revs)| RingPasses {
+            lateral_mm: lateral,
+            direct_azimuth_rad: y0.atan2(lateral),
+            revs,
+        })
+        .collect()
+}
+
+/// Calls `reached(ring, branch)` for every ring and branch one revolution of bounding
+/// box `bounds` reaches.
+fn revolution_reach(
+    grid: &PolarGrid,
+    laterals: &[f64],
+    bounds: &Bounds,
+    reach: f64,
+    y0: f64,
+    mut reached: impl FnMut(usize, Branch),
+) {
+    // Rings the edge reaches have r > |y₀|; those inside are the flank's (tool above centre).
+    let edge_reaches = |ring: &crate::field::Ring| y0 == 0.0 || ring.radius_mm > y0.abs();
+    let dz = |ring: &crate::field::Ring| {
+        (bounds.z_min - ring.height_mm)
+            .max(ring.height_mm - bounds.z_max)
+            .max(0.0)
+    };
+    for branch in [Branch::Direct, Branch::Mirrored] {
+        let (x_lo, x_hi) = if branch == Branch::Direct {
+            (bounds.x_min, bounds.x_max)
+        } else {
+            (-bounds.x_max, -bounds.x_min)
+        };
+        let first_ring = laterals.partition_point(|&q| q < x_lo - reach);
+        let end_ring = laterals.partition_point(|&q| q <= x_hi + reach);
+        let window = first_ring..end_ring.max(first_ring);
+        let candidates = grid.rings[window.clone()].iter().zip(&laterals[window]);
+        for (index, (ring, &q)) in (first_ring..).zip(candidates) {
+            let dx = (x_lo - q).max(q - x_hi).max(0.0);
+            if edge_reaches(ring) && within(dx, dz(ring), reach) {
+                reached(index, branch);
             }
         }
     }
-    rings
+    // The flank touches the pip where the edge spans the axis (|x| < R).
+    if y0 < 0.0 && bounds.x_min < reach && bounds.x_max > -reach {
+        for (index, ring) in grid
+            .rings
+            .iter()
+            .enumerate()
+            .take_while(|(_, r)| !edge_reaches(r))
+        {
+            if dz(ring) <= reach {
+                reached(index, Branch::Flank);
+            }
+        }
+    }
+}
+
+/// `dx.hypot(dz) <= reach`, decided from the squares unless they lie within rounding
+/// of the boundary (then by `hypot` itself, so the decision is always hypot's).
+fn within(dx: f64, dz: f64, reach: f64) -> bool {
+    let (squared, limit) = (dx * dx + dz * dz, reach * reach);
+    if squared < limit * (1.0 - 1e-12) {
+        true
+    } else if squared > limit * (1.0 + 1e-12) {
+        false
+    } else {
+        dx.hypot(dz) <= reach
+    }
 }
 
 struct Bounds {

@@ -143,6 +143,50 @@ impl EdgeModel {
     }
 
     /// Where the line `origin + d·direction` enters the edge, as `d`, or `None` when it
+    /// misses the edge arc (see [`EdgeSolver::entry`]; engines prepare the solver once).
+    pub fn entry(
+        &self,
+        from_pivot: DVec2,
+        direction: DVec2,
+        tip: DVec2,
+        psi_sign: f64,
+    ) -> Option<f64> {
+        self.solver().entry(from_pivot, direction, tip, psi_sign)
+    }
+
+    /// The per-edge constants of [`EdgeSolver::entry`], computed once.
+    pub fn solver(&self) -> EdgeSolver<'_> {
+        EdgeSolver {
+            edge: self,
+            tip_offset_mm: self.tip_offset_mm(),
+            cos_half_span: self.cos_half_span(),
+            circle_radius_mm: self.nominal_radius_mm + self.radius_error_mm,
+            refinements: if self.deviation.is_zero() {
+                0
+            } else {
+                EDGE_REFINEMENTS
+            },
+        }
+    }
+}
+
+/// An edge ready for many entries: what does not change from one ray to the next
+/// (the tip offset, cos of the half span, the real circle's radius, whether the edge
+/// departs from its circle) evaluated once, so an entry costs one square root and one
+/// division when the edge is a circle.
+#[derive(Debug, Clone, Copy)]
+pub struct EdgeSolver<'a> {
+    pub edge: &'a EdgeModel,
+    pub tip_offset_mm: f64,
+    pub cos_half_span: f64,
+    /// R + e: the circle of the edge without its radial deviation.
+    pub circle_radius_mm: f64,
+    /// Hit-angle corrections: 0 for a circle, [`EDGE_REFINEMENTS`] otherwise.
+    pub refinements: usize,
+}
+
+impl EdgeSolver<'_> {
+    /// Where the line `origin + d·direction` enters the edge, as `d`, or `None` when it
     /// misses the edge arc. `from_pivot` is `origin − nominal nose centre`, `tip` the
     /// unit tip direction and `psi_sign` ±1 maps the frame's clockwise angle to the
     /// tool's ψ (−1 in the mirrored branch, where the frame is the machine's mirror).
@@ -154,20 +198,15 @@ impl EdgeModel {
         psi_sign: f64,
     ) -> Option<f64> {
         // Origin relative to the real arc centre, which is tip_offset behind the pivot.
-        let w = from_pivot + self.tip_offset_mm() * tip;
-        let cos_half_span = self.cos_half_span();
-        let mut radius = self.nominal_radius_mm + self.radius_error_mm;
-        let passes = if self.deviation.is_zero() {
-            0
-        } else {
-            EDGE_REFINEMENTS
-        };
+        let w = from_pivot + self.tip_offset_mm * tip;
+        let mut radius = self.circle_radius_mm;
+        let passes = self.refinements;
         let mut d = circle_entry(w, direction, radius)?;
         for pass in 0..=passes {
             // The hit lies on the circle of `radius`: its angle from the tip is within the
             // edge arc when hit·tip ≥ radius·cos(half span).
             let hit = w + d * direction;
-            if hit.dot(tip) < radius * cos_half_span {
+            if hit.dot(tip) < radius * self.cos_half_span {
                 return None;
             }
             if pass == passes {
@@ -175,7 +214,7 @@ impl EdgeModel {
             }
             // ψ: the clockwise angle from the tip to the hit point.
             let psi = psi_sign * (hit.x * tip.y - hit.y * tip.x).atan2(hit.dot(tip));
-            radius = self.radius_at(psi);
+            radius = self.edge.radius_at(psi);
             d = circle_entry(w, direction, radius)?;
         }
         Some(d)

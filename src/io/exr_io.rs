@@ -1,7 +1,8 @@
 //! OpenEXR input/output for named f32 channel maps with string metadata.
 //!
 //! Files hold one scan-line layer, every channel stored as 32-bit float with
-//! lossless ZIP compression, so samples round-trip bit-exactly. Each attribute
+//! lossless PIZ compression (wavelet + Huffman: about the size of ZIP, written in
+//! half the time), so samples round-trip bit-exactly. Each attribute
 //! is stored as an EXR `string` attribute in the header.
 
 use std::collections::{BTreeMap, HashSet};
@@ -52,7 +53,7 @@ pub fn write_exr(path: &Path, image: &ExrImage) -> io::Result<()> {
             .insert(Text::from(key.as_str()), AttributeValue::Text(value));
     }
     let encoding = Encoding {
-        compression: Compression::ZIP16,
+        compression: Compression::PIZ,
         blocks: Blocks::ScanLines,
         line_order: LineOrder::Increasing,
     };

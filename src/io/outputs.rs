@@ -19,10 +19,13 @@ use super::colour::ColourMap;
 use super::exr_io::{ExrImage, write_exr};
 use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
 use super::png_out::{FalseColourPlot, MapGeometry, write_map_png, write_png16_gray};
-use crate::analysis::{Raster, top_view, top_view_within};
+use crate::analysis::Raster;
+use crate::analysis::maps::{RowSource, full_half_width_mm, top_views_within};
 use crate::correct::part_sphere;
+use crate::field::PolarGrid;
 use crate::process::Process;
 use crate::run::RunResult;
+use rayon::prelude::*;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -107,55 +110,69 @@ fn clear_outputs(dir: &Path) -> io::Result<Vec<PathBuf>> {
     Ok(removed)
 }
 
-/// Writes all outputs of a run into `dir` and returns the paths written.
+/// Writes all outputs of a run into `dir` and returns the paths written. Independent
+/// groups (the EXR files, the map PNGs, the centre zoom and tables, the texture figures
+/// for the summary) run side by side; the summary and report come last.
 pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
     let started = Instant::now();
     std::fs::create_dir_all(dir)?;
+    let maps = top_views(result);
+    let attributes = common_attributes(result, &maps.deviation_nm);
+    let ((exrs, pngs), (centre, texture)) = rayon::join(
+        || {
+            rayon::join(
+                || write_exrs(dir, result, &maps, &attributes),
+                || write_map_pngs(dir, result, &maps, &attributes),
+            )
+        },
+        || {
+            rayon::join(
+                || write_centre_and_tables(dir, result),
+                || texture_of(result),
+            )
+        },
+    );
+    let ((png_scale, pngs), mut written) = (pngs?, exrs?);
+    written.extend(pngs);
+    written.extend(centre?);
+
+    let output_s = started.elapsed().as_secs_f64();
+    let summary = summary_json(result, &maps.deviation_nm, png_scale, output_s, texture);
+    let text = serde_json::to_string_pretty(&summary).map_err(io::Error::other)?;
+    write_bytes_atomically(&dir.join("summary.json"), text.as_bytes())?;
+    written.push(dir.join("summary.json"));
+    written.push(super::html::write_run_html(dir, &summary)?);
+    Ok(written)
+}
+
+/// `surface.exr` and (below [`POLAR_EXR_MAX_SAMPLES`]) `polar.exr`.
+fn write_exrs(
+    dir: &Path,
+    result: &RunResult,
+    maps: &TopViews,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<Vec<PathBuf>> {
     let grid = result.grid();
     let pixels = result.job.map_pixels as usize;
-
-    let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
-    let scallop_nm: Vec<f64> = result.scallops.map_mm.iter().map(|d| d * 1e6).collect();
-    let protrusion_nm: Vec<f64> = result.protrusion.map_mm.iter().map(|d| d * 1e6).collect();
     let rings = grid.ring_count();
-    let diameter_mm: Option<Vec<f64>> = result.cutting_diameter_mm.as_ref().map(|d| {
-        d.iter()
-            .map(|v| if v.is_finite() { *v } else { 0.0 })
-            .collect()
-    });
-    let TopViews {
-        deviation_nm: deviation_map,
-        scallop_nm: scallop_map,
-        height_mm: height_map,
-        protrusion_nm: protrusion_map,
-        cutting_diameter_mm: diameter_map,
-    } = top_views(result);
-
-    let attributes = common_attributes(result, &deviation_map);
-    let mut written = Vec::new();
-    let mut file = |name: &str| {
-        let path = dir.join(name);
-        written.push(path.clone());
-        path
-    };
-
-    let valid_channel: Vec<f32> = deviation_map
+    let valid_channel: Vec<f32> = maps
+        .deviation_nm
         .valid
         .iter()
         .map(|&v| v as u8 as f32)
         .collect();
     let mut surface_channels = vec![
-        ("deviation_nm".into(), deviation_map.values.clone()),
-        ("height_mm".into(), height_map.values.clone()),
-        ("scallop_nm".into(), scallop_map.values.clone()),
-        ("protrusion_nm".into(), protrusion_map.values.clone()),
+        ("deviation_nm".into(), maps.deviation_nm.values.clone()),
+        ("height_mm".into(), maps.height_mm.values.clone()),
+        ("scallop_nm".into(), maps.scallop_nm.values.clone()),
+        ("protrusion_nm".into(), maps.protrusion_nm.values.clone()),
         ("valid".into(), valid_channel),
     ];
-    if let Some(map) = &diameter_map {
+    if let Some(map) = &maps.cutting_diameter_mm {
         surface_channels.push(("cutting_diameter_mm".into(), map.values.clone()));
     }
     write_exr(
-        &file("surface.exr"),
+        &dir.join("surface.exr"),
         &ExrImage {
             width: pixels,
             height: pixels,
@@ -186,53 +203,49 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         "units".into(),
         "deviation_nm: nm along the outward normal, + = material left; scallop_nm: nm; protrusion_nm: nm above the surround inside the central feature; pass: revolution·4 + branch (0 direct, 1 mirrored past the axis, 2 flank; −1 = uncut)".into(),
     );
-    write_exr(
-        &file("polar.exr"),
-        &ExrImage {
-            width: rings,
-            height: grid.azimuths as usize,
-            channels: vec![
-                (
-                    "deviation_nm".into(),
-                    deviation_nm.iter().map(|&v| v as f32).collect(),
-                ),
-                (
-                    "scallop_nm".into(),
-                    scallop_nm.iter().map(|&v| v as f32).collect(),
-                ),
-                (
-                    "protrusion_nm".into(),
-                    protrusion_nm.iter().map(|&v| v as f32).collect(),
-                ),
-                ("pass".into(), result.field.pass_channel()),
-            ]
-            .into_iter()
-            .chain(diameter_mm.as_ref().map(|d| {
-                (
-                    "cutting_diameter_mm".to_string(),
-                    d.iter().map(|&v| v as f32).collect(),
-                )
-            }))
-            .collect(),
-            attributes: polar_attributes,
-        },
-    )?;
+    if polar_exr_written(grid) {
+        write_exr(
+            &dir.join("polar.exr"),
+            &ExrImage {
+                width: rings,
+                height: grid.azimuths as usize,
+                channels: polar_channels(result),
+                attributes: polar_attributes,
+            },
+        )?;
+    }
 
-    let png_scale = write_deviation_png16(&file("deviation.png"), &deviation_map, &attributes)?;
+    Ok([dir.join("surface.exr")]
+        .into_iter()
+        .chain(polar_exr_written(grid).then(|| dir.join("polar.exr")))
+        .collect())
+}
+
+/// The map PNGs: the 16-bit deviation (whose scale it returns), the false-colour
+/// deviation and scallop maps, and the milling cutting diameter.
+fn write_map_pngs(
+    dir: &Path,
+    result: &RunResult,
+    maps: &TopViews,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<(Png16Scale, Vec<PathBuf>)> {
+    let pixels = result.job.map_pixels as usize;
+    let png_scale =
+        write_deviation_png16(&dir.join("deviation.png"), &maps.deviation_nm, attributes)?;
     let stats = &result.deviation;
     // Diverging colours centred on the map's mean (white), so form shows even when the
     // whole surface sits above nominal; the bar is labelled in true deviation values and
     // spans at least ±1 nm, so a clean part is white rather than its numerical dust.
-    let (low, high, mean) = valid_range(&deviation_map);
+    let (low, high, mean) = valid_range(&maps.deviation_nm);
     // The colour bar spans 99.8 % of the pixels: a single pixel at the axis must not
     // wash out the rest of the map; the footer says how many lie beyond the bar's ends.
-    let (p_low, p_high) = percentiles(&deviation_map, 0.001);
+    let (p_low, p_high) = percentiles(&maps.deviation_nm, 0.001);
     let half_range = (p_high - mean).max(mean - p_low).max(1.0);
-    let beyond = pixels_beyond(&deviation_map, mean - half_range, mean + half_range);
+    let beyond = pixels_beyond(&maps.deviation_nm, mean - half_range, mean + half_range);
     let footer = format!(
         "map PV {:.2} nm  RMS {:.2} nm  white = mean {mean:.2} nm{},  all samples PV {:.1} nm  RMS {:.1} nm{}  {} engine",
         high - low,
-        raster_rms(&deviation_map),
+        raster_rms(&maps.deviation_nm),
         match beyond {
             0 => String::new(),
             n => format!(" ({n} pixels beyond the bar, drawn at its ends)"),
@@ -242,12 +255,12 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         finer_than_pixels(stats.pv_nm, f64::from(high - low)),
         result.engine.kind
     );
-    let geometry = MapGeometry::centred(deviation_map.half_width_mm, pixels);
+    let geometry = MapGeometry::centred(maps.deviation_nm.half_width_mm, pixels);
     write_map_png(
-        &file("deviation_colour.png"),
+        &dir.join("deviation_colour.png"),
         &FalseColourPlot {
-            values: &deviation_map.values,
-            valid: &deviation_map.valid,
+            values: &maps.deviation_nm.values,
+            valid: &maps.deviation_nm.valid,
             width: pixels as u32,
             height: pixels as u32,
             range: (mean - half_range, mean + half_range),
@@ -257,9 +270,9 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
             footer: &footer,
         },
         &geometry,
-        &png_text(&attributes),
+        &png_text(attributes),
     )?;
-    let (scallop_low, scallop_high, _) = valid_range(&scallop_map);
+    let (scallop_low, scallop_high, _) = valid_range(&maps.scallop_nm);
     let scallop_footer = match &result.scallops.stats {
         Some(s) => format!(
             "map {scallop_low:.1} to {scallop_high:.1} nm (pixel means),  cusps max {:.1} nm  mean {:.1} nm",
@@ -268,10 +281,10 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         None => "scallops not resolved by the grid".to_string(),
     };
     write_map_png(
-        &file("scallop_colour.png"),
+        &dir.join("scallop_colour.png"),
         &FalseColourPlot {
-            values: &scallop_map.values,
-            valid: &scallop_map.valid,
+            values: &maps.scallop_nm.values,
+            valid: &maps.scallop_nm.valid,
             width: pixels as u32,
             height: pixels as u32,
             range: (scallop_low, scallop_high),
@@ -281,14 +294,14 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
             footer: &scallop_footer,
         },
         &geometry,
-        &png_text(&attributes),
+        &png_text(attributes),
     )?;
 
-    if let Some(map) = &diameter_map {
+    if let Some(map) = &maps.cutting_diameter_mm {
         let (low, high, _) = valid_range(map);
         let stats = cutting_diameter_stats(result);
         write_map_png(
-            &file("cutting_diameter.png"),
+            &dir.join("cutting_diameter.png"),
             &FalseColourPlot {
                 values: &map.values,
                 valid: &map.valid,
@@ -312,20 +325,34 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
                 },
             },
             &geometry,
-            &png_text(&attributes),
+            &png_text(attributes),
         )?;
     }
-    let half_width = centre_half_width_mm(result);
-    write_centre_map(&file("deviation_centre.png"), result, half_width, None)?;
-    write_centre_profile(&file("centre_profile.png"), &[("", result)], half_width)?;
+    let names = [
+        "deviation.png",
+        "deviation_colour.png",
+        "scallop_colour.png",
+    ];
+    let diameter = maps
+        .cutting_diameter_mm
+        .as_ref()
+        .map(|_| "cutting_diameter.png");
+    let paths = names.into_iter().chain(diameter).map(|n| dir.join(n));
+    Ok((png_scale, paths.collect()))
+}
 
+/// The centre zoom and profile, `radial_profile.csv` and `job.resolved.toml`.
+fn write_centre_and_tables(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
+    let half_width = centre_half_width_mm(result);
+    write_centre_map(&dir.join("deviation_centre.png"), result, half_width, None)?;
+    write_centre_profile(&dir.join("centre_profile.png"), &[("", result)], half_width)?;
     write_bytes_atomically(
-        &file("radial_profile.csv"),
+        &dir.join("radial_profile.csv"),
         radial_profile_csv(result).as_bytes(),
     )?;
     let resolved = toml::to_string_pretty(&result.job.resolved).map_err(io::Error::other)?;
     write_bytes_atomically(
-        &file("job.resolved.toml"),
+        &dir.join("job.resolved.toml"),
         format!(
             "# {} — resolved by toolmark {}\n{resolved}",
             result.job.name,
@@ -333,13 +360,23 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
         )
         .as_bytes(),
     )?;
+    Ok([
+        "deviation_centre.png",
+        "centre_profile.png",
+        "radial_profile.csv",
+        "job.resolved.toml",
+    ]
+    .map(|name| dir.join(name))
+    .to_vec())
+}
 
-    let output_s = started.elapsed().as_secs_f64();
-    let summary = summary_json(result, &deviation_map, png_scale, output_s);
-    let text = serde_json::to_string_pretty(&summary).map_err(io::Error::other)?;
-    write_bytes_atomically(&file("summary.json"), text.as_bytes())?;
-    written.push(super::html::write_run_html(dir, &summary)?);
-    Ok(written)
+/// The texture figures of a run's field (for the summary).
+fn texture_of(result: &RunResult) -> crate::analysis::texture::Texture {
+    crate::analysis::texture::analyse_texture(
+        result.grid(),
+        &result.field,
+        result.job.process.pass_spacing_mm(),
+    )
 }
 
 /// Half-width of the central zoom: three times the central feature's radius, or a
@@ -367,8 +404,8 @@ pub fn write_centre_map(
 ) -> io::Result<(f32, f32)> {
     const PIXELS: usize = 512;
     let grid = result.grid();
-    let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
-    let map = top_view_within(grid, &deviation_nm, PIXELS, half_width_mm);
+    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
+    let map = top_views_within(grid, &[&deviation], PIXELS, half_width_mm).remove(0);
     let (low, high, mean) = valid_range(&map);
     let range = range.unwrap_or_else(|| {
         let half = (high - mean).max(mean - low).max(1.0);
@@ -602,41 +639,123 @@ pub struct TopViews {
     pub cutting_diameter_mm: Option<Raster>,
 }
 
-/// Every top view of a run (what `surface.exr` holds).
+/// Every top view of a run (what `surface.exr` holds), made together: each quantity is
+/// produced row by row as the maps read it (no full-resolution copy), and the maps share
+/// their resampling weights.
 pub fn top_views(result: &RunResult) -> TopViews {
     let grid = result.grid();
+    let field = &result.field;
     let pixels = result.job.map_pixels as usize;
-    let nm = |v: &[f64]| v.iter().map(|d| d * 1e6).collect::<Vec<f64>>();
-    let rings = grid.ring_count();
-    let height_mm: Vec<f64> = result
-        .field
-        .depth_mm
-        .iter()
-        .enumerate()
-        .map(|(sample, depth)| {
-            let ring = &grid.rings[sample % rings];
-            ring.height_mm + depth / ring.normal.y
-        })
-        .collect();
-    let diameter = result.cutting_diameter_mm.as_ref().map(|d| {
-        let finite: Vec<f64> = d
-            .iter()
-            .map(|v| if v.is_finite() { *v } else { 0.0 })
-            .collect();
-        top_view(grid, &finite, pixels)
-    });
-    TopViews {
-        deviation_nm: top_view(grid, &nm(&result.field.depth_mm), pixels),
-        scallop_nm: top_view(grid, &nm(&result.scallops.map_mm), pixels),
-        height_mm: top_view(grid, &height_mm, pixels),
-        protrusion_nm: top_view(grid, &nm(&result.protrusion.map_mm), pixels),
-        cutting_diameter_mm: diameter,
+    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
+    let scallop = |row: u32, out: &mut [f64]| {
+        result.scallops.row_mm(grid, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let height = |row: u32, out: &mut [f64]| {
+        let (depths, _) = field.row(grid, row);
+        for ((out, depth), ring) in out.iter_mut().zip(depths).zip(&grid.rings) {
+            *out = ring.height_mm + depth / ring.normal.y;
+        }
+    };
+    let protrusion = |row: u32, out: &mut [f64]| {
+        result.protrusion.row_mm(grid, field, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let diameter = |row: u32, out: &mut [f64]| diameter_row_mm(result, row, out);
+    let mut sources: Vec<RowSource> = vec![&deviation, &scallop, &height, &protrusion];
+    if result.cutting_diameter_mm.is_some() {
+        sources.push(&diameter);
     }
+    let mut maps = top_views_within(grid, &sources, pixels, full_half_width_mm(grid)).into_iter();
+    let mut next = || maps.next().expect("one map per quantity");
+    TopViews {
+        deviation_nm: next(),
+        scallop_nm: next(),
+        height_mm: next(),
+        protrusion_nm: next(),
+        cutting_diameter_mm: result.cutting_diameter_mm.as_ref().map(|_| next()),
+    }
+}
+
+/// One azimuth row of the deviation (nm).
+fn deviation_row_nm(result: &RunResult, row: u32, out: &mut [f64]) {
+    let (depths, _) = result.field.row(result.grid(), row);
+    for (out, depth) in out.iter_mut().zip(depths) {
+        *out = depth * 1e6;
+    }
+}
+
+/// One azimuth row of the milling cutting diameter (mm; 0 where uncut).
+fn diameter_row_mm(result: &RunResult, row: u32, out: &mut [f64]) {
+    let rings = result.grid().ring_count();
+    let start = row as usize * rings;
+    if let Some(diameters) = &result.cutting_diameter_mm {
+        for (out, v) in out.iter_mut().zip(&diameters[start..start + rings]) {
+            *out = if v.is_finite() { *v } else { 0.0 };
+        }
+    }
+}
+
+/// The native grid's samples above which `polar.exr` is not written: its f32 channels
+/// (and the encoder's copy of them) would need gigabytes; the top views, profile and
+/// statistics still cover the whole field. Recorded in `summary.json`.
+pub const POLAR_EXR_MAX_SAMPLES: usize = 50_000_000;
+
+/// Whether a run on `grid` writes `polar.exr`.
+pub fn polar_exr_written(grid: &PolarGrid) -> bool {
+    grid.sample_count() <= POLAR_EXR_MAX_SAMPLES
+}
+
+/// The channels of `polar.exr`, filled row by row in parallel.
+fn polar_channels(result: &RunResult) -> Vec<(String, Vec<f32>)> {
+    let grid = result.grid();
+    let rings = grid.ring_count();
+    let field = &result.field;
+    let channel = |fill: &(dyn Fn(u32, &mut [f64]) + Sync)| -> Vec<f32> {
+        let mut samples = vec![0.0f32; grid.sample_count()];
+        samples
+            .par_chunks_mut(rings)
+            .enumerate()
+            .for_each(|(row, samples)| {
+                let mut values = vec![0.0; rings];
+                fill(row as u32, &mut values);
+                for (sample, value) in samples.iter_mut().zip(&values) {
+                    *sample = *value as f32;
+                }
+            });
+        samples
+    };
+    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
+    let scallop = |row: u32, out: &mut [f64]| {
+        result.scallops.row_mm(grid, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let protrusion = |row: u32, out: &mut [f64]| {
+        result.protrusion.row_mm(grid, field, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let mut channels = vec![
+        ("deviation_nm".to_string(), channel(&deviation)),
+        ("scallop_nm".to_string(), channel(&scallop)),
+        ("protrusion_nm".to_string(), channel(&protrusion)),
+        ("pass".to_string(), field.pass_channel()),
+    ];
+    if result.cutting_diameter_mm.is_some() {
+        let diameter = |row: u32, out: &mut [f64]| diameter_row_mm(result, row, out);
+        channels.push(("cutting_diameter_mm".to_string(), channel(&diameter)));
+    }
+    channels
 }
 
 /// `summary.json` of a run without writing anything (the timing of the output step is 0).
 pub fn summary(result: &RunResult, deviation_map: &Raster) -> serde_json::Value {
-    summary_json(result, deviation_map, png16_scale(deviation_map), 0.0)
+    summary_json(
+        result,
+        deviation_map,
+        png16_scale(deviation_map),
+        0.0,
+        texture_of(result),
+    )
 }
 
 fn write_deviation_png16(
@@ -701,6 +820,7 @@ fn summary_json(
     map: &Raster,
     png_scale: Png16Scale,
     output_s: f64,
+    texture: crate::analysis::texture::Texture,
 ) -> serde_json::Value {
     let grid = result.grid();
     let job = &result.job;
@@ -747,11 +867,7 @@ fn summary_json(
         "deviation": result.deviation,
         "scallop": scallop,
         "protrusion": result.protrusion,
-        "texture": crate::analysis::texture::analyse_texture(
-            grid,
-            &result.field,
-            job.process.pass_spacing_mm(),
-        ),
+        "texture": texture,
         "cutting_diameter": cutting_diameter_stats(result),
         "maps": {
             "pixels": map.pixels,

@@ -9,6 +9,7 @@
 
 use super::pose_table::{PoseTable, ToolPose};
 use crate::geometry::{ArcNoseTool, MeridianArcLength, SurfaceOfRevolution};
+use rayon::prelude::*;
 use std::f64::consts::TAU;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -75,6 +76,7 @@ impl TurningSpiral {
             start_angle_rad: 0.0,
             steps_per_rev,
             poses: (0..node_count)
+                .into_par_iter()
                 .map(|n| path.pose(n as f64 * step))
                 .collect(),
         }
@@ -160,6 +162,7 @@ impl<'a> SpiralPath<'a> {
         let step = TAU / steps_per_rev as f64;
         let samples = 2000;
         (0..samples)
+            .into_par_iter()
             .map(|i| {
                 let c = (self.end_angle_rad - step).max(0.0) * i as f64 / (samples - 1) as f64;
                 let a = self.pose(c);
@@ -168,7 +171,7 @@ impl<'a> SpiralPath<'a> {
                 let chord_mid = a.lerp(b, 0.5);
                 (mid.x_mm - chord_mid.x_mm).hypot(mid.z_mm - chord_mid.z_mm)
             })
-            .fold(0.0, f64::max)
+            .reduce(|| 0.0, f64::max)
     }
 }
 

@@ -2,18 +2,25 @@
 //! machine can hold it. `check` prints the estimate; `run` refuses a job whose peak
 //! memory would exceed what the machine has available, before any work or output.
 //!
-//! The per-sample figures were measured (peak resident set, `/usr/bin/time -f %M`) on
-//! flat facing with 32 and 256 azimuths (0.16 M and 1.28 M samples) on the 2-core
-//! project machine: the slope is 93 bytes per sample on the CPU engine and 185 on the
-//! GPU engine (lavapipe: staging copies of the field), over a 37 MB base. The estimate
-//! rounds up to 110 / 200 bytes and adds 40 bytes per map pixel per map written.
+//! The per-sample figures were measured (peak resident set, `/usr/bin/time -f %M`, and
+//! `toolmark bench --target`'s VmHWM) on the 2-core project machine after issue 10 made
+//! the analysis stream (no full-resolution copies): flat facing with 256 and 2048
+//! azimuths (1.3 M and 10.2 M samples) rises 47.5 bytes per sample on both engines, the
+//! seed-002 target job at 512 azimuths (24 M samples) peaks at 62 bytes per sample —
+//! `polar.exr`'s f32 channels and the encoder's copies of them; above
+//! `POLAR_EXR_MAX_SAMPLES` that file is not written and the target job at 2048 azimuths
+//! (97 M samples) peaks at 17.4 bytes per sample (the field's 12, its scallop cusps and
+//! the maps' bands). The estimate rounds up to 70 and 24 bytes and adds 40 bytes per map
+//! pixel per map written.
 
 use super::Job;
 use crate::process::Process;
 
-/// Peak bytes per grid sample, by engine (see the module docs).
-pub const CPU_BYTES_PER_SAMPLE: f64 = 110.0;
-pub const GPU_BYTES_PER_SAMPLE: f64 = 200.0;
+/// Peak bytes per grid sample while `polar.exr` is written (see the module docs).
+pub const CPU_BYTES_PER_SAMPLE: f64 = 70.0;
+pub const GPU_BYTES_PER_SAMPLE: f64 = 70.0;
+/// Peak bytes per grid sample above `POLAR_EXR_MAX_SAMPLES` (no `polar.exr`).
+pub const BYTES_PER_SAMPLE_WITHOUT_POLAR: f64 = 24.0;
 const BASE_BYTES: f64 = 64.0e6;
 const BYTES_PER_MAP_PIXEL: f64 = 40.0 * 6.0;
 
@@ -28,10 +35,10 @@ pub struct Estimate {
 }
 
 /// Rough removal cost per sample on the CPU engine, 2 cores (README "Performance":
-/// turning 0.37 µs, a toothed generator 1.7 µs, milling 11 µs per sample).
+/// turning 0.06 µs since issue 10, a toothed generator 1.7 µs, milling 11 µs per sample).
 fn seconds_per_sample(process: &Process) -> f64 {
     match process {
-        Process::Turning(_) => 0.4e-6,
+        Process::Turning(_) => 0.06e-6,
         Process::Generating(g) if g.setup.wheel.teeth > 0 => 1.7e-6,
         Process::Generating(_) => 0.1e-6,
         Process::Milling(_) => 11.0e-6,
@@ -41,10 +48,18 @@ fn seconds_per_sample(process: &Process) -> f64 {
 pub fn estimate(job: &Job) -> Estimate {
     let samples = job.sample_count() as f64;
     let maps = f64::from(job.map_pixels).powi(2) * BYTES_PER_MAP_PIXEL;
+    let polar = samples <= crate::io::outputs::POLAR_EXR_MAX_SAMPLES as f64;
+    let per_sample = |with_polar: f64| {
+        if polar {
+            with_polar
+        } else {
+            BYTES_PER_SAMPLE_WITHOUT_POLAR
+        }
+    };
     Estimate {
         samples,
-        cpu_bytes: BASE_BYTES + samples * CPU_BYTES_PER_SAMPLE + maps,
-        gpu_bytes: BASE_BYTES + samples * GPU_BYTES_PER_SAMPLE + maps,
+        cpu_bytes: BASE_BYTES + samples * per_sample(CPU_BYTES_PER_SAMPLE) + maps,
+        gpu_bytes: BASE_BYTES + samples * per_sample(GPU_BYTES_PER_SAMPLE) + maps,
         cpu_seconds: samples * seconds_per_sample(&job.process),
     }
 }
@@ -114,8 +129,9 @@ mod tests {
     }
 
     #[test]
-    fn the_issue_job_of_3_9e8_samples_is_refused_on_a_24_gib_machine() {
-        // The issue's case: flat facing at 3.9e8 samples wanted ~48 GB and aborted.
+    fn the_issue_job_of_3_9e8_samples_is_refused_on_an_8_gib_machine() {
+        // The issue's case: flat facing at 3.9e8 samples wanted ~48 GB and aborted; with
+        // the analysis streaming (issue 10) it needs ~9.4 GB.
         // 10 mm flat, 1 µm pitch → 5001 rings; 78 000 azimuths would exceed the 65 536
         // allowed, so use a finer pitch: 0.0128 µm × 1000 azimuths ≈ 3.9e8 samples.
         let text = std::fs::read_to_string(concat!(
@@ -128,8 +144,12 @@ mod tests {
         let job = Job::from_toml_str(&text, "big").unwrap();
         let estimate = estimate(&job);
         assert!((estimate.samples - 3.9e8).abs() < 0.01e8, "{estimate}");
-        // 110 B/sample × 3.9e8 = 43 GB: more than 24 GiB.
-        let err = check_fits(&job, estimate.cpu_bytes, 24.0 * 1024f64.powi(3)).unwrap_err();
+        // 24 B/sample × 3.9e8 = 9.4 GB (no polar.exr at this size): more than 8 GiB.
+        assert!(
+            (estimate.cpu_bytes / 9.5e9 - 1.0).abs() < 0.02,
+            "{estimate}"
+        );
+        let err = check_fits(&job, estimate.cpu_bytes, 8.0 * 1024f64.powi(3)).unwrap_err();
         assert_eq!(err.field, "grid.pitch_um");
         assert!(err.message.contains("GB"), "{err}");
         // The default job (0.95 M samples) fits in 1 GB.
