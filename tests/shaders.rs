@@ -2,11 +2,12 @@
 //! struct shared with Rust has the same member offsets and size on both sides.
 
 use std::mem::{offset_of, size_of};
-use toolmark::engine::gpu::{GENERATING_SHADER, TURNING_SHADER, layout};
+use toolmark::engine::gpu::{GENERATING_SHADER, MILLING_SHADER, TURNING_SHADER, layout};
 
-const SHADERS: [(&str, &str, &str); 2] = [
+const SHADERS: [(&str, &str, &str); 3] = [
     ("turning.wgsl", TURNING_SHADER, "remove_turning"),
     ("generating.wgsl", GENERATING_SHADER, "remove_generating"),
+    ("milling.wgsl", MILLING_SHADER, "remove_milling"),
 ];
 
 fn module(name: &str, source: &str) -> naga::Module {

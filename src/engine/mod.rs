@@ -3,6 +3,7 @@
 
 pub mod cpu;
 pub mod cpu_generating;
+pub mod cpu_milling;
 pub mod generating_scene;
 pub mod gpu;
 pub mod milling_scene;

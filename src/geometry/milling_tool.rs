@@ -18,7 +18,7 @@ impl MillingTool {
             MillingTool::EndMill(cutter) if cutter.major_radius_mm == 0.0 => {
                 ball_entry(cutter, pose, origin, dir)
             }
-            MillingTool::EndMill(cutter) => cutter.ray_interval(pose, origin, dir).map(|i| i.0),
+            MillingTool::EndMill(cutter) => cutter.ray_entry(pose, origin, dir),
             MillingTool::Disc(disc) => disc.ray_interval(pose, origin, dir).map(|i| i.0),
         }
     }
@@ -31,6 +31,12 @@ impl MillingTool {
             MillingTool::EndMill(cutter) => cutter.signed_distance(pose, point),
             MillingTool::Disc(disc) => disc.signed_distance_estimate(pose, point),
         }
+    }
+
+    /// Whether the tool's surface is smooth where it cuts (ball, bull-nose), so the
+    /// entry varies smoothly along a pass; a flat end's and a disc's rims leave kinks.
+    pub fn is_smooth(&self) -> bool {
+        matches!(self, MillingTool::EndMill(cutter) if cutter.corner_radius_mm > 0.0)
     }
 
     /// The largest distance of the cutting solid from its pose centre.
@@ -87,26 +93,28 @@ impl MillingTool {
     }
 }
 
-/// A ball-end mill's first entry in closed form: the ball (a quadratic) or its shank
-/// (the cylinder of the same radius from the centre up to the cap, a quadratic), the
-/// lower of the two. Equal to `Cutter::ray_interval`'s entry (tested), much cheaper.
+/// A ball-end mill's first entry in closed form: the ball (a quadratic) where the ray
+/// meets its lower half, else its shank (the cylinder of the same radius from the
+/// centre up to the cap, a quadratic). Equal to `Cutter::ray_interval`'s entry (tested), much cheaper.
 fn ball_entry(cutter: &Cutter, pose: &CutterPose, origin: DVec3, dir: DVec3) -> Option<f64> {
     let r = cutter.corner_radius_mm;
     let w = pose.axis;
     let o = origin - pose.centre;
     // |o + t d|² = r² (unit d): t = −b ∓ √(b² − c); the entry is the smaller root.
     let b = o.dot(dir);
-    let c = (o.length() - r) * (o.length() + r);
+    let length = o.length();
+    let c = (length - r) * (length + r);
     let discriminant = b * b - c;
-    let sphere = (discriminant >= 0.0).then(|| {
+    if discriminant >= 0.0 {
         let root = discriminant.sqrt();
         // −b − root without cancellation when b < 0.
-        if b < 0.0 { c / (root - b) } else { -b - root }
-    });
-    let sphere = sphere.filter(|t| {
-        // The lower half of the ball only; its upper half is inside the shank.
-        (o + t * dir).dot(w) <= 1e-12
-    });
+        let t = if b < 0.0 { c / (root - b) } else { -b - root };
+        // On the lower half of the ball it is the solid's entry (the solid is convex);
+        // the upper half lies inside the shank.
+        if (o + t * dir).dot(w) <= 1e-12 {
+            return Some(t);
+        }
+    }
     // Shank: radial |v0 + t vd| ≤ r with 0 ≤ a ≤ L.
     let (a0, ad) = (o.dot(w), dir.dot(w));
     let (v0, vd) = (o - a0 * w, dir - ad * w);
@@ -139,10 +147,7 @@ fn ball_entry(cutter: &Cutter, pose: &CutterPose, origin: DVec3, dir: DVec3) -> 
             x.min(y)
         })
     };
-    match (sphere, shank) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    }
+    shank
 }
 
 #[cfg(test)]

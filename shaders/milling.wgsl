@@ -1,0 +1,1174 @@
+// Milling removal kernel: one invocation per dexel (sample of the nominal surface).
+// The sample gathers the passes binned near it, locates on each the point nearest it,
+// ranks them and searches them: a bracket about the located point (a ball on a pass
+// with one valley) or a coarse scan, refined by Brent's method; with teeth, the stamps.
+// f64 twin: `milling_dexel` and its helpers in src/engine/cpu_milling.rs, candidates
+// in src/engine/milling_scene.rs, entries in src/geometry/milling_tool.rs, cutter.rs and
+// disc_cutter.rs — change them together.
+//
+// Precision: everything happens in the sample's own frame (origin at its nominal
+// point, axes e_r, e_φ, e_z at its azimuth, or x, y, z on an extruded part). A node's
+// offset comes from its cylindrical coordinates as hi + lo pairs: δ = θ − φ and ρ − r
+// are differences of hi + lo pairs, and Δ = ((ρ − r) − 2ρ sin²(δ/2), 2ρ sin(δ/2)cos(δ/2),
+// z − z_s) has no cancellation, so f32 keeps ~0.05 nm where the coordinates are 20 mm.
+// Positions along a pass are a node index plus an f32 fraction relative to it.
+
+struct MillingParams {
+    ring_count: u32,
+    row_count: u32,
+    sample_offset: u32,
+    sample_count: u32,
+    dispatch_width: u32,
+    polar: u32,
+    tool_kind: u32,
+    smooth_tool: u32,
+    cells_x: u32,
+    cells_y: u32,
+    cells_z: u32,
+    ball_slack: u32,
+    stamp_mode: u32,
+    offset_count: u32,
+    refine_steps: u32,
+    entry_steps: u32,
+    stock_top_mm: f32,
+    centre_offset_mm: f32,
+    lateral_mm: f32,
+    search_radius_mm: f32,
+    major_radius_mm: f32,
+    corner_radius_mm: f32,
+    length_mm: f32,
+    slack_per_spacing_squared: f32,
+    slack_displacement_mm: f32,
+    disc_quadratic: f32,
+    disc_linear: f32,
+    disc_constant: f32,
+    disc_low: f32,
+    disc_high: f32,
+    cell_mm: f32,
+    refine_width: f32,
+    refine_gain_mm: f32,
+    tie_mm: f32,
+    entry_tolerance_mm: f32,
+    first_bracket: f32,
+    origin_x: f32,
+    origin_y: f32,
+    origin_z: f32,
+    _padding: f32,
+}
+
+struct MillingRing {
+    r_hi: f32,
+    r_lo: f32,
+    z_hi: f32,
+    z_lo: f32,
+    normal_r: f32,
+    normal_z: f32,
+    _padding0: f32,
+    _padding1: f32,
+}
+
+struct MillingRow {
+    value_hi: f32,
+    value_lo: f32,
+    cos: f32,
+    sin: f32,
+}
+
+struct MillingNode {
+    x_hi: f32,
+    x_lo: f32,
+    y_hi: f32,
+    y_lo: f32,
+    z_hi: f32,
+    z_lo: f32,
+    rho_hi: f32,
+    rho_lo: f32,
+    angle_hi: f32,
+    angle_lo: f32,
+    axis_x: f32,
+    axis_y: f32,
+    axis_z: f32,
+    step_rho: f32,
+    step_angle: f32,
+    step_z: f32,
+    teeth_whole: i32,
+    teeth_fraction: f32,
+    _padding0: f32,
+    _padding1: f32,
+}
+
+struct MillingPass {
+    first_node: u32,
+    node_count: u32,
+    polar: u32,
+    stride: u32,
+    spacing_mm: f32,
+    origin_x: f32,
+    origin_y: f32,
+    origin_z: f32,
+    step_x: f32,
+    step_y: f32,
+    step_z: f32,
+    _padding: f32,
+}
+
+struct MillingRun {
+    pass_index: u32,
+    first: u32,
+    last: u32,
+    _padding0: u32,
+    low_x: f32,
+    low_y: f32,
+    low_z: f32,
+    high_x: f32,
+    high_y: f32,
+    high_z: f32,
+    axis_x: f32,
+    axis_y: f32,
+    axis_z: f32,
+    _padding1: f32,
+    _padding2: f32,
+    _padding3: f32,
+}
+
+@group(0) @binding(0) var<uniform> params: MillingParams;
+@group(0) @binding(1) var<storage, read> rings: array<MillingRing>;
+@group(0) @binding(2) var<storage, read> rows: array<MillingRow>;
+@group(0) @binding(3) var<storage, read> nodes: array<MillingNode>;
+@group(0) @binding(4) var<storage, read> passes: array<MillingPass>;
+@group(0) @binding(5) var<storage, read> cell_start: array<u32>;
+@group(0) @binding(6) var<storage, read> runs: array<MillingRun>;
+@group(0) @binding(7) var<storage, read> tooth_offsets: array<vec2<f32>>;
+@group(0) @binding(8) var<storage, read_write> dexels: array<Dexel>;
+
+// ---------------------------------------------------------------- the sample's frame
+
+struct Frame {
+    r_hi: f32,
+    r_lo: f32,
+    z_hi: f32,
+    z_lo: f32,
+    // Polar: the azimuth; extruded: the row's y.
+    value_hi: f32,
+    value_lo: f32,
+    cos: f32,
+    sin: f32,
+    normal: vec3<f32>,
+    world_point: vec3<f32>,
+    world_normal: vec3<f32>,
+}
+
+fn make_frame(ring: MillingRing, row: MillingRow) -> Frame {
+    var f: Frame;
+    f.r_hi = ring.r_hi;
+    f.r_lo = ring.r_lo;
+    f.z_hi = ring.z_hi;
+    f.z_lo = ring.z_lo;
+    f.value_hi = row.value_hi;
+    f.value_lo = row.value_lo;
+    f.cos = row.cos;
+    f.sin = row.sin;
+    f.normal = vec3<f32>(ring.normal_r, 0.0, ring.normal_z);
+    let r = ring.r_hi + ring.r_lo;
+    let z = ring.z_hi + ring.z_lo;
+    if params.polar == 1u {
+        f.world_point = vec3<f32>(r * row.cos, r * row.sin, z);
+        f.world_normal = vec3<f32>(ring.normal_r * row.cos, ring.normal_r * row.sin, ring.normal_z);
+    } else {
+        f.world_point = vec3<f32>(r, row.value_hi + row.value_lo, z);
+        f.world_normal = vec3<f32>(ring.normal_r, 0.0, ring.normal_z);
+    }
+    return f;
+}
+
+// A machine-frame direction in the frame.
+fn frame_direction(f: Frame, v: vec3<f32>) -> vec3<f32> {
+    if params.polar == 1u {
+        return vec3<f32>(v.x * f.cos + v.y * f.sin, -v.x * f.sin + v.y * f.cos, v.z);
+    }
+    return v;
+}
+
+// The difference of two angles in [0, 2π), brought into (−π, π].
+fn wrap_angle(angle: f32) -> f32 {
+    if angle > PI {
+        return angle - TAU;
+    }
+    if angle <= -PI {
+        return angle + TAU;
+    }
+    return angle;
+}
+
+// A node's azimuth less the sample's, in (−π, π].
+fn node_delta(f: Frame, n: MillingNode) -> f32 {
+    return wrap_angle((n.angle_hi - f.value_hi) + (n.angle_lo - f.value_lo));
+}
+
+// The offset of the point ρ from Z (given as ρ − r and ρ), δ past the sample, at
+// height z − z_s.
+fn polar_offset(rho_less_r: f32, rho: f32, delta: f32, z_less: f32) -> vec3<f32> {
+    let s = sin(0.5 * delta);
+    let c = cos(0.5 * delta);
+    return vec3<f32>(rho_less_r - 2.0 * rho * s * s, 2.0 * rho * s * c, z_less);
+}
+
+// A node's centre relative to the sample, in the frame.
+fn node_offset(f: Frame, n: MillingNode) -> vec3<f32> {
+    let z_less = (n.z_hi - f.z_hi) + (n.z_lo - f.z_lo);
+    if params.polar == 1u {
+        let rho_less_r = (n.rho_hi - f.r_hi) + (n.rho_lo - f.r_lo);
+        return polar_offset(rho_less_r, n.rho_hi, node_delta(f, n), z_less);
+    }
+    return vec3<f32>(
+        (n.x_hi - f.r_hi) + (n.x_lo - f.r_lo),
+        (n.y_hi - f.value_hi) + (n.y_lo - f.value_lo),
+        z_less,
+    );
+}
+
+fn node_axis(n: MillingNode) -> vec3<f32> {
+    return vec3<f32>(n.axis_x, n.axis_y, n.axis_z);
+}
+
+fn node_world(n: MillingNode) -> vec3<f32> {
+    return vec3<f32>(n.x_hi + n.x_lo, n.y_hi + n.y_lo, n.z_hi + n.z_lo);
+}
+
+// A pose in the frame: the centre's offset from the sample and the unit axis.
+struct Pose {
+    centre: vec3<f32>,
+    axis: vec3<f32>,
+}
+
+// A position along a pass: node `base` plus `x` node spacings.
+// The segment of pass p holding base + x, and the fraction along it.
+struct Segment {
+    index: u32,
+    t: f32,
+}
+
+fn segment_at(p: MillingPass, base: u32, x: f32) -> Segment {
+    let last = i32(p.node_count) - 1;
+    let whole = floor(x);
+    var i = clamp(i32(base) + i32(whole), 0, max(last - 1, 0));
+    let t = clamp(x - f32(i - i32(base)), 0.0, 1.0);
+    return Segment(u32(i), t);
+}
+
+fn pose_at(f: Frame, p: MillingPass, base: u32, x: f32) -> Pose {
+    let s = segment_at(p, base, x);
+    let last = p.node_count - 1u;
+    let a = nodes[p.first_node + s.index];
+    let b = nodes[p.first_node + min(s.index + 1u, last)];
+    var centre: vec3<f32>;
+    if p.polar == 1u && params.polar == 1u {
+        let rho_less_r = (a.rho_hi - f.r_hi) + (a.rho_lo - f.r_lo) + s.t * a.step_rho;
+        let delta = node_delta(f, a) + s.t * a.step_angle;
+        let z_less = (a.z_hi - f.z_hi) + (a.z_lo - f.z_lo) + s.t * a.step_z;
+        centre = polar_offset(rho_less_r, a.rho_hi + s.t * a.step_rho, delta, z_less);
+    } else {
+        let da = node_offset(f, a);
+        let db = node_offset(f, b);
+        centre = da + s.t * (db - da);
+    }
+    let axis = frame_direction(f, normalize(mix(node_axis(a), node_axis(b), s.t)));
+    return Pose(centre, axis);
+}
+
+// ---------------------------------------------------------------- the tools
+
+// Parameter interval where lo ≤ a0 + t·ad ≤ hi (empty: x > y).
+fn slab(a0: f32, ad: f32, lo: f32, hi: f32) -> vec2<f32> {
+    if ad == 0.0 {
+        if lo <= a0 && a0 <= hi {
+            return vec2<f32>(-MISS, MISS);
+        }
+        return vec2<f32>(1.0, 0.0);
+    }
+    let ta = (lo - a0) / ad;
+    let tb = (hi - a0) / ad;
+    return vec2<f32>(min(ta, tb), max(ta, tb));
+}
+
+// Parameter interval where |v0 + t·vd| ≤ radius (vectors across the axis).
+fn cylinder(v0: vec3<f32>, vd: vec3<f32>, radius: f32) -> vec2<f32> {
+    let aa = dot(vd, vd);
+    if aa == 0.0 {
+        if length(v0) <= radius {
+            return vec2<f32>(-MISS, MISS);
+        }
+        return vec2<f32>(1.0, 0.0);
+    }
+    let b = dot(v0, vd);
+    let perp = length(v0 - (b / aa) * vd);
+    if perp > radius {
+        return vec2<f32>(1.0, 0.0);
+    }
+    let disc = aa * (radius - perp) * (radius + perp);
+    let rho0 = length(v0);
+    let c = (rho0 - radius) * (rho0 + radius);
+    var q = -(b + sign(b) * sqrt(disc));
+    if b == 0.0 {
+        q = -sqrt(disc);
+    }
+    if q == 0.0 {
+        return vec2<f32>(0.0, 0.0);
+    }
+    let ta = q / aa;
+    let tb = c / q;
+    return vec2<f32>(min(ta, tb), max(ta, tb));
+}
+
+// The ray t·n in the pose's axis frame: axial a0 + t·ad, radial v0 + t·vd.
+struct AxisRay {
+    a0: f32,
+    ad: f32,
+    v0: vec3<f32>,
+    vd: vec3<f32>,
+}
+
+fn axis_ray(pose: Pose, dir: vec3<f32>) -> AxisRay {
+    let o = -pose.centre;
+    let w = pose.axis;
+    let a0 = dot(o, w);
+    let ad = dot(dir, w);
+    return AxisRay(a0, ad, o - a0 * w, dir - ad * w);
+}
+
+// A ball's entry: the sphere where the ray meets its lower half, else the shank.
+fn ball_entry(pose: Pose, dir: vec3<f32>) -> f32 {
+    let r = params.corner_radius_mm;
+    let o = -pose.centre;
+    let b = dot(o, dir);
+    let len = length(o);
+    let c = (len - r) * (len + r);
+    let discriminant = b * b - c;
+    if discriminant >= 0.0 {
+        let root = sqrt(discriminant);
+        var t = -b - root;
+        if b < 0.0 {
+            t = c / (root - b);
+        }
+        if dot(o + t * dir, pose.axis) <= 1.0e-9 {
+            return t;
+        }
+    }
+    let ray = axis_ray(pose, dir);
+    let aa = dot(ray.vd, ray.vd);
+    if aa > 0.0 {
+        let bb = dot(ray.v0, ray.vd);
+        let perp = length(ray.v0 - (bb / aa) * ray.vd);
+        if perp > r {
+            return MISS;
+        }
+        let half = sqrt(aa * (r - perp) * (r + perp));
+        let t_in = (-bb - half) / aa;
+        let t_out = (-bb + half) / aa;
+        let s = slab(ray.a0, ray.ad, 0.0, params.length_mm);
+        let start = max(t_in, s.x);
+        if start <= min(t_out, s.y) {
+            return start;
+        }
+        return MISS;
+    }
+    if length(ray.v0) <= r && ray.ad != 0.0 {
+        let x = (0.0 - ray.a0) / ray.ad;
+        let y = (params.length_mm - ray.a0) / ray.ad;
+        return min(x, y);
+    }
+    return MISS;
+}
+
+// Distance from the ray point at t to the core {ρ ≤ R, a ≥ 0}, and its derivative.
+fn core_distance(ray: AxisRay, t: f32) -> vec2<f32> {
+    let a = ray.a0 + t * ray.ad;
+    let v = ray.v0 + t * ray.vd;
+    let rho = length(v);
+    let er = max(rho - params.major_radius_mm, 0.0);
+    let ea = min(a, 0.0);
+    let g = sqrt(er * er + ea * ea);
+    var drho = 0.0;
+    if er > 0.0 {
+        drho = dot(v, ray.vd) / rho;
+    }
+    return vec2<f32>(g, (er * drho + ea * ray.ad) / max(g, 1.0e-30));
+}
+
+// A bull-nose or flat end's entry: the analytic box, then Newton's steps on the convex
+// distance to the core less r (monotone from outside; a non-falling tangent: a miss).
+fn end_mill_entry(pose: Pose, dir: vec3<f32>) -> f32 {
+    let big = params.major_radius_mm;
+    let small = params.corner_radius_mm;
+    let ray = axis_ray(pose, dir);
+    let s = slab(ray.a0, ray.ad, -small, params.length_mm);
+    let c = cylinder(ray.v0, ray.vd, big + small);
+    var t = max(s.x, c.x);
+    let t1 = min(s.y, c.y);
+    if s.x > s.y || c.x > c.y || t > t1 || abs(t) >= MISS {
+        return MISS;
+    }
+    if small == 0.0 {
+        return t;
+    }
+    for (var i = 0u; i < params.entry_steps; i = i + 1u) {
+        let g = core_distance(ray, t);
+        let h = g.x - small;
+        if h <= 0.0 {
+            return t;
+        }
+        if g.y >= 0.0 {
+            return MISS;
+        }
+        let step = -h / g.y;
+        t = t + step;
+        if t > t1 {
+            return MISS;
+        }
+        if step <= params.entry_tolerance_mm {
+            return t;
+        }
+    }
+    return t;
+}
+
+// A disc cutter's entry: the first piece of the ray inside its hyperboloid
+// ρ² ≤ A s² + B s + C between the edge's end planes.
+fn disc_entry(pose: Pose, dir: vec3<f32>) -> f32 {
+    let ray = axis_ray(pose, dir);
+    let qa = dot(ray.vd, ray.vd) - params.disc_quadratic * ray.ad * ray.ad;
+    let qb = dot(ray.v0, ray.vd) - params.disc_quadratic * ray.a0 * ray.ad - 0.5 * params.disc_linear * ray.ad;
+    let qc = dot(ray.v0, ray.v0) - params.disc_quadratic * ray.a0 * ray.a0 - params.disc_linear * ray.a0 - params.disc_constant;
+    let s = slab(ray.a0, ray.ad, params.disc_low, params.disc_high);
+    if s.x > s.y {
+        return MISS;
+    }
+    // The pieces of qa t² + 2 qb t + qc ≤ 0.
+    var first = vec2<f32>(1.0, 0.0);
+    var second = vec2<f32>(1.0, 0.0);
+    if qa == 0.0 {
+        if qb > 0.0 {
+            first = vec2<f32>(-MISS, -qc / (2.0 * qb));
+        } else if qb < 0.0 {
+            first = vec2<f32>(-qc / (2.0 * qb), MISS);
+        } else if qc <= 0.0 {
+            first = vec2<f32>(-MISS, MISS);
+        }
+    } else {
+        let discriminant = qb * qb - qa * qc;
+        if discriminant < 0.0 {
+            if qa < 0.0 {
+                first = vec2<f32>(-MISS, MISS);
+            }
+        } else {
+            let q = -(qb + select(-1.0, 1.0, qb >= 0.0) * sqrt(discriminant));
+            var r1 = 0.0;
+            var r2 = 0.0;
+            if q != 0.0 {
+                r1 = min(q / qa, qc / q);
+                r2 = max(q / qa, qc / q);
+            }
+            if qa > 0.0 {
+                first = vec2<f32>(r1, r2);
+            } else {
+                first = vec2<f32>(-MISS, r1);
+                second = vec2<f32>(r2, MISS);
+            }
+        }
+    }
+    var best = MISS;
+    let a = vec2<f32>(max(first.x, s.x), min(first.y, s.y));
+    if a.x <= a.y {
+        best = a.x;
+    }
+    let b = vec2<f32>(max(second.x, s.x), min(second.y, s.y));
+    if b.x <= b.y {
+        best = min(best, b.x);
+    }
+    return best;
+}
+
+fn ray_entry(pose: Pose, dir: vec3<f32>) -> f32 {
+    if params.tool_kind == 0u {
+        return ball_entry(pose, dir);
+    }
+    if params.tool_kind == 1u {
+        return end_mill_entry(pose, dir);
+    }
+    return disc_entry(pose, dir);
+}
+
+// Signed distance from a point (relative to the sample) to the tool: exact for end
+// mills, a first-order estimate for disc cutters.
+fn signed_distance(pose: Pose, point: vec3<f32>) -> f32 {
+    let w = pose.axis;
+    let p = point - pose.centre;
+    let a = dot(p, w);
+    let rho = length(p - a * w);
+    if params.tool_kind == 2u {
+        let s = clamp(a, params.disc_low, params.disc_high);
+        let surface = sqrt(max(params.disc_quadratic * s * s + params.disc_linear * s + params.disc_constant, 0.0));
+        var slope = 0.0;
+        if surface > 0.0 {
+            slope = (2.0 * params.disc_quadratic * s + params.disc_linear) / (2.0 * surface);
+        }
+        let radial = (rho - surface) / sqrt(1.0 + slope * slope);
+        return max(max(radial, a - params.disc_high), params.disc_low - a);
+    }
+    let big = params.major_radius_mm;
+    let small = params.corner_radius_mm;
+    let above_cap = a - params.length_mm;
+    if above_cap > 0.0 {
+        let e = max(rho - big - small, 0.0);
+        return sqrt(e * e + above_cap * above_cap);
+    }
+    var core: f32;
+    if rho > big || a < 0.0 {
+        let er = max(rho - big, 0.0);
+        let ea = min(a, 0.0);
+        core = sqrt(er * er + ea * ea);
+    } else {
+        core = max(rho - big, -a);
+    }
+    return max(core - small, above_cap);
+}
+
+// The entry of the ray into the tool, extended above the stock top by the stock-top
+// point's distance from the tool.
+fn extended_entry(f: Frame, pose: Pose) -> f32 {
+    let top = params.stock_top_mm;
+    let entry = ray_entry(pose, f.normal);
+    if entry < top {
+        return entry;
+    }
+    return top + max(signed_distance(pose, top * f.normal), 0.0);
+}
+
+fn entry_at(f: Frame, p: MillingPass, base: u32, x: f32) -> f32 {
+    return extended_entry(f, pose_at(f, p, base, x));
+}
+
+// ---------------------------------------------------------------- candidates
+
+struct Candidate {
+    pass_index: u32,
+    first: u32,
+    last: u32,
+    // After `locate`: the span to search (lo..=hi), the nearest point base + x, and
+    // the extended entry there.
+    lo: u32,
+    hi: u32,
+    base: u32,
+    x: f32,
+    estimate: f32,
+}
+
+struct Expected {
+    centre: vec3<f32>,
+    radius: f32,
+}
+
+fn expected_centre(point: vec3<f32>, normal: vec3<f32>, axis: vec3<f32>) -> Expected {
+    let core = point + params.centre_offset_mm * normal;
+    if params.tool_kind == 1u && params.major_radius_mm > 0.0 {
+        let across = normal - dot(normal, axis) * axis;
+        if length(across) > 1.0e-6 {
+            return Expected(core + params.major_radius_mm * normalize(across), 2.0 * params.search_radius_mm);
+        }
+        return Expected(core, params.major_radius_mm + params.search_radius_mm);
+    }
+    return Expected(core, params.lateral_mm + params.search_radius_mm);
+}
+
+fn run_distance(run: MillingRun, point: vec3<f32>) -> f32 {
+    let low = vec3<f32>(run.low_x, run.low_y, run.low_z);
+    let high = vec3<f32>(run.high_x, run.high_y, run.high_z);
+    return length(max(max(low - point, point - high), vec3<f32>(0.0)));
+}
+
+// ---------------------------------------------------------------- locating on a pass
+
+fn distance_squared(n: MillingNode, anchor: vec3<f32>) -> f32 {
+    let d = node_world(n) - anchor;
+    return dot(d, d);
+}
+
+// Node coordinates near the anchor by the pass's geometry (see `nearest_guesses`).
+fn nearest_guesses(p: MillingPass, anchor: vec3<f32>, azimuth: f32) -> vec2<f32> {
+    if p.polar == 1u {
+        if p.step_y == 0.0 {
+            return vec2<f32>(0.0);
+        }
+        let per_turn = TAU / abs(p.step_y);
+        let raw = (azimuth - p.origin_y) / p.step_y;
+        let u0 = raw - per_turn * floor(raw / per_turn);
+        return vec2<f32>(u0, u0 + per_turn);
+    }
+    let along = vec2<f32>(p.step_x, p.step_y);
+    let length2 = dot(along, along);
+    var u = 0.0;
+    if length2 > 0.0 {
+        u = dot(anchor.xy - vec2<f32>(p.origin_x, p.origin_y), along) / length2;
+    }
+    return vec2<f32>(u, u);
+}
+
+fn locate(f: Frame, c_in: Candidate) -> Candidate {
+    var c = c_in;
+    let p = passes[c.pass_index];
+    let last = p.node_count - 1u;
+    let lo = select(c.first - 1u, 0u, c.first == 0u);
+    let hi = min(c.last + 1u, last);
+    let middle = node_axis(nodes[p.first_node + (lo + hi) / 2u]);
+    let expected = expected_centre(f.world_point, f.world_normal, middle);
+    var anchor = expected.centre;
+    var azimuth = atan2(anchor.y, anchor.x);
+    if params.ball_slack == 1u {
+        anchor = f.world_point;
+        if params.polar == 1u {
+            azimuth = f.value_hi + f.value_lo;
+        }
+    }
+    let guesses = nearest_guesses(p, anchor, azimuth);
+    var nearest = lo;
+    var d = MISS;
+    for (var g = 0u; g < 2u; g = g + 1u) {
+        let node = u32(round(clamp(guesses[g], f32(lo), f32(hi))));
+        let at = distance_squared(nodes[p.first_node + node], anchor);
+        if at < d {
+            nearest = node;
+            d = at;
+        }
+    }
+    loop {
+        if nearest <= lo {
+            break;
+        }
+        let at = distance_squared(nodes[p.first_node + nearest - 1u], anchor);
+        if at >= d {
+            break;
+        }
+        nearest = nearest - 1u;
+        d = at;
+    }
+    loop {
+        if nearest >= hi {
+            break;
+        }
+        let at = distance_squared(nodes[p.first_node + nearest + 1u], anchor);
+        if at >= d {
+            break;
+        }
+        nearest = nearest + 1u;
+        d = at;
+    }
+    // Onto the adjacent segments.
+    var base = nearest;
+    var x = 0.0;
+    var best = d;
+    for (var k = 0u; k < 2u; k = k + 1u) {
+        var i = min(nearest, hi - min(hi, 1u));
+        if k == 0u {
+            i = max(select(nearest - 1u, 0u, nearest == 0u), lo);
+        }
+        if i < hi {
+            let a = node_world(nodes[p.first_node + i]);
+            let along = node_world(nodes[p.first_node + i + 1u]) - a;
+            let t = clamp(dot(anchor - a, along) / max(dot(along, along), 1.0e-30), 0.0, 1.0);
+            let e = a + t * along - anchor;
+            let at = dot(e, e);
+            if at < best {
+                best = at;
+                base = i;
+                x = t;
+            }
+        }
+    }
+    // Nodes within the radius, and a scan step more.
+    let s = min(nearest, last - 1u);
+    let step = length(node_world(nodes[p.first_node + s + 1u]) - node_world(nodes[p.first_node + s]));
+    let half = u32(min(ceil(expected.radius / max(step, 1.0e-12)) + f32(p.stride), f32(hi - lo)));
+    c.lo = max(select(nearest - half, 0u, half > nearest), lo);
+    c.hi = min(nearest + half, hi);
+    c.base = base;
+    c.x = x;
+    c.estimate = entry_at(f, p, base, x);
+    return c;
+}
+
+// ---------------------------------------------------------------- the search
+
+struct Point {
+    x: f32,
+    value: f32,
+}
+
+struct Bracket {
+    low: Point,
+    best: Point,
+    high: Point,
+}
+
+// Widens a bracket about `start` until the entry rises on both sides (see `widen`).
+fn widen(f: Frame, p: MillingPass, base: u32, start: Point, lo: f32, hi: f32) -> Bracket {
+    var low = Point(max(start.x - params.first_bracket, lo), 0.0);
+    low.value = entry_at(f, p, base, low.x);
+    var best = start;
+    var high = Point(min(start.x + params.first_bracket, hi), 0.0);
+    high.value = entry_at(f, p, base, high.x);
+    loop {
+        if !(low.value < best.value && low.x > lo) {
+            break;
+        }
+        let nx = max(low.x - 2.0 * (best.x - low.x), lo);
+        let next = Point(nx, entry_at(f, p, base, nx));
+        high = best;
+        best = low;
+        low = next;
+    }
+    loop {
+        if !(high.value < best.value && high.x < hi) {
+            break;
+        }
+        let nx = min(high.x + 2.0 * (high.x - best.x), hi);
+        let next = Point(nx, entry_at(f, p, base, nx));
+        low = best;
+        best = high;
+        high = next;
+    }
+    if low.value < best.value {
+        high = best;
+        best = low;
+    } else if high.value < best.value {
+        low = best;
+        best = high;
+    }
+    return Bracket(low, best, high);
+}
+
+// The coarse scan's bracket (see `scan`): every stride-th node over lo..=hi and the
+// points half a node either side of the located one, in order.
+fn scan(f: Frame, p: MillingPass, c: Candidate) -> Bracket {
+    let lo = f32(c.lo) - f32(c.base);
+    let hi = f32(c.hi) - f32(c.base);
+    var extra = array<f32, 3>(max(c.x - 0.5, lo), c.x, min(c.x + 0.5, hi));
+    var best = Point(lo, MISS);
+    var before = Point(0.0, 0.0);
+    var has_before = false;
+    var after = Point(0.0, 0.0);
+    var has_after = false;
+    var previous = Point(0.0, 0.0);
+    var has_previous = false;
+    var next_stride = c.lo;
+    var stride_done = false;
+    var taken = 0u;
+    var has_last = false;
+    var last_point = 0.0;
+    loop {
+        let stride_point = f32(next_stride) - f32(c.base);
+        var point = 0.0;
+        if !stride_done && taken < 3u {
+            point = min(stride_point, extra[taken]);
+        } else if !stride_done {
+            point = stride_point;
+        } else if taken < 3u {
+            point = extra[taken];
+        } else {
+            break;
+        }
+        if !stride_done && stride_point == point {
+            if next_stride >= c.hi {
+                stride_done = true;
+            } else {
+                next_stride = min(next_stride + p.stride, c.hi);
+            }
+        }
+        if taken < 3u && extra[taken] == point {
+            taken = taken + 1u;
+        }
+        if has_last && last_point == point {
+            continue;
+        }
+        has_last = true;
+        last_point = point;
+        var value = 0.0;
+        if point == c.x {
+            value = c.estimate;
+        } else {
+            value = entry_at(f, p, c.base, point);
+        }
+        if value < best.value {
+            best = Point(point, value);
+            before = previous;
+            has_before = has_previous;
+            has_after = false;
+        } else if !has_after && has_previous && previous.x == best.x {
+            after = Point(point, value);
+            has_after = true;
+        }
+        previous = Point(point, value);
+        has_previous = true;
+    }
+    if !has_before {
+        before = best;
+    }
+    if !has_after {
+        after = best;
+    }
+    return Bracket(before, best, after);
+}
+
+// Narrows a wide bracket by even points (see `narrow`).
+fn narrow(f: Frame, p: MillingPass, base: u32, bracket_in: Bracket) -> Bracket {
+    var bracket = bracket_in;
+    loop {
+        if bracket.high.x - bracket.low.x <= NARROW_WIDTH {
+            break;
+        }
+        let low = bracket.low;
+        let high = bracket.high;
+        let step = (high.x - low.x) / f32(NARROW_STEPS);
+        var points: array<Point, 9>;
+        points[0] = low;
+        for (var k = 1u; k < NARROW_STEPS; k = k + 1u) {
+            let u = low.x + f32(k) * step;
+            points[k] = Point(u, entry_at(f, p, base, u));
+        }
+        points[NARROW_STEPS] = high;
+        var j = 0u;
+        for (var k = 1u; k <= NARROW_STEPS; k = k + 1u) {
+            if points[k].value < points[j].value {
+                j = k;
+            }
+        }
+        if bracket.best.value < points[j].value {
+            // The old best stays, between the points either side of the one nearest it.
+            let k = u32(clamp(round((bracket.best.x - low.x) / step), 1.0, f32(NARROW_STEPS - 1u)));
+            bracket = Bracket(points[k - 1u], bracket.best, points[k + 1u]);
+        } else {
+            bracket = Bracket(points[select(j - 1u, 0u, j == 0u)], points[j], points[min(j + 1u, NARROW_STEPS)]);
+        }
+    }
+    return bracket;
+}
+
+// Brent's method from a bracket (see `refine`): for a smooth tool parabolas through
+// the three best points, golden-section steps where one is not trusted, and a stop
+// once a parabola promises less than the gain; golden-section steps alone at a kink.
+fn refine(f: Frame, p: MillingPass, base: u32, bracket: Bracket) -> Point {
+    let golden = 0.3819660112501051;
+    var a = bracket.low.x;
+    var b = bracket.high.x;
+    var x = bracket.best.x;
+    var fx = bracket.best.value;
+    var w = bracket.low.x;
+    var fw = bracket.low.value;
+    var v = bracket.high.x;
+    var fv = bracket.high.value;
+    var e = b - a;
+    var d = 0.0;
+    let tol = params.refine_width;
+    for (var step = 0u; step < params.refine_steps; step = step + 1u) {
+        let middle = 0.5 * (a + b);
+        if b - a <= 2.0 * tol {
+            break;
+        }
+        var parabolic = false;
+        if params.smooth_tool == 1u && abs(e) > tol && w != x && v != x && v != w {
+            let r = (x - w) * (fx - fv);
+            var q = (x - v) * (fx - fw);
+            var pp = (x - v) * q - (x - w) * r;
+            q = 2.0 * (q - r);
+            if q > 0.0 {
+                pp = -pp;
+            }
+            q = abs(q);
+            let curvature = 2.0 * ((fw - fx) / (w - x) - (fv - fx) / (v - x)) / (w - v);
+            let s = pp / q;
+            if curvature > 0.0 && 0.5 * curvature * s * s < params.refine_gain_mm {
+                break;
+            }
+            if abs(pp) < abs(0.5 * q * e) && pp > q * (a - x) && pp < q * (b - x) {
+                e = d;
+                d = s;
+                parabolic = true;
+                let u = x + d;
+                if u - a < 2.0 * tol || b - u < 2.0 * tol {
+                    d = select(-tol, tol, middle - x >= 0.0);
+                }
+            }
+        }
+        if !parabolic {
+            if x >= middle {
+                e = a - x;
+            } else {
+                e = b - x;
+            }
+            d = golden * e;
+        }
+        var u = x + d;
+        if abs(d) < tol {
+            u = x + select(-tol, tol, d >= 0.0);
+        }
+        let fu = entry_at(f, p, base, u);
+        if fu <= fx {
+            if u >= x {
+                a = x;
+            } else {
+                b = x;
+            }
+            v = w;
+            fv = fw;
+            w = x;
+            fw = fx;
+            x = u;
+            fx = fu;
+        } else {
+            if u < x {
+                a = u;
+            } else {
+                b = u;
+            }
+            if fu <= fw || w == x {
+                v = w;
+                fv = fw;
+                w = u;
+                fw = fu;
+            } else if fu <= fv || v == x || v == w {
+                v = u;
+                fv = fu;
+            }
+        }
+    }
+    return Point(x, fx);
+}
+
+// Tooth counts at a node: whole + fraction.
+fn node_teeth(n: MillingNode) -> vec2<f32> {
+    return vec2<f32>(f32(n.teeth_whole), n.teeth_fraction);
+}
+
+// The pose of stamp k at base + x: displaced by tooth k mod z's offset.
+fn stamp_pose(f: Frame, p: MillingPass, base: u32, x: f32, k: i32) -> Pose {
+    var pose = pose_at(f, p, base, x);
+    if params.offset_count == 0u {
+        return pose;
+    }
+    let count = i32(params.offset_count);
+    let offset = tooth_offsets[u32(((k % count) + count) % count)];
+    let s = segment_at(p, base, x);
+    let last = p.node_count - 1u;
+    let a = nodes[p.first_node + s.index];
+    let b = nodes[p.first_node + min(s.index + 1u, last)];
+    var velocity: vec3<f32>;
+    if p.polar == 1u && params.polar == 1u {
+        let rho = a.rho_hi + s.t * a.step_rho;
+        let delta = node_delta(f, a) + s.t * a.step_angle;
+        let sd = sin(delta);
+        let cd = cos(delta);
+        velocity = vec3<f32>(a.step_rho * cd - rho * a.step_angle * sd, a.step_rho * sd + rho * a.step_angle * cd, a.step_z);
+    } else {
+        velocity = node_offset(f, b) - node_offset(f, a);
+    }
+    var feed = vec3<f32>(0.0);
+    if dot(velocity, velocity) > 0.0 {
+        feed = normalize(velocity);
+    }
+    var along = feed - dot(feed, pose.axis) * pose.axis;
+    if dot(along, along) > 0.0 {
+        along = normalize(along);
+    } else {
+        // Any unit vector across the axis (glam's any_orthonormal_vector).
+        let w = pose.axis;
+        let sgn = select(-1.0, 1.0, w.z >= 0.0);
+        let aa = -1.0 / (sgn + w.z);
+        let bb = w.x * w.y * aa;
+        along = vec3<f32>(1.0 + sgn * w.x * w.x * aa, sgn * bb, -sgn * w.x);
+    }
+    let across = cross(pose.axis, along);
+    pose.centre = pose.centre + offset.x * along + offset.y * across;
+    return pose;
+}
+
+struct Cut {
+    depth_mm: f32,
+    valid: bool,
+}
+
+// The lowest cut of the stamps around base + x (or, displaced, of all over lo..=hi).
+fn stamp_cut(f: Frame, p: MillingPass, c: Candidate, x: f32) -> Cut {
+    let last = p.node_count - 1u;
+    let s = segment_at(p, c.base, x);
+    let ta = node_teeth(nodes[p.first_node + s.index]);
+    let tb = node_teeth(nodes[p.first_node + min(s.index + 1u, last)]);
+    // teeth(x) = whole_a + (frac_a + t·(Δwhole + Δfrac)).
+    let local = ta.y + s.t * ((tb.x - ta.x) + (tb.y - ta.y));
+    let nearest = i32(ta.x) + i32(floor(local));
+    let first_node = node_teeth(nodes[p.first_node]);
+    let last_node = node_teeth(nodes[p.first_node + last]);
+    let first_stamp = i32(first_node.x) + i32(ceil(first_node.y));
+    let last_stamp = i32(last_node.x) + i32(floor(last_node.y));
+    var from_k = nearest - 1;
+    var to_k = nearest + 2;
+    if params.stamp_mode == 2u {
+        let lo_t = node_teeth(nodes[p.first_node + c.lo]);
+        let hi_t = node_teeth(nodes[p.first_node + c.hi]);
+        from_k = i32(lo_t.x) + i32(ceil(lo_t.y));
+        to_k = i32(hi_t.x) + i32(floor(hi_t.y));
+    }
+    var best = Cut(params.stock_top_mm, false);
+    var segment = s.index;
+    for (var k = max(from_k, first_stamp); k <= min(to_k, last_stamp); k = k + 1) {
+        loop {
+            if segment == 0u {
+                break;
+            }
+            let t = node_teeth(nodes[p.first_node + segment]);
+            if (t.x - f32(k)) + t.y <= 0.0 {
+                break;
+            }
+            segment = segment - 1u;
+        }
+        loop {
+            if segment + 1u >= last {
+                break;
+            }
+            let t = node_teeth(nodes[p.first_node + segment + 1u]);
+            if (t.x - f32(k)) + t.y >= 0.0 {
+                break;
+            }
+            segment = segment + 1u;
+        }
+        let na = node_teeth(nodes[p.first_node + segment]);
+        let nb = node_teeth(nodes[p.first_node + segment + 1u]);
+        let span = (nb.x - na.x) + (nb.y - na.y);
+        var t = 0.0;
+        if span > 0.0 {
+            t = clamp(((f32(k) - na.x) - na.y) / span, 0.0, 1.0);
+        }
+        let sx = f32(segment) - f32(c.base) + t;
+        let depth = extended_entry(f, stamp_pose(f, p, c.base, sx, k));
+        if depth < params.stock_top_mm && (!best.valid || depth < best.depth_mm) {
+            best = Cut(depth, true);
+        }
+    }
+    return best;
+}
+
+// The lowest cut of a located pass (see `pass_cut`).
+fn pass_cut(f: Frame, c: Candidate) -> Cut {
+    let p = passes[c.pass_index];
+    let lo = f32(c.lo) - f32(c.base);
+    let hi = f32(c.hi) - f32(c.base);
+    let single_valley = params.ball_slack == 1u && (p.polar == 0u || (hi - lo) * abs(p.step_y) < 0.5 * PI);
+    var bracket: Bracket;
+    if single_valley {
+        bracket = widen(f, p, c.base, Point(c.x, c.estimate), lo, hi);
+    } else {
+        bracket = scan(f, p, c);
+    }
+    if params.stamp_mode == 2u {
+        return stamp_cut(f, p, c, bracket.best.x);
+    }
+    let best = refine(f, p, c.base, narrow(f, p, c.base, bracket));
+    if params.stamp_mode == 1u {
+        return stamp_cut(f, p, c, best.x);
+    }
+    return Cut(best.value, best.value < params.stock_top_mm);
+}
+
+struct Best {
+    depth_mm: f32,
+    pass_id: u32,
+}
+
+fn offer(best: Best, cut: Cut, pass_index: u32) -> Best {
+    if cut.valid && (cut.depth_mm < best.depth_mm - params.tie_mm || (cut.depth_mm < best.depth_mm + params.tie_mm && pass_index < best.pass_id)) {
+        return Best(cut.depth_mm, pass_index);
+    }
+    return best;
+}
+
+@compute @workgroup_size(64)
+fn remove_milling(@builtin(global_invocation_id) id: vec3<u32>) {
+    let local_index = id.x + id.y * params.dispatch_width;
+    if local_index >= params.sample_count {
+        return;
+    }
+    let sample = params.sample_offset + local_index;
+    let f = make_frame(rings[sample % params.ring_count], rows[sample / params.ring_count]);
+    var best = Best(params.stock_top_mm, NO_PASS);
+
+    // Candidates: the runs in the 3 × 3 × 3 cells around the core point, merged per pass.
+    var list: array<Candidate, MAX_CANDIDATES>;
+    var count = 0u;
+    let core = f.world_point + params.centre_offset_mm * f.world_normal;
+    let origin = vec3<f32>(params.origin_x, params.origin_y, params.origin_z);
+    let cell = floor((core - origin) / params.cell_mm);
+    let size = vec3<f32>(f32(params.cells_x), f32(params.cells_y), f32(params.cells_z));
+    let low = max(cell - 1.0, vec3<f32>(0.0));
+    let high = min(cell + 1.0, size - 1.0);
+    for (var z = i32(low.z); z <= i32(high.z); z = z + 1) {
+        for (var y = i32(low.y); y <= i32(high.y); y = y + 1) {
+            for (var x = i32(low.x); x <= i32(high.x); x = x + 1) {
+                let index = (u32(z) * params.cells_y + u32(y)) * params.cells_x + u32(x);
+                for (var r = cell_start[index]; r < cell_start[index + 1u]; r = r + 1u) {
+                    let run = runs[r];
+                    let expected = expected_centre(f.world_point, f.world_normal, vec3<f32>(run.axis_x, run.axis_y, run.axis_z));
+                    if run_distance(run, expected.centre) > expected.radius {
+                        continue;
+                    }
+                    var merged = false;
+                    for (var k = 0u; k < count; k = k + 1u) {
+                        if list[k].pass_index == run.pass_index {
+                            list[k].first = min(list[k].first, run.first);
+                            list[k].last = max(list[k].last, run.last);
+                            merged = true;
+                            break;
+                        }
+                    }
+                    if merged {
+                        continue;
+                    }
+                    let candidate = Candidate(run.pass_index, run.first, run.last, 0u, 0u, 0u, 0.0, 0.0);
+                    if count < MAX_CANDIDATES {
+                        list[count] = candidate;
+                        count = count + 1u;
+                    } else {
+                        best = offer(best, pass_cut(f, locate(f, candidate)), run.pass_index);
+                    }
+                }
+            }
+        }
+    }
+
+    // Locate and rank by the estimate (insertion sort), then search.
+    for (var k = 0u; k < count; k = k + 1u) {
+        let located = locate(f, list[k]);
+        var j = k;
+        loop {
+            if j == 0u {
+                break;
+            }
+            let other = list[j - 1u];
+            if other.estimate < located.estimate || (other.estimate == located.estimate && other.pass_index < located.pass_index) {
+                break;
+            }
+            list[j] = other;
+            j = j - 1u;
+        }
+        list[j] = located;
+    }
+    for (var k = 0u; k < count; k = k + 1u) {
+        let c = list[k];
+        if params.ball_slack == 1u {
+            let spacing = passes[c.pass_index].spacing_mm;
+            let room = params.slack_per_spacing_squared * spacing * spacing + params.slack_displacement_mm;
+            if c.estimate - room >= best.depth_mm {
+                break;
+            }
+        }
+        best = offer(best, pass_cut(f, c), c.pass_index);
+    }
+    dexels[local_index] = Dexel(best.depth_mm, best.pass_id);
+}
