@@ -20,13 +20,9 @@ struct MillingParams {
     sample_count: u32,
     dispatch_width: u32,
     polar: u32,
-    tool_kind: u32,
-    smooth_tool: u32,
     cells_x: u32,
     cells_y: u32,
     cells_z: u32,
-    ball_slack: u32,
-    stamp_mode: u32,
     offset_count: u32,
     refine_steps: u32,
     entry_steps: u32,
@@ -130,6 +126,13 @@ struct MillingRun {
     _padding2: f32,
     _padding3: f32,
 }
+
+// Pipeline constants: each pipeline is compiled for one tool and one stamp mode, so the
+// compiler drops the code of the others (src/engine/gpu/mod.rs sets them).
+// TOOL_KIND: 0 ball, 1 bull-nose, 2 flat end, 3 disc.
+override TOOL_KIND: u32;
+// STAMP_MODE: 0 the body sweeps, 1 stamps about the optimum, 2 every stamp (displaced teeth).
+override STAMP_MODE: u32;
 
 @group(0) @binding(0) var<uniform> params: MillingParams;
 @group(0) @binding(1) var<storage, read> rings: array<MillingRing>;
@@ -243,37 +246,103 @@ struct Pose {
 
 // A position along a pass: node `base` plus `x` node spacings.
 // The segment of pass p holding base + x, and the fraction along it.
-struct Segment {
+struct SegmentPoint {
     index: u32,
     t: f32,
 }
 
-fn segment_at(p: MillingPass, base: u32, x: f32) -> Segment {
+fn segment_at(p: MillingPass, base: u32, x: f32) -> SegmentPoint {
     let last = i32(p.node_count) - 1;
     let whole = floor(x);
     var i = clamp(i32(base) + i32(whole), 0, max(last - 1, 0));
     let t = clamp(x - f32(i - i32(base)), 0.0, 1.0);
-    return Segment(u32(i), t);
+    return SegmentPoint(u32(i), t);
 }
 
-fn pose_at(f: Frame, p: MillingPass, base: u32, x: f32) -> Pose {
-    let s = segment_at(p, base, x);
+const NO_SEGMENT: u32 = 0xffffffffu;
+
+// The segment of a pass last evaluated, in the sample's frame, so consecutive
+// evaluations within one segment read no nodes. Linear: a, b the nodes' offsets;
+// polar: a = (ρ_a − r, δ_a, z_a − z_s), b = the polar steps to the next node, rho = ρ_a.
+// The axes are turned into the frame.
+struct Segment {
+    index: u32,
+    a: vec3<f32>,
+    b: vec3<f32>,
+    rho: f32,
+    axis_a: vec3<f32>,
+    axis_b: vec3<f32>,
+}
+
+fn empty_segment() -> Segment {
+    return Segment(NO_SEGMENT, vec3<f32>(0.0), vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec3<f32>(0.0));
+}
+
+fn is_polar(p: MillingPass) -> bool {
+    return p.polar == 1u && params.polar == 1u;
+}
+
+fn load_segment(f: Frame, p: MillingPass, i: u32) -> Segment {
     let last = p.node_count - 1u;
-    let a = nodes[p.first_node + s.index];
-    let b = nodes[p.first_node + min(s.index + 1u, last)];
-    var centre: vec3<f32>;
-    if p.polar == 1u && params.polar == 1u {
-        let rho_less_r = (a.rho_hi - f.r_hi) + (a.rho_lo - f.r_lo) + s.t * a.step_rho;
-        let delta = node_delta(f, a) + s.t * a.step_angle;
-        let z_less = (a.z_hi - f.z_hi) + (a.z_lo - f.z_lo) + s.t * a.step_z;
-        centre = polar_offset(rho_less_r, a.rho_hi + s.t * a.step_rho, delta, z_less);
+    let na = nodes[p.first_node + i];
+    let nb = nodes[p.first_node + min(i + 1u, last)];
+    var g: Segment;
+    g.index = i;
+    g.axis_a = frame_direction(f, node_axis(na));
+    g.axis_b = frame_direction(f, node_axis(nb));
+    if is_polar(p) {
+        g.a = vec3<f32>(
+            (na.rho_hi - f.r_hi) + (na.rho_lo - f.r_lo),
+            node_delta(f, na),
+            (na.z_hi - f.z_hi) + (na.z_lo - f.z_lo),
+        );
+        g.b = vec3<f32>(na.step_rho, na.step_angle, na.step_z);
+        g.rho = na.rho_hi;
     } else {
-        let da = node_offset(f, a);
-        let db = node_offset(f, b);
-        centre = da + s.t * (db - da);
+        g.a = node_offset(f, na);
+        g.b = node_offset(f, nb);
+        g.rho = 0.0;
     }
-    let axis = frame_direction(f, normalize(mix(node_axis(a), node_axis(b), s.t)));
-    return Pose(centre, axis);
+    return g;
+}
+
+// The pose at base + x (see `pose_at`), through the segment held in `seg`.
+fn pose_at(f: Frame, p: MillingPass, base: u32, x: f32, seg: ptr<function, Segment>) -> Pose {
+    let s = segment_at(p, base, x);
+    if (*seg).index != s.index {
+        *seg = load_segment(f, p, s.index);
+    }
+    let g = *seg;
+    var centre: vec3<f32>;
+    if is_polar(p) {
+        centre = polar_offset(g.a.x + s.t * g.b.x, g.rho + s.t * g.b.x, g.a.y + s.t * g.b.y, g.a.z + s.t * g.b.z);
+    } else {
+        centre = g.a + s.t * (g.b - g.a);
+    }
+    return Pose(centre, normalize(mix(g.axis_a, g.axis_b, s.t)));
+}
+
+// The direction of travel at base + x, in the frame (see `feed_direction`).
+fn feed_at(f: Frame, p: MillingPass, base: u32, x: f32, seg: ptr<function, Segment>) -> vec3<f32> {
+    let s = segment_at(p, base, x);
+    if (*seg).index != s.index {
+        *seg = load_segment(f, p, s.index);
+    }
+    let g = *seg;
+    var velocity: vec3<f32>;
+    if is_polar(p) {
+        let rho = g.rho + s.t * g.b.x;
+        let delta = g.a.y + s.t * g.b.y;
+        let sd = sin(delta);
+        let cd = cos(delta);
+        velocity = vec3<f32>(g.b.x * cd - rho * g.b.y * sd, g.b.x * sd + rho * g.b.y * cd, g.b.z);
+    } else {
+        velocity = g.b - g.a;
+    }
+    if dot(velocity, velocity) > 0.0 {
+        return normalize(velocity);
+    }
+    return vec3<f32>(0.0);
 }
 
 // ---------------------------------------------------------------- the tools
@@ -408,7 +477,7 @@ fn end_mill_entry(pose: Pose, dir: vec3<f32>) -> f32 {
     if s.x > s.y || c.x > c.y || t > t1 || abs(t) >= MISS {
         return MISS;
     }
-    if small == 0.0 {
+    if TOOL_KIND == 2u {
         return t;
     }
     for (var i = 0u; i < params.entry_steps; i = i + 1u) {
@@ -489,13 +558,13 @@ fn disc_entry(pose: Pose, dir: vec3<f32>) -> f32 {
 }
 
 fn ray_entry(pose: Pose, dir: vec3<f32>) -> f32 {
-    if params.tool_kind == 0u {
+    if TOOL_KIND == 0u {
         return ball_entry(pose, dir);
     }
-    if params.tool_kind == 1u {
-        return end_mill_entry(pose, dir);
+    if TOOL_KIND == 3u {
+        return disc_entry(pose, dir);
     }
-    return disc_entry(pose, dir);
+    return end_mill_entry(pose, dir);
 }
 
 // Signed distance from a point (relative to the sample) to the tool: exact for end
@@ -505,7 +574,7 @@ fn signed_distance(pose: Pose, point: vec3<f32>) -> f32 {
     let p = point - pose.centre;
     let a = dot(p, w);
     let rho = length(p - a * w);
-    if params.tool_kind == 2u {
+    if TOOL_KIND == 3u {
         let s = clamp(a, params.disc_low, params.disc_high);
         let surface = sqrt(max(params.disc_quadratic * s * s + params.disc_linear * s + params.disc_constant, 0.0));
         var slope = 0.0;
@@ -544,8 +613,8 @@ fn extended_entry(f: Frame, pose: Pose) -> f32 {
     return top + max(signed_distance(pose, top * f.normal), 0.0);
 }
 
-fn entry_at(f: Frame, p: MillingPass, base: u32, x: f32) -> f32 {
-    return extended_entry(f, pose_at(f, p, base, x));
+fn entry_at(f: Frame, p: MillingPass, base: u32, x: f32, seg: ptr<function, Segment>) -> f32 {
+    return extended_entry(f, pose_at(f, p, base, x, seg));
 }
 
 // ---------------------------------------------------------------- candidates
@@ -570,7 +639,7 @@ struct Expected {
 
 fn expected_centre(point: vec3<f32>, normal: vec3<f32>, axis: vec3<f32>) -> Expected {
     let core = point + params.centre_offset_mm * normal;
-    if params.tool_kind == 1u && params.major_radius_mm > 0.0 {
+    if TOOL_KIND == 1u || TOOL_KIND == 2u {
         let across = normal - dot(normal, axis) * axis;
         if length(across) > 1.0e-6 {
             return Expected(core + params.major_radius_mm * normalize(across), 2.0 * params.search_radius_mm);
@@ -623,7 +692,7 @@ fn locate(f: Frame, c_in: Candidate) -> Candidate {
     let expected = expected_centre(f.world_point, f.world_normal, middle);
     var anchor = expected.centre;
     var azimuth = atan2(anchor.y, anchor.x);
-    if params.ball_slack == 1u {
+    if TOOL_KIND == 0u {
         anchor = f.world_point;
         if params.polar == 1u {
             azimuth = f.value_hi + f.value_lo;
@@ -640,27 +709,28 @@ fn locate(f: Frame, c_in: Candidate) -> Candidate {
             d = at;
         }
     }
-    loop {
-        if nearest <= lo {
-            break;
+    // Downhill toward lo, then toward hi, across runs of equal distances (see
+    // `walk_downhill`).
+    for (var down = 0u; down < 2u; down = down + 1u) {
+        loop {
+            var k = nearest;
+            var at = d;
+            loop {
+                if (down == 0u && k <= lo) || (down == 1u && k >= hi) {
+                    break;
+                }
+                k = select(k + 1u, k - 1u, down == 0u);
+                at = distance_squared(nodes[p.first_node + k], anchor);
+                if at != d {
+                    break;
+                }
+            }
+            if at >= d {
+                break;
+            }
+            nearest = k;
+            d = at;
         }
-        let at = distance_squared(nodes[p.first_node + nearest - 1u], anchor);
-        if at >= d {
-            break;
-        }
-        nearest = nearest - 1u;
-        d = at;
-    }
-    loop {
-        if nearest >= hi {
-            break;
-        }
-        let at = distance_squared(nodes[p.first_node + nearest + 1u], anchor);
-        if at >= d {
-            break;
-        }
-        nearest = nearest + 1u;
-        d = at;
     }
     // Onto the adjacent segments.
     var base = nearest;
@@ -692,7 +762,8 @@ fn locate(f: Frame, c_in: Candidate) -> Candidate {
     c.hi = min(nearest + half, hi);
     c.base = base;
     c.x = x;
-    c.estimate = entry_at(f, p, base, x);
+    var seg = empty_segment();
+    c.estimate = entry_at(f, p, base, x, &seg);
     return c;
 }
 
@@ -709,32 +780,47 @@ struct Bracket {
     high: Point,
 }
 
-// Widens a bracket about `start` until the entry rises on both sides (see `widen`).
-fn widen(f: Frame, p: MillingPass, base: u32, start: Point, lo: f32, hi: f32) -> Bracket {
+// Widens a bracket about `start` until the entry rises on both sides (see `widen`):
+// one evaluation per step — the first points either side, then doubling steps downhill.
+fn widen(f: Frame, p: MillingPass, base: u32, start: Point, lo: f32, hi: f32, seg: ptr<function, Segment>) -> Bracket {
     var low = Point(max(start.x - params.first_bracket, lo), 0.0);
-    low.value = entry_at(f, p, base, low.x);
     var best = start;
     var high = Point(min(start.x + params.first_bracket, hi), 0.0);
-    high.value = entry_at(f, p, base, high.x);
+    var phase = 0u;
     loop {
-        if !(low.value < best.value && low.x > lo) {
-            break;
+        var x: f32;
+        if phase == 0u {
+            x = low.x;
+        } else if phase == 1u {
+            x = high.x;
+        } else if phase == 2u {
+            if !(low.value < best.value && low.x > lo) {
+                phase = 3u;
+                continue;
+            }
+            x = max(low.x - 2.0 * (best.x - low.x), lo);
+        } else {
+            if !(high.value < best.value && high.x < hi) {
+                break;
+            }
+            x = min(high.x + 2.0 * (high.x - best.x), hi);
         }
-        let nx = max(low.x - 2.0 * (best.x - low.x), lo);
-        let next = Point(nx, entry_at(f, p, base, nx));
-        high = best;
-        best = low;
-        low = next;
-    }
-    loop {
-        if !(high.value < best.value && high.x < hi) {
-            break;
+        let value = entry_at(f, p, base, x, seg);
+        if phase == 0u {
+            low.value = value;
+            phase = 1u;
+        } else if phase == 1u {
+            high.value = value;
+            phase = 2u;
+        } else if phase == 2u {
+            high = best;
+            best = low;
+            low = Point(x, value);
+        } else {
+            low = best;
+            best = high;
+            high = Point(x, value);
         }
-        let nx = min(high.x + 2.0 * (high.x - best.x), hi);
-        let next = Point(nx, entry_at(f, p, base, nx));
-        low = best;
-        best = high;
-        high = next;
     }
     if low.value < best.value {
         high = best;
@@ -748,7 +834,7 @@ fn widen(f: Frame, p: MillingPass, base: u32, start: Point, lo: f32, hi: f32) ->
 
 // The coarse scan's bracket (see `scan`): every stride-th node over lo..=hi and the
 // points half a node either side of the located one, in order.
-fn scan(f: Frame, p: MillingPass, c: Candidate) -> Bracket {
+fn scan(f: Frame, p: MillingPass, c: Candidate, seg: ptr<function, Segment>) -> Bracket {
     let lo = f32(c.lo) - f32(c.base);
     let hi = f32(c.hi) - f32(c.base);
     var extra = array<f32, 3>(max(c.x - 0.5, lo), c.x, min(c.x + 0.5, hi));
@@ -795,7 +881,7 @@ fn scan(f: Frame, p: MillingPass, c: Candidate) -> Bracket {
         if point == c.x {
             value = c.estimate;
         } else {
-            value = entry_at(f, p, c.base, point);
+            value = entry_at(f, p, c.base, point, seg);
         }
         if value < best.value {
             best = Point(point, value);
@@ -819,7 +905,7 @@ fn scan(f: Frame, p: MillingPass, c: Candidate) -> Bracket {
 }
 
 // Narrows a wide bracket by even points (see `narrow`).
-fn narrow(f: Frame, p: MillingPass, base: u32, bracket_in: Bracket) -> Bracket {
+fn narrow(f: Frame, p: MillingPass, base: u32, bracket_in: Bracket, seg: ptr<function, Segment>) -> Bracket {
     var bracket = bracket_in;
     loop {
         if bracket.high.x - bracket.low.x <= NARROW_WIDTH {
@@ -832,7 +918,7 @@ fn narrow(f: Frame, p: MillingPass, base: u32, bracket_in: Bracket) -> Bracket {
         points[0] = low;
         for (var k = 1u; k < NARROW_STEPS; k = k + 1u) {
             let u = low.x + f32(k) * step;
-            points[k] = Point(u, entry_at(f, p, base, u));
+            points[k] = Point(u, entry_at(f, p, base, u, seg));
         }
         points[NARROW_STEPS] = high;
         var j = 0u;
@@ -855,7 +941,7 @@ fn narrow(f: Frame, p: MillingPass, base: u32, bracket_in: Bracket) -> Bracket {
 // Brent's method from a bracket (see `refine`): for a smooth tool parabolas through
 // the three best points, golden-section steps where one is not trusted, and a stop
 // once a parabola promises less than the gain; golden-section steps alone at a kink.
-fn refine(f: Frame, p: MillingPass, base: u32, bracket: Bracket) -> Point {
+fn refine(f: Frame, p: MillingPass, base: u32, bracket: Bracket, seg: ptr<function, Segment>) -> Point {
     let golden = 0.3819660112501051;
     var a = bracket.low.x;
     var b = bracket.high.x;
@@ -874,7 +960,7 @@ fn refine(f: Frame, p: MillingPass, base: u32, bracket: Bracket) -> Point {
             break;
         }
         var parabolic = false;
-        if params.smooth_tool == 1u && abs(e) > tol && w != x && v != x && v != w {
+        if TOOL_KIND <= 1u && abs(e) > tol && w != x && v != x && v != w {
             let r = (x - w) * (fx - fv);
             var q = (x - v) * (fx - fw);
             var pp = (x - v) * q - (x - w) * r;
@@ -910,7 +996,7 @@ fn refine(f: Frame, p: MillingPass, base: u32, bracket: Bracket) -> Point {
         if abs(d) < tol {
             u = x + select(-tol, tol, d >= 0.0);
         }
-        let fu = entry_at(f, p, base, u);
+        let fu = entry_at(f, p, base, u, seg);
         if fu <= fx {
             if u >= x {
                 a = x;
@@ -949,31 +1035,14 @@ fn node_teeth(n: MillingNode) -> vec2<f32> {
 }
 
 // The pose of stamp k at base + x: displaced by tooth k mod z's offset.
-fn stamp_pose(f: Frame, p: MillingPass, base: u32, x: f32, k: i32) -> Pose {
-    var pose = pose_at(f, p, base, x);
+fn stamp_pose(f: Frame, p: MillingPass, base: u32, x: f32, k: i32, seg: ptr<function, Segment>) -> Pose {
+    var pose = pose_at(f, p, base, x, seg);
     if params.offset_count == 0u {
         return pose;
     }
     let count = i32(params.offset_count);
     let offset = tooth_offsets[u32(((k % count) + count) % count)];
-    let s = segment_at(p, base, x);
-    let last = p.node_count - 1u;
-    let a = nodes[p.first_node + s.index];
-    let b = nodes[p.first_node + min(s.index + 1u, last)];
-    var velocity: vec3<f32>;
-    if p.polar == 1u && params.polar == 1u {
-        let rho = a.rho_hi + s.t * a.step_rho;
-        let delta = node_delta(f, a) + s.t * a.step_angle;
-        let sd = sin(delta);
-        let cd = cos(delta);
-        velocity = vec3<f32>(a.step_rho * cd - rho * a.step_angle * sd, a.step_rho * sd + rho * a.step_angle * cd, a.step_z);
-    } else {
-        velocity = node_offset(f, b) - node_offset(f, a);
-    }
-    var feed = vec3<f32>(0.0);
-    if dot(velocity, velocity) > 0.0 {
-        feed = normalize(velocity);
-    }
+    let feed = feed_at(f, p, base, x, seg);
     var along = feed - dot(feed, pose.axis) * pose.axis;
     if dot(along, along) > 0.0 {
         along = normalize(along);
@@ -996,7 +1065,7 @@ struct Cut {
 }
 
 // The lowest cut of the stamps around base + x (or, displaced, of all over lo..=hi).
-fn stamp_cut(f: Frame, p: MillingPass, c: Candidate, x: f32) -> Cut {
+fn stamp_cut(f: Frame, p: MillingPass, c: Candidate, x: f32, seg: ptr<function, Segment>) -> Cut {
     let last = p.node_count - 1u;
     let s = segment_at(p, c.base, x);
     let ta = node_teeth(nodes[p.first_node + s.index]);
@@ -1010,7 +1079,7 @@ fn stamp_cut(f: Frame, p: MillingPass, c: Candidate, x: f32) -> Cut {
     let last_stamp = i32(last_node.x) + i32(floor(last_node.y));
     var from_k = nearest - 1;
     var to_k = nearest + 2;
-    if params.stamp_mode == 2u {
+    if STAMP_MODE == 2u {
         let lo_t = node_teeth(nodes[p.first_node + c.lo]);
         let hi_t = node_teeth(nodes[p.first_node + c.hi]);
         from_k = i32(lo_t.x) + i32(ceil(lo_t.y));
@@ -1047,7 +1116,7 @@ fn stamp_cut(f: Frame, p: MillingPass, c: Candidate, x: f32) -> Cut {
             t = clamp(((f32(k) - na.x) - na.y) / span, 0.0, 1.0);
         }
         let sx = f32(segment) - f32(c.base) + t;
-        let depth = extended_entry(f, stamp_pose(f, p, c.base, sx, k));
+        let depth = extended_entry(f, stamp_pose(f, p, c.base, sx, k, seg));
         if depth < params.stock_top_mm && (!best.valid || depth < best.depth_mm) {
             best = Cut(depth, true);
         }
@@ -1060,19 +1129,20 @@ fn pass_cut(f: Frame, c: Candidate) -> Cut {
     let p = passes[c.pass_index];
     let lo = f32(c.lo) - f32(c.base);
     let hi = f32(c.hi) - f32(c.base);
-    let single_valley = params.ball_slack == 1u && (p.polar == 0u || (hi - lo) * abs(p.step_y) < 0.5 * PI);
+    var seg = empty_segment();
+    let single_valley = TOOL_KIND <= 2u && (p.polar == 0u || (hi - lo) * abs(p.step_y) < 0.5 * PI);
     var bracket: Bracket;
     if single_valley {
-        bracket = widen(f, p, c.base, Point(c.x, c.estimate), lo, hi);
+        bracket = widen(f, p, c.base, Point(c.x, c.estimate), lo, hi, &seg);
     } else {
-        bracket = scan(f, p, c);
+        bracket = scan(f, p, c, &seg);
     }
-    if params.stamp_mode == 2u {
-        return stamp_cut(f, p, c, bracket.best.x);
+    var best = bracket.best;
+    if STAMP_MODE != 2u {
+        best = refine(f, p, c.base, narrow(f, p, c.base, bracket, &seg), &seg);
     }
-    let best = refine(f, p, c.base, narrow(f, p, c.base, bracket));
-    if params.stamp_mode == 1u {
-        return stamp_cut(f, p, c, best.x);
+    if STAMP_MODE != 0u {
+        return stamp_cut(f, p, c, best.x, &seg);
     }
     return Cut(best.value, best.value < params.stock_top_mm);
 }
@@ -1089,6 +1159,30 @@ fn offer(best: Best, cut: Cut, pass_index: u32) -> Best {
     return best;
 }
 
+// Whether a run of nodes can cut the sample: its box within reach of the expected centre.
+fn run_in_reach(f: Frame, run: MillingRun) -> bool {
+    let expected = expected_centre(f.world_point, f.world_normal, vec3<f32>(run.axis_x, run.axis_y, run.axis_z));
+    return run_distance(run, expected.centre) <= expected.radius;
+}
+
+// The bin cells around the sample's core point: low corner, high corner (inclusive).
+struct CellRange {
+    low: vec3<i32>,
+    high: vec3<i32>,
+}
+
+fn cells_around(f: Frame) -> CellRange {
+    let core = f.world_point + params.centre_offset_mm * f.world_normal;
+    let origin = vec3<f32>(params.origin_x, params.origin_y, params.origin_z);
+    let cell = floor((core - origin) / params.cell_mm);
+    let size = vec3<f32>(f32(params.cells_x), f32(params.cells_y), f32(params.cells_z));
+    return CellRange(vec3<i32>(max(cell - 1.0, vec3<f32>(0.0))), vec3<i32>(min(cell + 1.0, size - 1.0)));
+}
+
+fn cell_index(x: i32, y: i32, z: i32) -> u32 {
+    return (u32(z) * params.cells_y + u32(y)) * params.cells_x + u32(x);
+}
+
 @compute @workgroup_size(64)
 fn remove_milling(@builtin(global_invocation_id) id: vec3<u32>) {
     let local_index = id.x + id.y * params.dispatch_width;
@@ -1098,77 +1192,123 @@ fn remove_milling(@builtin(global_invocation_id) id: vec3<u32>) {
     let sample = params.sample_offset + local_index;
     let f = make_frame(rings[sample % params.ring_count], rows[sample / params.ring_count]);
     var best = Best(params.stock_top_mm, NO_PASS);
+    let cells = cells_around(f);
+    let span = cells.high - cells.low + vec3<i32>(1);
+    let cell_count = u32(max(span.x * span.y * span.z, 0));
 
-    // Candidates: the runs in the 3 × 3 × 3 cells around the core point, merged per pass.
-    var list: array<Candidate, MAX_CANDIDATES>;
-    var count = 0u;
-    let core = f.world_point + params.centre_offset_mm * f.world_normal;
-    let origin = vec3<f32>(params.origin_x, params.origin_y, params.origin_z);
-    let cell = floor((core - origin) / params.cell_mm);
-    let size = vec3<f32>(f32(params.cells_x), f32(params.cells_y), f32(params.cells_z));
-    let low = max(cell - 1.0, vec3<f32>(0.0));
-    let high = min(cell + 1.0, size - 1.0);
-    for (var z = i32(low.z); z <= i32(high.z); z = z + 1) {
-        for (var y = i32(low.y); y <= i32(high.y); y = y + 1) {
-            for (var x = i32(low.x); x <= i32(high.x); x = x + 1) {
-                let index = (u32(z) * params.cells_y + u32(y)) * params.cells_x + u32(x);
-                for (var r = cell_start[index]; r < cell_start[index + 1u]; r = r + 1u) {
-                    let run = runs[r];
-                    let expected = expected_centre(f.world_point, f.world_normal, vec3<f32>(run.axis_x, run.axis_y, run.axis_z));
-                    if run_distance(run, expected.centre) > expected.radius {
-                        continue;
-                    }
-                    var merged = false;
-                    for (var k = 0u; k < count; k = k + 1u) {
-                        if list[k].pass_index == run.pass_index {
-                            list[k].first = min(list[k].first, run.first);
-                            list[k].last = max(list[k].last, run.last);
-                            merged = true;
-                            break;
-                        }
-                    }
-                    if merged {
-                        continue;
-                    }
-                    let candidate = Candidate(run.pass_index, run.first, run.last, 0u, 0u, 0u, 0.0, 0.0);
-                    if count < MAX_CANDIDATES {
-                        list[count] = candidate;
-                        count = count + 1u;
-                    } else {
-                        best = offer(best, pass_cut(f, locate(f, candidate)), run.pass_index);
-                    }
+    // Batches of candidates. The first: the runs in reach in the 3 × 3 × 3 cells around
+    // the core point, merged per pass (the first MAX_CANDIDATES passes). Later ones, if
+    // there are more passes: their runs one by one, from where the last batch stopped.
+    var c_pass: array<u32, MAX_CANDIDATES>;
+    var c_first: array<u32, MAX_CANDIDATES>;
+    var c_last: array<u32, MAX_CANDIDATES>;
+    var c_lo: array<u32, MAX_CANDIDATES>;
+    var c_hi: array<u32, MAX_CANDIDATES>;
+    var c_base: array<u32, MAX_CANDIDATES>;
+    var c_x: array<f32, MAX_CANDIDATES>;
+    var c_estimate: array<f32, MAX_CANDIDATES>;
+    var listed: array<u32, MAX_CANDIDATES>;
+    var listed_count = 0u;
+    var first_batch = true;
+    var resume_cell = 0u;
+    var resume_run = 0u;
+    loop {
+        var count = 0u;
+        var more = false;
+        var cell = resume_cell;
+        var r = resume_run;
+        loop {
+            if cell >= cell_count || (more && !first_batch) {
+                break;
+            }
+            let index = cell_index(
+                cells.low.x + i32(cell % u32(span.x)),
+                cells.low.y + i32((cell / u32(span.x)) % u32(span.y)),
+                cells.low.z + i32(cell / u32(span.x * span.y)),
+            );
+            r = max(r, cell_start[index]);
+            if r >= cell_start[index + 1u] {
+                cell = cell + 1u;
+                r = 0u;
+                continue;
+            }
+            let run = runs[r];
+            r = r + 1u;
+            if !run_in_reach(f, run) {
+                continue;
+            }
+            var k = 0u;
+            loop {
+                if k >= listed_count || listed[k] == run.pass_index {
+                    break;
+                }
+                k = k + 1u;
+            }
+            if first_batch && k < listed_count {
+                c_first[k] = min(c_first[k], run.first);
+                c_last[k] = max(c_last[k], run.last);
+            } else if first_batch && listed_count < MAX_CANDIDATES {
+                listed[listed_count] = run.pass_index;
+                c_pass[count] = run.pass_index;
+                c_first[count] = run.first;
+                c_last[count] = run.last;
+                listed_count = listed_count + 1u;
+                count = count + 1u;
+            } else if first_batch {
+                // A pass beyond the list: the next batches take it.
+                more = true;
+            } else if k >= listed_count {
+                c_pass[count] = run.pass_index;
+                c_first[count] = run.first;
+                c_last[count] = run.last;
+                count = count + 1u;
+                if count == MAX_CANDIDATES {
+                    more = true;
                 }
             }
         }
-    }
+        if first_batch {
+            // The later batches begin again from the first cell.
+            resume_cell = 0u;
+            resume_run = 0u;
+        } else {
+            resume_cell = cell;
+            resume_run = r;
+        }
 
-    // Locate and rank by the estimate (insertion sort), then search.
-    for (var k = 0u; k < count; k = k + 1u) {
-        let located = locate(f, list[k]);
-        var j = k;
-        loop {
-            if j == 0u {
-                break;
-            }
-            let other = list[j - 1u];
-            if other.estimate < located.estimate || (other.estimate == located.estimate && other.pass_index < located.pass_index) {
-                break;
-            }
-            list[j] = other;
-            j = j - 1u;
+        // Locate each (an estimate of its cut), then search them lowest estimate first.
+        for (var k = 0u; k < count; k = k + 1u) {
+            let located = locate(f, Candidate(c_pass[k], c_first[k], c_last[k], 0u, 0u, 0u, 0.0, 0.0));
+            c_lo[k] = located.lo;
+            c_hi[k] = located.hi;
+            c_base[k] = located.base;
+            c_x[k] = located.x;
+            c_estimate[k] = located.estimate;
         }
-        list[j] = located;
-    }
-    for (var k = 0u; k < count; k = k + 1u) {
-        let c = list[k];
-        if params.ball_slack == 1u {
-            let spacing = passes[c.pass_index].spacing_mm;
-            let room = params.slack_per_spacing_squared * spacing * spacing + params.slack_displacement_mm;
-            if c.estimate - room >= best.depth_mm {
-                break;
+        var done = 0u;
+        for (var round = 0u; round < count; round = round + 1u) {
+            var k = MAX_CANDIDATES;
+            for (var i = 0u; i < count; i = i + 1u) {
+                if (done & (1u << i)) == 0u && (k == MAX_CANDIDATES || c_estimate[i] < c_estimate[k] || (c_estimate[i] == c_estimate[k] && c_pass[i] < c_pass[k])) {
+                    k = i;
+                }
             }
+            done = done | (1u << k);
+            if TOOL_KIND == 0u {
+                // A ball: the rest cannot cut deeper than the best.
+                let spacing = passes[c_pass[k]].spacing_mm;
+                let room = params.slack_per_spacing_squared * spacing * spacing + params.slack_displacement_mm;
+                if c_estimate[k] - room >= best.depth_mm {
+                    break;
+                }
+            }
+            let c = Candidate(c_pass[k], c_first[k], c_last[k], c_lo[k], c_hi[k], c_base[k], c_x[k], c_estimate[k]);
+            best = offer(best, pass_cut(f, c), c.pass_index);
         }
-        best = offer(best, pass_cut(f, c), c.pass_index);
+        if !more {
+            break;
+        }
+        first_batch = false;
     }
     dexels[local_index] = Dexel(best.depth_mm, best.pass_id);
 }

@@ -11,8 +11,8 @@ const PASS_ID_STRIDE: u32 = 4u;
 const MAX_CONTACTS: u32 = 2u;
 const PASSES_PER_CONTACT: i32 = 4;
 // Milling: candidate passes a sample ranks (`milling_scene::MAX_CANDIDATES`).
-const MAX_CANDIDATES: u32 = 32u;
-// … and the narrowing of a wide bracket (`cpu_milling::NARROW_WIDTH`, `NARROW_STEPS`).
+const MAX_CANDIDATES: u32 = 16u;
+// … and the narrowing of a wide bracket (`milling_search::NARROW_WIDTH`, `NARROW_STEPS`).
 const NARROW_WIDTH: f32 = 4.0;
 const NARROW_STEPS: u32 = 8u;
 

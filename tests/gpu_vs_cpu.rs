@@ -1,87 +1,12 @@
 //! The GPU engine (f32, local frames) against the CPU reference (f64) on whole jobs.
 //! Bound (DESIGN §5 / issue 2): max |Δ deviation| ≤ max(0.5 nm, 0.1 % of the map's PV).
+//! The example jobs as they stand: tests/examples_on_both_engines.rs; here, effects.
 
 mod common;
 use common::*;
-use toolmark::field::NO_PASS;
 
 fn compare(name: &str, job: toolmark::io::job::Job) {
-    let cpu = run_cpu(job.clone());
-    let gpu = run_gpu(job);
-    let (mut worst, mut at) = (0.0f64, 0);
-    for (i, (a, b)) in cpu
-        .field
-        .depth_mm
-        .iter()
-        .zip(&gpu.field.depth_mm)
-        .enumerate()
-    {
-        let difference = (a - b).abs();
-        if difference > worst {
-            (worst, at) = (difference, i);
-        }
-    }
-    let worst_nm = worst * 1e6;
-    let bound_nm = (0.001 * cpu.deviation.pv_nm).max(0.5);
-    let rings = cpu.grid().ring_count();
-    let same_pass = cpu
-        .field
-        .pass
-        .iter()
-        .zip(&gpu.field.pass)
-        .filter(|(a, b)| a == b)
-        .count();
-    println!(
-        "{name}: {} samples, PV {:.3} nm; max |GPU − CPU| = {worst_nm:.4} nm at ring {} azimuth {} (bound {bound_nm:.3} nm); same winning pass at {:.3} % of samples",
-        cpu.field.depth_mm.len(),
-        cpu.deviation.pv_nm,
-        at % rings,
-        at / rings,
-        100.0 * same_pass as f64 / cpu.field.pass.len() as f64
-    );
-    assert!(
-        worst_nm <= bound_nm,
-        "{name}: GPU differs from CPU by {worst_nm} nm > {bound_nm} nm"
-    );
-    // Where only one engine counts a sample as cut, its entry sat within f32 rounding of
-    // the stock top; the depth bound above already holds there.
-    let cut_differs = cpu
-        .field
-        .pass
-        .iter()
-        .zip(&gpu.field.pass)
-        .filter(|(a, b)| (**a == NO_PASS) != (**b == NO_PASS))
-        .count();
-    println!("{name}: {cut_differs} samples cut by one engine only");
-    assert!(
-        cut_differs * 1000 <= cpu.field.pass.len(),
-        "{name}: {cut_differs} samples differ in being cut"
-    );
-}
-
-#[test]
-fn flat_facing_gpu_matches_cpu() {
-    compare("flat facing", example("flat_facing.toml"));
-}
-
-#[test]
-fn convex_sphere_radial_feed_gpu_matches_cpu() {
-    compare("convex sphere", example("convex_sphere.toml"));
-}
-
-#[test]
-fn concave_sphere_xzb_gpu_matches_cpu() {
-    compare("concave sphere XZB", example("concave_sphere.toml"));
-}
-
-#[test]
-fn seed_002_asphere_xz_gpu_matches_cpu() {
-    compare("seed-002 asphere XZ", example("asphere_xz.toml"));
-}
-
-#[test]
-fn seed_002_asphere_xzb_gpu_matches_cpu() {
-    compare("seed-002 asphere XZB", example("asphere_xzb.toml"));
+    assert_engines_agree(name, job);
 }
 
 /// An example job with extra effect tables appended.
@@ -134,14 +59,6 @@ fn axial_drift_on_the_asphere_gpu_matches_cpu() {
             "asphere_xz.toml",
             "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = -0.002",
         ),
-    );
-}
-
-#[test]
-fn nc_program_with_a_measured_edge_gpu_matches_cpu() {
-    compare(
-        "UPM cut 1021 with measured edge D906-3",
-        example("upm_1021_measured_edge.toml"),
     );
 }
 

@@ -1,28 +1,34 @@
 //! The f64 reference removal for milling scenes — the twin of `shaders/milling.wgsl`,
-//! step for step: change them together. Geometry of the candidates: `milling_scene.rs`.
+//! step for step: change them together. Which passes can cut a sample:
+//! `milling_scene.rs`; the search along a pass: `milling_search.rs`.
 //!
 //! Everything is done in the sample's own frame: origin at its nominal point, axes
 //! (e_r, e_φ, e_z) at its azimuth (a part of revolution) or (x, y, z) (an extruded one),
 //! so a pose is its centre's offset Δ from the sample and its axis, and the dexel ray is
 //! t·n. A node's offset comes from its cylindrical coordinates without cancelling:
-//! Δ = ((ρ − r) − 2ρ sin²(δ/2), ρ sin δ, z − z_s) with δ the azimuth difference — the form
-//! the f32 kernel needs to resolve nanometres on a 20 mm part.
+//! Δ = ((ρ − r) − 2ρ sin²(δ/2), 2ρ sin(δ/2) cos(δ/2), z − z_s), δ the azimuth difference —
+//! the form the f32 kernel needs to resolve nanometres on a 20 mm part.
 //!
 //! Per candidate pass the cut is the lowest entry of the ray into the tool over the
-//! pass's poses: a coarse scan of the nodes (`PassSpan::stride` apart), then the best
-//! bracket refined by parabolic steps (Brent's method: golden-section steps where a
-//! parabola is not trusted) until the parabola promises less than `REFINE_GAIN_MM`.
-//! The entry at each pose is closed form (ball: sphere and shank; flat end: tip plane
-//! and cylinder; disc: the hyperboloid's quadratic) or Newton's steps on a convex
-//! distance (bull-nose). Where the ray misses or enters above the stock top, the entry
-//! is extended by the stock-top point's distance from the tool, which keeps it
-//! continuous and steers the search toward the tool. With teeth only the stamps (tooth
-//! positions) around the optimum cut; displaced teeth: every stamp over the span.
-//! For a ball, passes are ranked by their cut at the nodes around the one nearest the
-//! expected centre and searched only while that estimate, less the slack between nodes,
-//! can still beat the best.
+//! pass's poses. The pass is *located*: its point nearest the sample's anchor (for a
+//! ball the sample itself: the cutting pose is the centre-path point nearest the entry
+//! point; for other tools the expected centre). For a ball on a pass that cannot come
+//! round to the sample twice, a bracket about that point is widened downhill; otherwise
+//! the pass's nodes near it are scanned. The bracket is narrowed and refined (Brent's
+//! method; golden-section steps at a flat end's or a disc's kinked rim). The entry at
+//! each pose is closed form (ball: sphere and shank; flat end: tip plane and cylinder;
+//! disc: the hyperboloid's quadratic) or Newton's steps on a convex distance
+//! (bull-nose). Where the ray misses or enters above the stock top, the entry is
+//! extended by the stock-top point's distance from the tool, which keeps it continuous
+//! and steers the search toward the tool. With teeth only the stamps (tooth positions)
+//! around the optimum cut; displaced teeth: every stamp over the span. Passes are
+//! searched in the order of their cut at the located point; for a ball the search stops
+//! once that, less the slack between nodes, cannot beat the best.
 
-use super::milling_scene::{Candidate, CandidateList, MAX_CANDIDATES, MillingScene, Node, PassSpan};
+use super::milling_scene::{
+    Candidate, CandidateList, MAX_CANDIDATES, MillingScene, Node, PassSpan,
+};
+use super::milling_search::{REFINE_GAIN_MM, REFINE_WIDTH, narrow, refine, scan, widen};
 use crate::field::{Layout, NO_PASS};
 use crate::geometry::cutter::CutterPose;
 use crate::geometry::milling_tool::MillingTool;
@@ -31,15 +37,6 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 /// Depths closer than this count as a tie (1e-13 mm, far below any resolved feature).
 pub const TIE_MM: f64 = 1e-13;
-/// The refinement stops when a parabola through its best points promises less (mm).
-pub const REFINE_GAIN_MM: f64 = 1e-14;
-/// … or when its bracket is this narrow (node spacings).
-pub const REFINE_WIDTH: f64 = 1e-9;
-/// Refinement steps at most (a kink is found by golden-section steps: 45 shrink a
-/// bracket of two node spacings to `REFINE_WIDTH`).
-pub const REFINE_STEPS: u32 = 60;
-/// The golden ratio's complement: the share of a bracket a golden-section step takes.
-const GOLDEN: f64 = 0.381_966_011_250_105_1;
 
 /// A sample's dexel ray in its own frame.
 #[derive(Debug, Clone, Copy)]
@@ -93,25 +90,36 @@ impl SampleFrame {
         }
     }
 
+    /// A node's azimuth less the sample's, in (−π, π].
+    fn delta(&self, node: &Node) -> f64 {
+        wrap_angle(node.angle_rad - self.azimuth_rad)
+    }
+
     /// A node's centre relative to the sample, in this frame.
     pub fn offset(&self, node: &Node) -> DVec3 {
         if self.polar {
-            let delta = wrap_angle(node.angle_rad - self.azimuth_rad);
-            self.polar_offset(node.radius_mm, delta, node.centre.z)
+            let z = node.centre.z - self.height_mm;
+            polar_offset(
+                node.radius_mm - self.radius_mm,
+                node.radius_mm,
+                self.delta(node),
+                z,
+            )
         } else {
             node.centre - DVec3::new(self.radius_mm, self.y_mm, self.height_mm)
         }
     }
+}
 
-    /// The offset of the point at distance ρ from Z, δ past the sample's azimuth, height z.
-    fn polar_offset(&self, rho: f64, delta: f64, z: f64) -> DVec3 {
-        let (sin_half, cos_half) = sin_cos_small(0.5 * delta);
-        DVec3::new(
-            (rho - self.radius_mm) - 2.0 * rho * sin_half * sin_half,
-            2.0 * rho * sin_half * cos_half,
-            z - self.height_mm,
-        )
-    }
+/// The offset of the point ρ from Z (given as ρ − r and ρ), δ past the sample's
+/// azimuth, z − z_s above it.
+fn polar_offset(rho_less_r: f64, rho: f64, delta: f64, z_less: f64) -> DVec3 {
+    let (sin_half, cos_half) = sin_cos_small(0.5 * delta);
+    DVec3::new(
+        rho_less_r - 2.0 * rho * sin_half * sin_half,
+        2.0 * rho * sin_half * cos_half,
+        z_less,
+    )
 }
 
 /// sin and cos of an angle, by their Taylor series where that is exact in f64 (the
@@ -151,38 +159,117 @@ impl LocalPose {
     }
 }
 
-/// The pose of pass `span` at node coordinate `u` (node ⌊u⌋ plus the fraction to the
-/// next), interpolated as the planner does: centres linearly (raster) or in
-/// cylindrical coordinates (spiral turns), axes linearly and normalised.
-pub fn pose_at(frame: &SampleFrame, span: &PassSpan, nodes: &[Node], u: f64) -> LocalPose {
-    let last = span.node_count as usize - 1;
-    let i = (u.floor().max(0.0) as usize).min(last.saturating_sub(1));
-    let t = (u - i as f64).clamp(0.0, 1.0);
-    let (a, b) = (&nodes[i], &nodes[(i + 1).min(last)]);
-    let centre = if span.polar && frame.polar {
-        let step = a.polar_step;
-        let delta = wrap_angle(a.angle_rad - frame.azimuth_rad) + t * step.y;
-        frame.polar_offset(
-            a.radius_mm + t * step.x,
-            delta,
-            a.centre.z + t * step.z,
-        )
-    } else {
-        let (da, db) = (frame.offset(a), frame.offset(b));
-        da + t * (db - da)
-    };
-    let axis = frame.direction(a.axis.lerp(b.axis, t).normalize());
-    LocalPose { centre, axis }
+/// A pass's poses in a sample's frame, interpolated as the planner does: centres
+/// linearly (raster) or in cylindrical coordinates (spiral turns), axes linearly and
+/// normalised. The segment last used is held (the kernel's `Segment`), so consecutive
+/// evaluations within it read no nodes: linear, `a` and `b` the nodes' offsets; polar,
+/// `a` = (ρ_a − r, δ_a, z_a − z_s) and `b` the polar steps to the next node.
+pub struct PassPoses<'a> {
+    frame: &'a SampleFrame,
+    span: &'a PassSpan,
+    nodes: &'a [Node],
+    segment: Option<Segment>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Segment {
+    index: usize,
+    a: DVec3,
+    b: DVec3,
+    rho: f64,
+    axis_a: DVec3,
+    axis_b: DVec3,
+}
+
+impl<'a> PassPoses<'a> {
+    pub fn new(scene: &'a MillingScene, frame: &'a SampleFrame, pass: u32) -> Self {
+        Self {
+            frame,
+            span: &scene.passes[pass as usize],
+            nodes: scene.pass_nodes(pass),
+            segment: None,
+        }
+    }
+
+    fn polar(&self) -> bool {
+        self.span.polar && self.frame.polar
+    }
+
+    /// The segment holding node coordinate `u`, and the fraction along it.
+    fn segment(&mut self, u: f64) -> (Segment, f64) {
+        let last = self.nodes.len() - 1;
+        let i = (u.floor().max(0.0) as usize).min(last.saturating_sub(1));
+        let t = (u - i as f64).clamp(0.0, 1.0);
+        if self.segment.is_none_or(|s| s.index != i) {
+            let frame = self.frame;
+            let (na, nb) = (&self.nodes[i], &self.nodes[(i + 1).min(last)]);
+            let (a, b, rho) = if self.polar() {
+                let z = na.centre.z - frame.height_mm;
+                let a = DVec3::new(na.radius_mm - frame.radius_mm, frame.delta(na), z);
+                (a, na.polar_step, na.radius_mm)
+            } else {
+                (frame.offset(na), frame.offset(nb), 0.0)
+            };
+            self.segment = Some(Segment {
+                index: i,
+                a,
+                b,
+                rho,
+                axis_a: frame.direction(na.axis),
+                axis_b: frame.direction(nb.axis),
+            });
+        }
+        (self.segment.expect("just set"), t)
+    }
+
+    pub fn pose(&mut self, u: f64) -> LocalPose {
+        let (g, t) = self.segment(u);
+        let centre = if self.polar() {
+            let s = g.b;
+            polar_offset(
+                g.a.x + t * s.x,
+                g.rho + t * s.x,
+                g.a.y + t * s.y,
+                g.a.z + t * s.z,
+            )
+        } else {
+            g.a + t * (g.b - g.a)
+        };
+        LocalPose {
+            centre,
+            axis: g.axis_a.lerp(g.axis_b, t).normalize(),
+        }
+    }
+
+    /// The unit direction of travel of the pose centre at `u` (the derivative of the
+    /// interpolation; zero where the centre stands still).
+    pub fn feed(&mut self, u: f64) -> DVec3 {
+        let (g, t) = self.segment(u);
+        let velocity = if self.polar() {
+            let s = g.b;
+            let (rho, delta) = (g.rho + t * s.x, g.a.y + t * s.y);
+            let (sin, cos) = delta.sin_cos();
+            DVec3::new(
+                s.x * cos - rho * s.y * sin,
+                s.x * sin + rho * s.y * cos,
+                s.z,
+            )
+        } else {
+            g.b - g.a
+        };
+        velocity.normalize_or_zero()
+    }
+
+    /// The extended entry at `u`.
+    pub fn entry(&mut self, scene: &MillingScene, u: f64) -> f64 {
+        let pose = self.pose(u);
+        extended_entry(scene, self.frame, &pose)
+    }
 }
 
 /// The entry of the ray t·n into the tool at `pose`, extended above the stock top by
 /// the stock-top point's distance from the tool.
-pub static EVALS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-pub static SEARCHES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-pub static REFINES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-pub static NODESCAN: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 pub fn extended_entry(scene: &MillingScene, frame: &SampleFrame, pose: &LocalPose) -> f64 {
-    EVALS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let top = scene.stock_top_mm;
     let cutter = pose.cutter();
     match scene.tool.ray_entry(&cutter, DVec3::ZERO, frame.normal) {
@@ -218,31 +305,29 @@ pub struct Located {
     pub estimate: f64,
 }
 
-/// Where along a pass its cut at a sample lies: the pass's point nearest the sample's
-/// anchor — for a ball the sample itself (the cutting pose is the centre-path point
-/// nearest the entry point, which lies within the stock of the sample, along its
-/// normal), for other tools the expected centre. From where the pass's geometry puts
-/// it (a spiral turn's node at the anchor's azimuth, a raster pass's projection onto its
-/// line), downhill node by node, then projected onto the better adjacent segment.
+/// Locates a candidate pass: its point nearest the anchor from where the pass's
+/// geometry puts it (a spiral turn's node at the anchor's azimuth, a raster pass's
+/// projection onto its line), downhill node by node, then projected onto the better
+/// adjacent segment.
 pub fn locate(scene: &MillingScene, frame: &SampleFrame, candidate: Candidate) -> Located {
     let span = &scene.passes[candidate.pass as usize];
     let nodes = scene.pass_nodes(candidate.pass);
     let last = span.node_count - 1;
-    let (lo, hi) = (candidate.first.saturating_sub(1), (candidate.last + 1).min(last));
+    let (lo, hi) = (
+        candidate.first.saturating_sub(1),
+        (candidate.last + 1).min(last),
+    );
     let middle = nodes[((lo + hi) / 2) as usize].axis;
     let (expected, radius) = scene.expected_centre(frame.world_point, frame.world_normal, middle);
-    let anchor = if scene.ball_slack.is_some() {
-        frame.world_point
-    } else {
-        expected
-    };
-    let distance = |i: u32| (nodes[i as usize].centre - anchor).length_squared();
-    let (mut nearest, mut d) = (lo, f64::INFINITY);
-    let azimuth = if anchor == frame.world_point && frame.polar {
+    let ball = scene.ball_slack.is_some();
+    let anchor = if ball { frame.world_point } else { expected };
+    let azimuth = if ball && frame.polar {
         frame.azimuth_rad
     } else {
         anchor.y.atan2(anchor.x)
     };
+    let distance = |i: u32| (nodes[i as usize].centre - anchor).length_squared();
+    let (mut nearest, mut d) = (lo, f64::INFINITY);
     for guess in span.nearest_guesses(anchor, azimuth) {
         let node = guess.clamp(lo as f64, hi as f64).round() as u32;
         let at = distance(node);
@@ -250,15 +335,8 @@ pub fn locate(scene: &MillingScene, frame: &SampleFrame, candidate: Candidate) -
             (nearest, d) = (node, at);
         }
     }
-    while nearest > lo && distance(nearest - 1) < d {
-        nearest -= 1;
-        d = distance(nearest);
-    }
-    while nearest < hi && distance(nearest + 1) < d {
-        nearest += 1;
-        d = distance(nearest);
-    }
-    // Onto the adjacent segments (in world coordinates: a node spacing's fraction).
+    let (nearest, d) = walk_downhill(distance, nearest, d, lo, hi);
+    // Onto the adjacent segments (in machine coordinates: a node spacing's fraction).
     let project = |i: u32| {
         let (a, b) = (nodes[i as usize].centre, nodes[i as usize + 1].centre);
         let along = b - a;
@@ -266,7 +344,10 @@ pub fn locate(scene: &MillingScene, frame: &SampleFrame, candidate: Candidate) -
         (i as f64 + t, (a + t * along - anchor).length_squared())
     };
     let mut point = (nearest as f64, d);
-    for i in [nearest.saturating_sub(1).max(lo), nearest.min(hi.saturating_sub(1))] {
+    for i in [
+        nearest.saturating_sub(1).max(lo),
+        nearest.min(hi.saturating_sub(1)),
+    ] {
         if i < hi {
             let p = project(i);
             if p.1 < point.1 {
@@ -275,327 +356,105 @@ pub fn locate(scene: &MillingScene, frame: &SampleFrame, candidate: Candidate) -
         }
     }
     // Nodes within the radius of the expected centre, and a scan step more.
-    let step = (nodes[nearest.min(last - 1) as usize + 1].centre
-        - nodes[nearest.min(last - 1) as usize].centre)
-        .length();
+    let s = nearest.min(last - 1) as usize;
+    let step = (nodes[s + 1].centre - nodes[s].centre).length();
     let half = (radius / step.max(1e-12)).ceil() + span.stride as f64;
     let half = half.min((hi - lo) as f64) as u32;
+    let mut poses = PassPoses::new(scene, frame, candidate.pass);
     Located {
         pass: candidate.pass,
         lo: nearest.saturating_sub(half).max(lo),
         hi: (nearest + half).min(hi),
         nearest: point.0,
-        estimate: extended_entry(scene, frame, &pose_at(frame, span, nodes, point.0)),
+        estimate: poses.entry(scene, point.0),
     }
+}
+
+/// From node `nearest` (at distance `d`) downhill node by node, toward `lo` and then
+/// toward `hi`, across runs of equal distances (coincident nodes, as where a spiral
+/// ends on the axis, or nodes f32 cannot tell apart) when a strictly nearer node lies
+/// past them.
+fn walk_downhill(
+    distance: impl Fn(u32) -> f64,
+    mut nearest: u32,
+    mut d: f64,
+    lo: u32,
+    hi: u32,
+) -> (u32, f64) {
+    for down in [true, false] {
+        loop {
+            let mut k = nearest;
+            let next = loop {
+                if (down && k == lo) || (!down && k == hi) {
+                    break None;
+                }
+                k = if down { k - 1 } else { k + 1 };
+                let at = distance(k);
+                if at != d {
+                    break Some(at);
+                }
+            };
+            match next {
+                Some(at) if at < d => (nearest, d) = (k, at),
+                _ => break,
+            }
+        }
+    }
+    (nearest, d)
 }
 
 /// The lowest cut of a located pass on the sample's ray (None: it stays above the
-/// stock top). For a ball on a pass that cannot come round to the sample twice (a
-/// raster pass, or less than a quarter of a spiral's turn in reach), the cut lies at
-/// the located point: a bracket about it is widened until the entry rises on both
-/// sides. Otherwise its nodes are scanned `stride` apart and half a node either side of
-/// the located point. Then the best bracket is refined; with teeth, the stamps there.
+/// stock top). For an end mill on a pass that cannot come round to the sample twice (a
+/// raster pass, or less than a quarter of a spiral's turn in reach) the entry has one
+/// valley — the poses whose entry lies below a depth are those whose centre lies in the
+/// convex set the ray segment less the (convex) tool sweeps out, an interval of a
+/// straight pass — so a bracket about the located point is widened until the entry
+/// rises on both sides. Otherwise its nodes are scanned `stride` apart and half a node either side of
+/// the located point. Then the bracket is narrowed and refined; with teeth, the stamps
+/// there.
 pub fn pass_cut(scene: &MillingScene, frame: &SampleFrame, located: &Located) -> Option<PassCut> {
-    SEARCHES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let span = &scene.passes[located.pass as usize];
-    let nodes = scene.pass_nodes(located.pass);
-    let entry_at = |u: f64| extended_entry(scene, frame, &pose_at(frame, span, nodes, u));
+    let mut poses = PassPoses::new(scene, frame, located.pass);
+    let entry = &mut |u: f64| poses.entry(scene, u);
     let (lo, hi) = (located.lo as f64, located.hi as f64);
-    let single_valley = scene.ball_slack.is_some()
+    let single_valley = matches!(scene.tool, MillingTool::EndMill(_))
         && (!span.polar || (hi - lo) * span.step.y.abs() < FRAC_PI_2);
+    let start = (located.nearest, located.estimate);
     let bracket = if single_valley {
-        widen(&entry_at, (located.nearest, located.estimate), lo, hi)
+        widen(entry, start, lo, hi)
     } else {
-        scan(&entry_at, located, span.stride)
+        let near = [(start.0 - 0.5).max(lo), start.0, (start.0 + 0.5).min(hi)];
+        scan(entry, located.lo, located.hi, span.stride, near, start.1)
     };
     let stamps = &scene.stamps;
-    if stamps.feed_per_tooth_mm > 0.0 && !stamps.offsets_mm.is_empty() {
-        return stamp_cut(scene, frame, located.pass, bracket.best.0, located.lo, located.hi);
-    }
-    if std::env::var("DBG_REFINE").is_ok() { eprintln!("scan bracket {bracket:?}"); }
-    let bracket = narrow(&entry_at, bracket);
-    if std::env::var("DBG_REFINE").is_ok() { eprintln!("refine from {bracket:?}"); }
-    let before_refine = EVALS.load(std::sync::atomic::Ordering::Relaxed);
-    let (node, depth) = refine(&entry_at, bracket, scene.tool.is_smooth());
-    REFINES.fetch_add(EVALS.load(std::sync::atomic::Ordering::Relaxed) - before_refine, std::sync::atomic::Ordering::Relaxed);
+    let displaced = stamps.feed_per_tooth_mm > 0.0 && !stamps.offsets_mm.is_empty();
+    let best = if displaced {
+        bracket.best
+    } else {
+        let smooth = scene.tool.is_smooth();
+        let bracket = narrow(entry, bracket);
+        refine(entry, bracket, smooth, REFINE_GAIN_MM, REFINE_WIDTH)
+    };
     if stamps.feed_per_tooth_mm > 0.0 {
-        return stamp_cut(scene, frame, located.pass, node, located.lo, located.hi);
+        return stamp_cut(scene, &mut poses, located, best.0);
     }
-    (depth < scene.stock_top_mm).then(|| PassCut {
-        depth_mm: depth,
-        node,
-        pose: pose_at(frame, span, nodes, node),
+    (best.1 < scene.stock_top_mm).then(|| PassCut {
+        depth_mm: best.1,
+        node: best.0,
+        pose: poses.pose(best.0),
     })
-}
-
-/// Node coordinates either side of a located point a first bracket spans.
-pub const FIRST_BRACKET: f64 = 0.05;
-
-/// A bracket about `start` (its value known) within [lo, hi]: points `FIRST_BRACKET`
-/// either side, moved downhill with doubling steps until the value rises on both
-/// sides (or the range ends).
-fn widen(f: &dyn Fn(f64) -> f64, start: (f64, f64), lo: f64, hi: f64) -> Bracket {
-    let at = |u: f64| (u, f(u));
-    let mut low = at((start.0 - FIRST_BRACKET).max(lo));
-    let mut best = start;
-    let mut high = at((start.0 + FIRST_BRACKET).min(hi));
-    while low.1 < best.1 && low.0 > lo {
-        let next = at((low.0 - 2.0 * (best.0 - low.0)).max(lo));
-        (high, best, low) = (best, low, next);
-    }
-    while high.1 < best.1 && high.0 < hi {
-        let next = at((high.0 + 2.0 * (high.0 - best.0)).min(hi));
-        (low, best, high) = (best, high, next);
-    }
-    // A range end that is still lowest: the bracket closes on it.
-    if low.1 < best.1 {
-        (high, best) = (best, low);
-    } else if high.1 < best.1 {
-        (low, best) = (best, high);
-    }
-    Bracket { low, best, high }
-}
-
-/// A bracket is narrowed by evenly spaced points while it is wider than this (node
-/// spacings), so the refinement starts within one valley.
-pub const NARROW_WIDTH: f64 = 4.0;
-/// Intervals a narrowing step splits a bracket into.
-pub const NARROW_STEPS: usize = 8;
-
-/// Narrows a wide bracket: `NARROW_STEPS` even intervals over it, the best point (of
-/// those and its old best) between its neighbours, until it is `NARROW_WIDTH` wide.
-fn narrow(f: &dyn Fn(f64) -> f64, mut bracket: Bracket) -> Bracket {
-    while bracket.high.0 - bracket.low.0 > NARROW_WIDTH {
-        let (low, high) = (bracket.low, bracket.high);
-        let step = (high.0 - low.0) / NARROW_STEPS as f64;
-        let mut points = [low; NARROW_STEPS + 1];
-        for (k, point) in points.iter_mut().enumerate().skip(1) {
-            *point = if k == NARROW_STEPS {
-                high
-            } else {
-                let u = low.0 + k as f64 * step;
-                (u, f(u))
-            };
-        }
-        let mut j = 0;
-        for k in 1..=NARROW_STEPS {
-            if points[k].1 < points[j].1 {
-                j = k;
-            }
-        }
-        bracket = if bracket.best.1 < points[j].1 {
-            // The old best stays, between the points either side of the one nearest it
-            // (so a point a hair from it, lower but for rounding, cannot close it in).
-            let k = ((bracket.best.0 - low.0) / step).round().clamp(1.0, (NARROW_STEPS - 1) as f64);
-            let k = k as usize;
-            Bracket {
-                low: points[k - 1],
-                best: bracket.best,
-                high: points[k + 1],
-            }
-        } else {
-            Bracket {
-                low: points[j.saturating_sub(1)],
-                best: points[j],
-                high: points[(j + 1).min(NARROW_STEPS)],
-            }
-        };
-    }
-    bracket
-}
-
-/// The bracket a coarse scan finds: every `stride`-th node over the located span and
-/// the points half a node either side of the located one, in order; the best and its
-/// neighbours in the scan.
-fn scan(f: &dyn Fn(f64) -> f64, located: &Located, stride: u32) -> Bracket {
-    let (lo, hi) = (located.lo as f64, located.hi as f64);
-    let near = [
-        (located.nearest - 0.5).max(lo),
-        located.nearest,
-        (located.nearest + 0.5).min(hi),
-    ];
-    let (mut best, mut before, mut after) = ((lo, f64::INFINITY), None, None);
-    let mut previous: Option<(f64, f64)> = None;
-    let mut points = ScanPoints::new(located.lo, located.hi, stride, near);
-    while let Some(u) = points.next() {
-        let value = if u == located.nearest {
-            located.estimate
-        } else {
-            f(u)
-        };
-        if value < best.1 {
-            best = (u, value);
-            before = previous;
-            after = None;
-        } else if after.is_none() && previous.is_some_and(|p| p.0 == best.0) {
-            after = Some((u, value));
-        }
-        previous = Some((u, value));
-    }
-    Bracket {
-        low: before.unwrap_or(best),
-        best,
-        high: after.unwrap_or(best),
-    }
-}
-
-/// The scan's points in increasing order: every `stride`-th node from `lo`, `hi`, and
-/// three more (sorted) merged in.
-struct ScanPoints {
-    next_stride: Option<u32>,
-    hi: u32,
-    stride: u32,
-    extra: [f64; 3],
-    taken: usize,
-    last: Option<f64>,
-}
-
-impl ScanPoints {
-    fn new(lo: u32, hi: u32, stride: u32, extra: [f64; 3]) -> Self {
-        Self {
-            next_stride: Some(lo),
-            hi,
-            stride,
-            extra,
-            taken: 0,
-            last: None,
-        }
-    }
-
-    fn next(&mut self) -> Option<f64> {
-        loop {
-            let stride = self.next_stride.map(|s| s as f64);
-            let extra = (self.taken < 3).then(|| self.extra[self.taken]);
-            let point = match (stride, extra) {
-                (Some(a), Some(b)) => a.min(b),
-                (Some(a), None) => a,
-                (None, Some(b)) => b,
-                (None, None) => return None,
-            };
-            if stride == Some(point) {
-                let s = self.next_stride.unwrap_or(self.hi);
-                self.next_stride = (s < self.hi).then(|| (s + self.stride).min(self.hi));
-            }
-            if extra == Some(point) {
-                self.taken += 1;
-            }
-            if self.last != Some(point) {
-                self.last = Some(point);
-                return Some(point);
-            }
-        }
-    }
-}
-
-/// A node's own pose in the frame.
-fn node_pose(frame: &SampleFrame, node: &Node) -> LocalPose {
-    LocalPose {
-        centre: frame.offset(node),
-        axis: frame.direction(node.axis),
-    }
-}
-
-/// Three points of a function along the pass: the best of a scan between its two
-/// neighbours (equal to it at the scan's ends).
-#[derive(Debug, Clone, Copy)]
-pub struct Bracket {
-    pub low: (f64, f64),
-    pub best: (f64, f64),
-    pub high: (f64, f64),
-}
-
-/// The minimum of `f` over [low, high] from a scan's bracket. For a smooth tool,
-/// Brent's method with the bracket's ends as its first parabola, stopping once a
-/// parabola through the three best points promises less than `REFINE_GAIN_MM` below the
-/// best; a flat end's or a disc's rim leaves a kink there (where parabolas creep), found
-/// by golden-section steps to `REFINE_WIDTH`.
-pub fn refine(f: &dyn Fn(f64) -> f64, bracket: Bracket, smooth: bool) -> (f64, f64) {
-    let (mut a, mut b) = (bracket.low.0, bracket.high.0);
-    let (mut x, mut fx) = bracket.best;
-    // w: second best, v: the previous w.
-    let (mut w, mut fw) = bracket.low;
-    let (mut v, mut fv) = bracket.high;
-    let mut e = b - a; // the step before last: lets the first parabola through
-    let mut d = 0.0f64;
-    for _ in 0..REFINE_STEPS {
-        let middle = 0.5 * (a + b);
-        let tol = REFINE_WIDTH;
-        if b - a <= 2.0 * tol {
-            break;
-        }
-        let mut parabolic = false;
-        if smooth && e.abs() > tol && w != x && v != x && v != w {
-            let r = (x - w) * (fx - fv);
-            let q = (x - v) * (fx - fw);
-            let mut p = (x - v) * q - (x - w) * r;
-            let mut q = 2.0 * (q - r);
-            if q > 0.0 {
-                p = -p;
-            }
-            q = q.abs();
-            // Its curvature and the gain it promises at its vertex.
-            let curvature = 2.0 * ((fw - fx) / (w - x) - (fv - fx) / (v - x)) / (w - v);
-            let step = p / q;
-            if curvature > 0.0 && 0.5 * curvature * step * step < REFINE_GAIN_MM {
-                break;
-            }
-            if p.abs() < (0.5 * q * e).abs() && p > q * (a - x) && p < q * (b - x) {
-                e = d;
-                d = step;
-                parabolic = true;
-                let u = x + d;
-                if u - a < 2.0 * tol || b - u < 2.0 * tol {
-                    d = tol.copysign(middle - x);
-                }
-            }
-        }
-        if !parabolic {
-            e = if x >= middle { a - x } else { b - x };
-            d = GOLDEN * e;
-        }
-        let u = if d.abs() >= tol {
-            x + d
-        } else {
-            x + tol.copysign(d)
-        };
-        let fu = f(u);
-        if std::env::var("DBG_REFINE").is_ok() { eprintln!("  refine step u {u:.9} fu {fu:.15e} (x {x:.9} fx {fx:.15e}) parabolic {parabolic} a {a:.6} b {b:.6}"); }
-        if fu <= fx {
-            if u >= x {
-                a = x;
-            } else {
-                b = x;
-            }
-            (v, fv, w, fw, x, fx) = (w, fw, x, fx, u, fu);
-        } else {
-            if u < x {
-                a = u;
-            } else {
-                b = u;
-            }
-            if fu <= fw || w == x {
-                (v, fv, w, fw) = (w, fw, u, fu);
-            } else if fu <= fv || v == x || v == w {
-                (v, fv) = (u, fu);
-            }
-        }
-    }
-    (x, fx)
 }
 
 /// With teeth: the lowest cut of the stamps (tooth positions) around the pass's
 /// continuous optimum at node coordinate `node` — or, with displaced teeth, of every
-/// stamp over the span of nodes lo..=hi.
+/// stamp over the located span.
 fn stamp_cut(
     scene: &MillingScene,
-    frame: &SampleFrame,
-    pass: u32,
+    poses: &mut PassPoses,
+    located: &Located,
     node: f64,
-    lo: u32,
-    hi: u32,
 ) -> Option<PassCut> {
-    let span = &scene.passes[pass as usize];
-    let nodes = scene.pass_nodes(pass);
+    let nodes = poses.nodes;
     let last = nodes.len() - 1;
     let teeth_at = |u: f64| {
         let i = (u.floor().max(0.0) as usize).min(last.saturating_sub(1));
@@ -603,11 +462,13 @@ fn stamp_cut(
         nodes[i].teeth + t * (nodes[(i + 1).min(last)].teeth - nodes[i].teeth)
     };
     let (first_stamp, last_stamp) = (nodes[0].teeth.ceil(), nodes[last].teeth.floor());
-    let (from, to) = if scene.stamps.offsets_mm.is_empty() {
+    let offsets = &scene.stamps.offsets_mm;
+    let (from, to) = if offsets.is_empty() {
         let nearest = teeth_at(node).floor();
         (nearest - 1.0, nearest + 2.0)
     } else {
-        (nodes[lo as usize].teeth.ceil(), nodes[hi as usize].teeth.floor())
+        let (lo, hi) = (located.lo as usize, located.hi as usize);
+        (nodes[lo].teeth.ceil(), nodes[hi].teeth.floor())
     };
     let mut best: Option<PassCut> = None;
     let mut segment = (node.floor().max(0.0) as usize).min(last.saturating_sub(1));
@@ -621,10 +482,14 @@ fn stamp_cut(
             segment += 1;
         }
         let (a, b) = (nodes[segment].teeth, nodes[segment + 1].teeth);
-        let t = if b > a { ((k - a) / (b - a)).clamp(0.0, 1.0) } else { 0.0 };
+        let t = if b > a {
+            ((k - a) / (b - a)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         let u = segment as f64 + t;
-        let pose = stamp_pose(scene, frame, span, nodes, k, u);
-        let depth = extended_entry(scene, frame, &pose);
+        let pose = stamp_pose(poses, offsets, k, u);
+        let depth = extended_entry(scene, poses.frame, &pose);
         if depth < scene.stock_top_mm && best.is_none_or(|b| depth < b.depth_mm) {
             best = Some(PassCut {
                 depth_mm: depth,
@@ -640,51 +505,20 @@ fn stamp_cut(
 /// The pose of stamp `k` (at node coordinate `u`): the tool there, its centre moved by
 /// tooth k mod z's displacement in the frame (feed direction across the axis, its
 /// right-handed quarter turn about the axis).
-fn stamp_pose(
-    scene: &MillingScene,
-    frame: &SampleFrame,
-    span: &PassSpan,
-    nodes: &[Node],
-    k: f64,
-    u: f64,
-) -> LocalPose {
-    let pose = pose_at(frame, span, nodes, u);
-    let offsets = &scene.stamps.offsets_mm;
+fn stamp_pose(poses: &mut PassPoses, offsets: &[glam::DVec2], k: f64, u: f64) -> LocalPose {
+    let pose = poses.pose(u);
     if offsets.is_empty() {
         return pose;
     }
     let offset = offsets[(k as i64).rem_euclid(offsets.len() as i64) as usize];
-    let feed = feed_direction(frame, span, nodes, u);
-    let along = (feed - feed.dot(pose.axis) * pose.axis)
-        .normalize_or(pose.axis.any_orthonormal_vector());
+    let feed = poses.feed(u);
+    let along =
+        (feed - feed.dot(pose.axis) * pose.axis).normalize_or(pose.axis.any_orthonormal_vector());
     let across = pose.axis.cross(along);
     LocalPose {
         centre: pose.centre + offset.x * along + offset.y * across,
         axis: pose.axis,
     }
-}
-
-/// The unit direction of travel of the pose centre at node coordinate `u` (the
-/// derivative of the interpolation), in the frame.
-pub fn feed_direction(frame: &SampleFrame, span: &PassSpan, nodes: &[Node], u: f64) -> DVec3 {
-    let last = span.node_count as usize - 1;
-    let i = (u.floor().max(0.0) as usize).min(last.saturating_sub(1));
-    let t = (u - i as f64).clamp(0.0, 1.0);
-    let (a, b) = (&nodes[i], &nodes[(i + 1).min(last)]);
-    let velocity = if span.polar && frame.polar {
-        let step = a.polar_step;
-        let rho = a.radius_mm + t * step.x;
-        let delta = wrap_angle(a.angle_rad - frame.azimuth_rad) + t * step.y;
-        let (sin, cos) = delta.sin_cos();
-        DVec3::new(
-            step.x * cos - rho * step.y * sin,
-            step.x * sin + rho * step.y * cos,
-            step.z,
-        )
-    } else {
-        frame.offset(b) - frame.offset(a)
-    };
-    velocity.normalize_or_zero()
 }
 
 /// The machined surface at one sample and the pass that left it (the pass index).
@@ -696,11 +530,8 @@ pub fn milling_dexel(scene: &MillingScene, ring: usize, row: u32) -> (f64, u32) 
     scene.candidates(frame.world_point, frame.world_normal, &mut list, |c| {
         overflowed.push(c)
     });
-    for candidate in overflowed {
-        let located = locate(scene, &frame, candidate);
-        offer(&mut best, pass_cut(scene, &frame, &located), candidate.pass);
-    }
-    // Rank the passes by their cut near the expected centre (an upper bound of it).
+    // Locate the passes (an estimate of each one's cut) and search them lowest
+    // estimate first.
     let mut ranked = [Located::default(); MAX_CANDIDATES];
     for (slot, candidate) in ranked.iter_mut().zip(&list.items[..list.len]) {
         *slot = locate(scene, &frame, *candidate);
@@ -708,8 +539,8 @@ pub fn milling_dexel(scene: &MillingScene, ring: usize, row: u32) -> (f64, u32) 
     let ranked = &mut ranked[..list.len];
     ranked.sort_by(|a, b| a.estimate.total_cmp(&b.estimate).then(a.pass.cmp(&b.pass)));
     for located in ranked.iter() {
-        // For a ball, the rest cannot cut deeper than the best (their estimates, less
-        // the slack between nodes, are no lower).
+        // A ball: the rest cannot cut deeper than the best (their estimates, less the
+        // slack between nodes, are no lower).
         if let Some(slack) = scene.ball_slack {
             let spacing = scene.passes[located.pass as usize].spacing_mm;
             let room = slack.per_spacing_squared * spacing * spacing + slack.displacement_mm;
@@ -718,6 +549,11 @@ pub fn milling_dexel(scene: &MillingScene, ring: usize, row: u32) -> (f64, u32) 
             }
         }
         offer(&mut best, pass_cut(scene, &frame, located), located.pass);
+    }
+    // Passes beyond the first MAX_CANDIDATES: run by run.
+    for candidate in overflowed {
+        let located = locate(scene, &frame, candidate);
+        offer(&mut best, pass_cut(scene, &frame, &located), candidate.pass);
     }
     best
 }
@@ -769,82 +605,5 @@ impl MillingScene {
                     })
             })
             .collect()
-    }
-}
-
-#[cfg(test)]
-mod debug_tests {
-    use super::*;
-    use crate::engine::Scene;
-    use crate::io::job::Job;
-
-    #[test]
-    #[ignore]
-    fn debug_sample() {
-        let path = std::env::var("DBG_JOB").unwrap();
-        let ring: usize = std::env::var("DBG_RING").unwrap().parse().unwrap();
-        let row: u32 = std::env::var("DBG_ROW").unwrap().parse().unwrap();
-        let job = Job::load(std::path::Path::new(&path)).unwrap();
-        let Scene::Milling(scene) = crate::run::prepare_scenes(&job).remove(0) else { panic!() };
-        let frame = SampleFrame::new(&scene, ring, row);
-        let mut list = CandidateList::default();
-        scene.candidates(frame.world_point, frame.world_normal, &mut list, |c| println!("overflow {c:?}"));
-        for c in &list.items[..list.len] {
-            let cut = pass_cut(&scene, &frame, &locate(&scene, &frame, *c));
-            let span = &scene.passes[c.pass as usize];
-            let nodes = scene.pass_nodes(c.pass);
-            let lo = c.first.saturating_sub(1) as f64;
-            let hi = (c.last + 1).min(span.node_count - 1) as f64;
-            let n = 200000;
-            let mut brute = (f64::INFINITY, 0.0);
-            for k in 0..=n {
-                let u = lo + (hi - lo) * k as f64 / n as f64;
-                let v = extended_entry(&scene, &frame, &pose_at(&frame, span, nodes, u));
-                if v < brute.0 { brute = (v, u); }
-            }
-            let loc = locate(&scene, &frame, *c);
-            let dus: Vec<f64> = match std::env::var("DBG_U") { Ok(v) => { let a: f64 = v.parse().unwrap(); (0..=60).map(|k| a - loc.nearest.floor() + k as f64 * 0.05).collect() }, Err(_) => vec![-0.03f64, -0.01, 0.0, 0.0004, 0.01, 0.029, 0.05] };
-            if std::env::var("DBG_PASS").map_or(true, |v| v.parse::<u32>().unwrap() == c.pass) { for du in dus {
-                let u = loc.nearest.floor() + du;
-                if u < 0.0 || u > (span.node_count - 1) as f64 { continue; }
-                let pose = pose_at(&frame, span, nodes, u);
-                let world = nodes[u.floor() as usize].centre.lerp(nodes[(u.floor() as usize + 1).min(nodes.len()-1)].centre, u - u.floor());
-                println!("   u {u:.4} |Δ| {:.12} f {:.12e} world-dist {:.12}", pose.centre.length(), extended_entry(&scene, &frame, &pose), (world - frame.world_point).length());
-            } }
-            println!("{c:?} stride {} cut {:?} brute {:?} est {:?}", span.stride, cut.map(|c| (c.depth_mm, c.node)), brute, locate(&scene, &frame, *c));
-        }
-        println!("dexel {:?}", milling_dexel(&scene, ring, row));
-    }
-    #[test]
-    #[ignore]
-    fn debug_counts() {
-        use std::sync::atomic::Ordering::Relaxed;
-        let path = std::env::var("DBG_JOB").unwrap();
-        let job = Job::load(std::path::Path::new(&path)).unwrap();
-        let Scene::Milling(scene) = crate::run::prepare_scenes(&job).remove(0) else { panic!() };
-        let t = std::time::Instant::now();
-        let f = crate::engine::RemovalEngine::remove(&mut crate::engine::cpu::CpuEngine, &crate::engine::Scene::Milling(scene.clone()), &|_, _| {}).unwrap();
-        let secs = t.elapsed().as_secs_f64();
-        let pairs = scene.pair_count();
-        println!("removal {secs:.3} s, pairs {pairs}, {:.3} µs/pair; evals {} ({:.2}/pair), searches {} ({:.2}/pair), node scan {:.1}/pair refine evals {:.2}/search", secs / pairs as f64 * 1e6, EVALS.load(Relaxed), EVALS.load(Relaxed) as f64 / pairs as f64, SEARCHES.load(Relaxed), SEARCHES.load(Relaxed) as f64 / pairs as f64, NODESCAN.load(Relaxed) as f64 / pairs as f64, REFINES.load(Relaxed) as f64 / SEARCHES.load(Relaxed) as f64);
-        let _ = f;
-    }
-}
-#[cfg(test)]
-mod debug_cpu_time {
-    #[test]
-    #[ignore]
-    fn debug_cputime() {
-        use crate::engine::Scene;
-        let path = std::env::var("DBG_JOB").unwrap();
-        let job = crate::io::job::Job::load(std::path::Path::new(&path)).unwrap();
-        let Scene::Milling(scene) = crate::run::prepare_scenes(&job).remove(0) else { panic!() };
-        let cpu = || { let mut u: libc::rusage = unsafe { std::mem::zeroed() }; unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) }; u.ru_utime.tv_sec as f64 + u.ru_utime.tv_usec as f64 * 1e-6 };
-        let pairs = scene.pair_count();
-        let t0 = cpu();
-        let w = std::time::Instant::now();
-        let _ = crate::engine::RemovalEngine::remove(&mut crate::engine::cpu::CpuEngine, &Scene::Milling(scene.clone()), &|_, _| {}).unwrap();
-        let t1 = cpu();
-        println!("cpu {:.3} s, wall {:.3} s, pairs {pairs}, {:.3} µs cpu per pair", t1 - t0, w.elapsed().as_secs_f64(), (t1 - t0) / pairs as f64 * 1e6);
     }
 }

@@ -20,7 +20,7 @@ use std::sync::OnceLock;
 
 /// Candidate passes a sample keeps for ranking; further ones are searched at once
 /// (the same result, without the early stop). Shared with the kernel.
-pub const MAX_CANDIDATES: usize = 32;
+pub const MAX_CANDIDATES: usize = 16;
 
 /// Where the teeth cut along the path: stamp k at arc length k·`feed_per_tooth_mm` from
 /// the path's start (0: the tool body sweeps continuously), cut by tooth k mod z whose
@@ -161,7 +161,11 @@ impl NodeBins {
         let cell_of = |centre: DVec3| {
             let c = ((centre - low) / cell_mm).floor();
             let clamp = |v: f64, n: u32| (v.max(0.0) as u32).min(n - 1) as usize;
-            let (x, y, z) = (clamp(c.x, size[0]), clamp(c.y, size[1]), clamp(c.z, size[2]));
+            let (x, y, z) = (
+                clamp(c.x, size[0]),
+                clamp(c.y, size[1]),
+                clamp(c.z, size[2]),
+            );
             (z * size[1] as usize + y) * size[0] as usize + x
         };
         let mut cells: Vec<Vec<Run>> = vec![Vec::new(); (size[0] * size[1] * size[2]) as usize];
@@ -485,7 +489,10 @@ fn pass_spans(path: &MillingPath, scan_mm: f64) -> Vec<PassSpan> {
                     DVec3::new(0.0, turned / (pass.nodes.len() as f64 - 1.0), 0.0),
                 )
             } else {
-                let (a, b) = (pass.nodes[0].pose.centre, pass.nodes[pass.nodes.len() - 1].pose.centre);
+                let (a, b) = (
+                    pass.nodes[0].pose.centre,
+                    pass.nodes[pass.nodes.len() - 1].pose.centre,
+                );
                 (a, (b - a) / (pass.nodes.len() as f64 - 1.0))
             };
             let span = PassSpan {

@@ -7,6 +7,7 @@ pub mod cpu_milling;
 pub mod generating_scene;
 pub mod gpu;
 pub mod milling_scene;
+pub mod milling_search;
 pub mod scene;
 
 pub use generating_scene::GeneratingScene;

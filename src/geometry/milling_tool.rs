@@ -119,7 +119,7 @@ fn ball_entry(cutter: &Cutter, pose: &CutterPose, origin: DVec3, dir: DVec3) -> 
     let (a0, ad) = (o.dot(w), dir.dot(w));
     let (v0, vd) = (o - a0 * w, dir - ad * w);
     let aa = vd.length_squared();
-    let shank = if aa > 0.0 {
+    if aa > 0.0 {
         let bb = v0.dot(vd);
         let perp = (v0 - (bb / aa) * vd).length();
         (perp <= r)
@@ -146,8 +146,7 @@ fn ball_entry(cutter: &Cutter, pose: &CutterPose, origin: DVec3, dir: DVec3) -> 
             let (x, y) = ((0.0 - a0) / ad, (cutter.length_mm - a0) / ad);
             x.min(y)
         })
-    };
-    shank
+    }
 }
 
 #[cfg(test)]

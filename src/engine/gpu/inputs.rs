@@ -6,9 +6,10 @@ use super::{split_count, split_f64};
 use crate::engine::EngineError;
 use crate::engine::cpu::RAY_REFINEMENTS;
 use crate::engine::cpu_generating::MAX_NEWTON_STEPS;
-use crate::engine::cpu_milling::{FIRST_BRACKET, REFINE_STEPS, TIE_MM};
+use crate::engine::cpu_milling::TIE_MM;
 use crate::engine::generating_scene::{GeneratingScene, MAX_CONTACTS};
 use crate::engine::milling_scene::MillingScene;
+use crate::engine::milling_search::{FIRST_BRACKET, REFINE_STEPS};
 use crate::engine::scene::TurningScene;
 use crate::field::Layout;
 use crate::geometry::cutter::ENTRY_NEWTON_STEPS;
@@ -231,7 +232,6 @@ pub fn generating_params(
     }
 }
 
-
 /// A milling scene in the kernel's layouts.
 pub struct MillingInputs {
     pub rings: Vec<layout::MillingRing>,
@@ -244,9 +244,11 @@ pub struct MillingInputs {
 }
 
 /// The f32 kernel's refinement: a bracket of 1e-5 node spacings (f32 positions within
-/// the bracket), a parabola promising under 1e-10 mm (f32 depths of micrometres).
+/// the bracket), a parabola promising under 1e-10 mm or under f32's rounding of the
+/// tool's size (2⁻²⁴ of its reach), below which its entries are noise.
 pub const GPU_REFINE_WIDTH: f64 = 1e-5;
 pub const GPU_REFINE_GAIN_MM: f64 = 1e-10;
+const F32_ROUNDING: f64 = 1.0 / (1u64 << 24) as f64;
 /// A bull-nose entry's Newton step below this ends it in f32 (mm).
 pub const GPU_ENTRY_TOLERANCE_MM: f64 = 1e-9;
 /// Depths closer than this tie in f32 (mm).
@@ -377,23 +379,15 @@ fn milling_node(node: &crate::engine::milling_scene::Node) -> layout::MillingNod
     }
 }
 
-/// A milling tile's uniform parameters.
-pub fn milling_params(
-    scene: &MillingScene,
-    offset: u64,
-    count: u64,
-    dispatch_width: u32,
-) -> layout::MillingParams {
-    let (tool_kind, major, corner, length) = match scene.tool {
-        MillingTool::EndMill(c) if c.major_radius_mm == 0.0 => {
-            (0, c.major_radius_mm, c.corner_radius_mm, c.length_mm)
-        }
-        MillingTool::EndMill(c) => (1, c.major_radius_mm, c.corner_radius_mm, c.length_mm),
-        MillingTool::Disc(_) => (2, 0.0, 0.0, 0.0),
-    };
-    let disc = match scene.tool {
-        MillingTool::Disc(d) => d.profile(),
-        MillingTool::EndMill(_) => (0.0, 0.0, 0.0, 0.0, 0.0),
+/// The pipeline constants a milling scene's kernel is compiled with: `TOOL_KIND` (0
+/// ball, 1 bull-nose, 2 flat end, 3 disc) and `STAMP_MODE` (0 the body sweeps, 1 the
+/// stamps about the optimum, 2 every stamp: displaced teeth).
+pub fn milling_variant(scene: &MillingScene) -> (u32, u32) {
+    let tool = match scene.tool {
+        MillingTool::EndMill(c) if c.major_radius_mm == 0.0 => 0,
+        MillingTool::EndMill(c) if c.corner_radius_mm > 0.0 => 1,
+        MillingTool::EndMill(_) => 2,
+        MillingTool::Disc(_) => 3,
     };
     let stamps = &scene.stamps;
     let stamp_mode = match (stamps.feed_per_tooth_mm > 0.0, stamps.offsets_mm.is_empty()) {
@@ -401,6 +395,25 @@ pub fn milling_params(
         (true, true) => 1,
         (true, false) => 2,
     };
+    (tool, stamp_mode)
+}
+
+/// A milling tile's uniform parameters.
+pub fn milling_params(
+    scene: &MillingScene,
+    offset: u64,
+    count: u64,
+    dispatch_width: u32,
+) -> layout::MillingParams {
+    let (major, corner, length) = match scene.tool {
+        MillingTool::EndMill(c) => (c.major_radius_mm, c.corner_radius_mm, c.length_mm),
+        MillingTool::Disc(_) => (0.0, 0.0, 0.0),
+    };
+    let disc = match scene.tool {
+        MillingTool::Disc(d) => d.profile(),
+        MillingTool::EndMill(_) => (0.0, 0.0, 0.0, 0.0, 0.0),
+    };
+    let stamps = &scene.stamps;
     let slack = scene.ball_slack;
     let bins = &scene.bins;
     layout::MillingParams {
@@ -410,13 +423,9 @@ pub fn milling_params(
         sample_count: count as u32,
         dispatch_width,
         polar: scene.polar_grid() as u32,
-        tool_kind,
-        smooth_tool: scene.tool.is_smooth() as u32,
         cells_x: bins.size[0],
         cells_y: bins.size[1],
         cells_z: bins.size[2],
-        ball_slack: slack.is_some() as u32,
-        stamp_mode,
         offset_count: stamps.offsets_mm.len() as u32,
         refine_steps: REFINE_STEPS,
         entry_steps: ENTRY_NEWTON_STEPS as u32,
@@ -436,7 +445,7 @@ pub fn milling_params(
         disc_high: disc.4 as f32,
         cell_mm: bins.cell_mm as f32,
         refine_width: GPU_REFINE_WIDTH as f32,
-        refine_gain_mm: GPU_REFINE_GAIN_MM as f32,
+        refine_gain_mm: GPU_REFINE_GAIN_MM.max(F32_ROUNDING * scene.tool.reach_mm()) as f32,
         tie_mm: GPU_TIE_MM as f32,
         entry_tolerance_mm: GPU_ENTRY_TOLERANCE_MM as f32,
         first_bracket: FIRST_BRACKET as f32,

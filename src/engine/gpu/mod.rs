@@ -61,7 +61,8 @@ pub struct GpuEngine {
     queue: wgpu::Queue,
     turning: Kernel,
     generating: Kernel,
-    milling: Kernel,
+    /// The milling kernel, compiled per (tool kind, stamp mode) when first needed.
+    milling: std::collections::HashMap<(u32, u32), Kernel>,
     info: EngineInfo,
     max_binding_bytes: u64,
     /// Caps the samples per tile below what the adapter allows (tests use it to force tiling).
@@ -112,9 +113,15 @@ impl GpuEngine {
         })?;
 
         let name = &adapter_info.name;
-        let turning = build_kernel(&device, "remove_turning", TURNING_SHADER, 3, name)?;
-        let generating = build_kernel(&device, "remove_generating", GENERATING_SHADER, 3, name)?;
-        let milling = build_kernel(&device, "remove_milling", MILLING_SHADER, 7, name)?;
+        let turning = build_kernel(&device, "remove_turning", TURNING_SHADER, 3, &[], name)?;
+        let generating = build_kernel(
+            &device,
+            "remove_generating",
+            GENERATING_SHADER,
+            3,
+            &[],
+            name,
+        )?;
 
         let info = EngineInfo {
             kind: "gpu".into(),
@@ -130,7 +137,7 @@ impl GpuEngine {
             queue,
             turning,
             generating,
-            milling,
+            milling: std::collections::HashMap::new(),
             info,
             max_binding_bytes: limits
                 .max_storage_buffer_binding_size
@@ -194,6 +201,7 @@ fn build_kernel(
     entry: &'static str,
     source: &str,
     inputs: u32,
+    constants: &[(&str, f64)],
     adapter: &str,
 ) -> Result<Kernel, EngineError> {
     let out_of_memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
@@ -240,7 +248,10 @@ fn build_kernel(
         layout: Some(&pipeline_layout),
         module: &module,
         entry_point: Some(entry),
-        compilation_options: Default::default(),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants,
+            ..Default::default()
+        },
         cache: None,
     });
     for (scope, what) in [
@@ -320,6 +331,22 @@ impl GpuEngine {
         scene: &MillingScene,
         progress: Progress<'_>,
     ) -> Result<DexelField, EngineError> {
+        let variant = inputs::milling_variant(scene);
+        if !self.milling.contains_key(&variant) {
+            let constants = [
+                ("TOOL_KIND", variant.0 as f64),
+                ("STAMP_MODE", variant.1 as f64),
+            ];
+            let kernel = build_kernel(
+                &self.device,
+                "remove_milling",
+                MILLING_SHADER,
+                7,
+                &constants,
+                &self.info.adapter,
+            )?;
+            self.milling.insert(variant, kernel);
+        }
         let m = inputs::milling(scene);
         let buffers = [
             self.upload("milling rings", &m.rings)?,
@@ -331,7 +358,7 @@ impl GpuEngine {
             self.upload("tooth offsets", &m.tooth_offsets)?,
         ];
         self.dispatch(
-            &self.milling,
+            &self.milling[&variant],
             &buffers,
             scene.grid.sample_count() as u64,
             &|offset, count, width| Ok(inputs::milling_params(scene, offset, count, width)),
@@ -443,4 +470,3 @@ impl GpuEngine {
         Ok(DexelField { depth_mm, pass })
     }
 }
-
