@@ -120,6 +120,38 @@ impl PolarGrid {
         }
     }
 
+    /// The grid with rings added at `radii_mm` (a revolved part's): where the process
+    /// leaves an edge whose place varies continuously (the uncut core a tool below
+    /// centre leaves ends at r = |h|), rings on both sides of it keep the simulated
+    /// surface continuous in that place, not stepping from ring to ring.
+    pub fn with_rings_at(
+        mut self,
+        surface: &SurfaceOfRevolution,
+        meridian: &MeridianArcLength,
+        radii_mm: &[f64],
+    ) -> Self {
+        let (inner, outer) = (
+            self.rings.first().map_or(0.0, |r| r.radius_mm),
+            self.rings.last().map_or(0.0, |r| r.radius_mm),
+        );
+        for &radius_mm in radii_mm.iter().filter(|r| (inner..=outer).contains(*r)) {
+            let at = self.rings.partition_point(|r| r.radius_mm < radius_mm);
+            if self.rings.get(at).is_some_and(|r| r.radius_mm == radius_mm) {
+                continue;
+            }
+            self.rings.insert(
+                at,
+                Ring {
+                    arc_length_mm: meridian.arc_length_at(radius_mm),
+                    radius_mm,
+                    height_mm: surface.height(radius_mm),
+                    normal: surface.normal(radius_mm),
+                },
+            );
+        }
+        self
+    }
+
     /// The 3-D nominal point of a sample.
     pub fn sample_point(&self, ring: usize, row: u32) -> DVec3 {
         let r = &self.rings[ring];

@@ -31,8 +31,9 @@ enum Command {
     },
     /// Measure engine throughput (dexel–pass evaluations per second) and scaling.
     Bench(BenchArgs),
-    /// Simulate a job and compare it with a measured radial profile (period, PV, RMS).
-    CompareProfile(cli::compare::CompareArgs),
+    /// Place a measured profile or map on the job's part and compare them (PV, RMS,
+    /// local mark spacing); no effect is fitted (`diagnose` does that).
+    CompareProfile(cli::diagnose::CompareArgs),
     /// Run the machining–measurement–compensation loop in simulation and write the
     /// compensated path.
     Compensate(cli::compensate::CompensateArgs),
@@ -50,6 +51,12 @@ enum Command {
     /// The withheld benchmark: generate a suite of synthetic measurements with sealed
     /// truth, diagnose them without it, then score.
     BenchDiagnose(cli::diagnose::BenchDiagnoseArgs),
+    /// Write the self-contained HTML report of an output folder (run, diagnose,
+    /// compensate or correct).
+    Report(cli::run::ReportArgs),
+    /// Run a job over a parameter grid on Dask (LocalCluster or any scheduler) and
+    /// gather the summaries into a table; needs the Python package (pip install ./python).
+    Sweep(cli::sweep::SweepArgs),
 }
 
 #[derive(clap::Args)]
@@ -83,17 +90,21 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // Ctrl-C removes half-written outputs and says what was kept (io::atomic).
+    toolmark::io::atomic::install_interrupt_handler();
     let cli = Cli::parse();
     let result = match cli.command.unwrap_or(Command::Run(Default::default())) {
         Command::Run(args) => cli::run::run(args),
         Command::Check { job } => cli::run::check(job),
-        Command::CompareProfile(args) => cli::compare::compare_profile(args),
+        Command::CompareProfile(args) => cli::diagnose::compare_cmd(args),
         Command::Compensate(args) => cli::compensate::compensate(args),
         Command::Correct(args) => cli::correct::correct(args),
         Command::Formulas(args) => cli::formulas::formulas(args),
         Command::Diagnose(args) => cli::diagnose::diagnose_cmd(args),
         Command::Synth(args) => cli::diagnose::synth_cmd(args),
         Command::BenchDiagnose(args) => cli::diagnose::bench_diagnose_cmd(args),
+        Command::Report(args) => cli::run::report(args),
+        Command::Sweep(args) => cli::sweep::sweep(args),
         Command::Bench(args) => bench::run_benchmarks(
             args.engine != BenchEngines::Gpu,
             args.engine != BenchEngines::Cpu,

@@ -11,8 +11,9 @@ use crate::engine::{
     TurningScene,
 };
 use crate::field::{DexelField, Layout, PolarGrid};
+use crate::geometry::MeridianArcLength;
 use crate::io::job::Job;
-use crate::process::{GeneratingProcess, MillingProcess, Process, TurningProcess};
+use crate::process::{GeneratingProcess, MillingProcess, PoseTable, Process, TurningProcess};
 use std::time::Instant;
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
@@ -73,11 +74,38 @@ impl RunResult {
 
 /// Builds the engine-ready scenes (one per cutting pass) for a validated job.
 pub fn prepare_scenes(job: &Job) -> Vec<Scene> {
-    let meridian = job.meridian();
-    let grid = match job.layout {
+    let groundwork = Groundwork::of(job);
+    scenes_on(job, job_grid(job, &groundwork), &groundwork)
+}
+
+/// What a job's scenes are built from that its effects do not change: the meridian's
+/// arc-length table and a turning job's programmed pose tables. Computed once, it
+/// serves every trial of a fit (the diagnosis re-simulates one job hundreds of times
+/// with other effects).
+pub struct Groundwork {
+    pub meridian: MeridianArcLength,
+    /// Turning: the pose tables as programmed (before correction and effects).
+    pub passes: Vec<PoseTable>,
+}
+
+impl Groundwork {
+    pub fn of(job: &Job) -> Self {
+        let meridian = job.meridian();
+        let passes = match &job.process {
+            Process::Turning(t) => t.path.pose_tables(&job.surface, &meridian, &t.tool),
+            _ => Vec::new(),
+        };
+        Self { meridian, passes }
+    }
+}
+
+/// The job's own grid: rings every pitch, its rows.
+pub fn job_grid(job: &Job, groundwork: &Groundwork) -> PolarGrid {
+    let meridian = &groundwork.meridian;
+    match job.layout {
         Layout::Polar => PolarGrid::new(
             &job.surface,
-            &meridian,
+            meridian,
             job.aperture.inner_radius_mm,
             job.aperture.outer_radius_mm,
             job.pitch_mm,
@@ -85,15 +113,20 @@ pub fn prepare_scenes(job: &Job) -> Vec<Scene> {
         ),
         Layout::Extruded { length_mm } => PolarGrid::extruded(
             &job.surface,
-            &meridian,
+            meridian,
             job.aperture.outer_radius_mm,
             length_mm,
             job.pitch_mm,
             job.azimuths,
         ),
-    };
+    }
+}
+
+/// The engine-ready scenes of a validated job on a given grid (the job's own, or one
+/// with rings added), from its groundwork.
+pub fn scenes_on(job: &Job, grid: PolarGrid, groundwork: &Groundwork) -> Vec<Scene> {
     match &job.process {
-        Process::Turning(turning) => turning_scenes(job, turning, grid)
+        Process::Turning(turning) => turning_scenes(job, turning, grid, groundwork)
             .into_iter()
             .map(Scene::Turning)
             .collect(),
@@ -130,15 +163,20 @@ fn milling_scene(job: &Job, milling: &MillingProcess, grid: PolarGrid) -> Millin
     )
 }
 
-fn turning_scenes(job: &Job, turning: &TurningProcess, grid: PolarGrid) -> Vec<TurningScene> {
-    let meridian = job.meridian();
+fn turning_scenes(
+    job: &Job,
+    turning: &TurningProcess,
+    grid: PolarGrid,
+    groundwork: &Groundwork,
+) -> Vec<TurningScene> {
     let edge = turning.effects.edge_model(&turning.tool);
     let extra_reach = turning.effects.extra_reach_mm(&edge);
-    let mut passes = turning
-        .path
-        .pose_tables(&job.surface, &meridian, &turning.tool);
+    let mut passes = groundwork.passes.clone();
     for poses in &mut passes {
-        turning.correction.apply(poses, &job.surface, &meridian);
+        turning
+            .correction
+            .apply(poses, &job.surface, &groundwork.meridian);
+        poses.start_angle_rad += turning.azimuth_offset_rad;
     }
     turning.effects.apply_to_passes(&mut passes);
     passes

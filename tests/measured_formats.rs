@@ -333,8 +333,7 @@ fn xyz_points_on_a_partial_grid() {
 /// 0.8711816145249998 µm.
 #[test]
 fn real_wli_profile_with_declared_units() {
-    let path =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/upm-spdt/1021-WLI-2D.csv");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/upm-spdt/1021-WLI-2D.csv");
     let e = error(&path, &none());
     assert!(e.contains("--lateral-unit"), "{e}");
     let um = ReadOptions {

@@ -4,16 +4,15 @@
 pub mod deviation;
 pub mod form;
 pub mod maps;
-pub mod profile_compare;
 pub mod profile_stats;
 pub mod protrusion;
 pub mod scallop;
 pub mod sphere_fit;
+pub mod texture;
 
 pub use deviation::{DeviationStats, deviation_stats};
 pub use form::{FormProfile, form_error};
 pub use maps::{Raster, top_view, top_view_within};
-pub use profile_stats::{ProfileStats, profile_stats, remove_form};
 pub use protrusion::{
     Protrusion, ProtrusionShape, Surround, analyse_protrusion, default_zone_radius_mm,
 };

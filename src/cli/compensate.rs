@@ -53,6 +53,7 @@ pub fn compensate(args: CompensateArgs) -> Result<(), Failure> {
         PathBuf::from("toolmark-out").join(format!("{}-compensation", slug(&job.name)))
     });
     let mut engine = open_engine(args.engine, &job)?;
+    super::run::prepare_out(&out)?;
     println!(
         "{}: {} compensation cycles, form measured with a {:.1} µm Gaussian cutoff",
         job.name,
@@ -163,6 +164,8 @@ pub fn compensate(args: CompensateArgs) -> Result<(), Failure> {
         },
     )
     .map_err(|err| Failure::Runtime(err.to_string()))?;
+    toolmark::io::html::write_compensation_html(&out, &json)
+        .map_err(|err| Failure::Runtime(format!("report.html: {err}")))?;
     let (first, last) = (
         run.cycles[0].form_pv_nm,
         run.cycles[run.cycles.len() - 1].form_pv_nm,

@@ -55,8 +55,7 @@ pub fn correct(args: CorrectArgs) -> Result<(), Failure> {
         write_bytes_atomically(&out.join(name), bytes)
             .map_err(|err| Failure::Runtime(format!("{}: {err}", out.join(name).display())))
     };
-    std::fs::create_dir_all(&out)
-        .map_err(|err| Failure::Runtime(format!("{}: {err}", out.display())))?;
+    super::run::prepare_out(&out)?;
     match &args.measured {
         Some(measured) => correct_measured(&job, measured, zone, &out, &write),
         None => correct_simulated(&job, zone, args.engine, &out, &write),
@@ -201,7 +200,13 @@ fn correct_measured(
             .map_err(|e| Failure::Runtime(e.to_string()))?
             .as_bytes(),
     )?;
-    println!("wrote {} to {}", files.join(", "), out.display());
+    toolmark::io::html::write_correction_html(out, &json)
+        .map_err(|err| Failure::Runtime(format!("report.html: {err}")))?;
+    println!(
+        "wrote {}, report.html to {}",
+        files.join(", "),
+        out.display()
+    );
     Ok(())
 }
 
@@ -299,8 +304,10 @@ fn correct_simulated(
             .map_err(|e| Failure::Runtime(e.to_string()))?
             .as_bytes(),
     )?;
+    toolmark::io::html::write_correction_html(out, &json)
+        .map_err(|err| Failure::Runtime(format!("report.html: {err}")))?;
     println!(
-        "wrote before/, after/, centre_before.png, centre_after.png, centre_profiles.png, corrected.toml and correction.json to {}",
+        "wrote before/, after/, centre_before.png, centre_after.png, centre_profiles.png, corrected.toml, correction.json and report.html to {}",
         out.display()
     );
     Ok(())

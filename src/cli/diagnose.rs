@@ -13,11 +13,11 @@ use toolmark::io::atomic::write_bytes_atomically;
 use toolmark::io::measured::ReadOptions;
 use toolmark::synth::{MeasurementModel, synthesize};
 
+/// How a measured file is read and placed on the part: shared by `diagnose` and
+/// `compare-profile` (one vocabulary: `--lateral-unit`, `--height-unit`, never a
+/// silent default).
 #[derive(clap::Args)]
-pub struct DiagnoseArgs {
-    /// Job file (TOML): the model, with the effects you already know.
-    #[arg(long)]
-    pub job: PathBuf,
+pub struct MeasuredArgs {
     /// Measured surface: a profile (CSV/TXT/XYZ, X3P PRF) or a height map (X3P, GSF,
     /// f32 EXR, CSV grid).
     #[arg(long)]
@@ -31,13 +31,22 @@ pub struct DiagnoseArgs {
     /// Pixel pitch of a map (µm; "X" or "X,Y"), when the file does not state it.
     #[arg(long, value_delimiter = ',', num_args = 1..=2)]
     pub pixel_um: Option<Vec<f64>>,
-    /// Direction of a profile on the part (degrees from +X; a multiple of 0.5°).
-    #[arg(long, default_value_t = 0.0)]
-    pub azimuth_deg: f64,
-    /// Where the part's axis lies in the file's frame (mm; "X" for a profile, "X,Y"
-    /// for a map). Default: a profile's zero, a map's centre.
+    /// Direction of a profile on the part (degrees from +X; a multiple of 0.5°). On a
+    /// turned part, where it lies on the program's spiral (C = 0 along +X): stated, it
+    /// is believed where the data cannot tell; unstated, it is found from the marks.
+    #[arg(long, allow_negative_numbers = true)]
+    pub azimuth_deg: Option<f64>,
+    /// Where the search for the part's axis starts in the file's frame (mm; "X" for a
+    /// profile, "X,Y" for a map; default: a profile's zero, a map's centre). The axis
+    /// is searched anywhere the points stay on the part unless --fixed-axis.
     #[arg(long, value_delimiter = ',', num_args = 1..=2, allow_negative_numbers = true)]
     pub axis_at_mm: Option<Vec<f64>>,
+    /// Keep the axis where --axis-at-mm puts it (no search).
+    #[arg(long)]
+    pub fixed_axis: bool,
+    /// Keep the instrument's lateral scale at 1 (no fit).
+    #[arg(long)]
+    pub fixed_scale: bool,
     /// A stylus profiler's tip radius (µm): the simulation is traced the same way.
     #[arg(long)]
     pub stylus_tip_um: Option<f64>,
@@ -47,9 +56,25 @@ pub struct DiagnoseArgs {
     /// Also remove power (r²) in registration: for a file whose form was removed.
     #[arg(long)]
     pub remove_power: bool,
-    /// Keep the axis where --axis-at-mm puts it (no search for the decentre).
+    /// Effects known from an earlier part (an `[[effects]]` file such as a diagnosis's
+    /// effects.toml): added to the job before comparing, so that only what remains is
+    /// fitted — calibrate on one part, predict the next.
     #[arg(long)]
-    pub fixed_axis: bool,
+    pub effects: Option<PathBuf>,
+    #[arg(long, value_enum, default_value_t = EngineChoice::Auto)]
+    pub engine: EngineChoice,
+    /// Output folder (default: toolmark-out/<job name>-diagnosis).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+pub struct DiagnoseArgs {
+    /// Job file (TOML): the model, with the effects you already know.
+    #[arg(long)]
+    pub job: PathBuf,
+    #[command(flatten)]
+    pub measured: MeasuredArgs,
     /// Fit only on points between FROM and TO (mm, along the profile or X of a map, in
     /// the file's frame): the rest is held out to judge the calibration.
     #[arg(long, value_name = "FROM:TO")]
@@ -63,11 +88,16 @@ pub struct DiagnoseArgs {
     /// Evidence (ΔBIC) an effect must add to be accepted.
     #[arg(long, default_value_t = 10.0)]
     pub min_evidence: f64,
-    #[arg(long, value_enum, default_value_t = EngineChoice::Auto)]
-    pub engine: EngineChoice,
-    /// Output folder (default: toolmark-out/<job name>-diagnosis).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
+}
+
+/// `toolmark compare-profile`: the diagnosis's registration and comparison alone (the
+/// job, with any carried effects, against the measurement; no effect is fitted).
+#[derive(clap::Args)]
+pub struct CompareArgs {
+    /// Job file (TOML).
+    pub job: PathBuf,
+    #[command(flatten)]
+    pub measured: MeasuredArgs,
 }
 
 fn read_options(
@@ -98,11 +128,72 @@ fn read_options(
 }
 
 pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
-    let job = load_job(Some(&args.job))?;
-    if !args.azimuth_deg.is_finite() || args.azimuth_deg.abs() > 360.0 {
+    if !(1..=5).contains(&args.max_effects) {
         return Err(Failure::Input(format!(
-            "--azimuth-deg: {} is out of range; allowed: −360 to 360",
-            args.azimuth_deg
+            "--max-effects: {} is out of range; allowed: 1 to 5",
+            args.max_effects
+        )));
+    }
+    if !args.min_evidence.is_finite() || args.min_evidence < 0.0 {
+        return Err(Failure::Input(format!(
+            "--min-evidence: {} is out of range; allowed: a number ≥ 0",
+            args.min_evidence
+        )));
+    }
+    let calibrate_on_mm = match &args.calibrate_on {
+        None => None,
+        Some(text) => Some(parse_range(text)?),
+    };
+    let job = load_job_with_effects(Some(&args.job), args.measured.effects.as_ref())?;
+    let known: Vec<&str> = toolmark::diagnose::candidates::candidates_for(&job)
+        .0
+        .iter()
+        .map(|c| c.kind())
+        .collect();
+    if let Some(bad) = args.only.iter().find(|o| !known.contains(&o.as_str())) {
+        return Err(Failure::Input(format!(
+            "--only: \"{bad}\" is not a diagnosable effect of this job; allowed: {}",
+            known.join(", ")
+        )));
+    }
+    let mut options = base_options(&args.measured);
+    options.max_effects = args.max_effects;
+    options.min_evidence = args.min_evidence;
+    options.only = args.only.clone();
+    options.calibrate_on_mm = calibrate_on_mm;
+    run_diagnosis(job, &args.measured, options)
+}
+
+pub fn compare_cmd(args: CompareArgs) -> Result<(), Failure> {
+    let job = load_job_with_effects(Some(&args.job), args.measured.effects.as_ref())?;
+    let mut options = base_options(&args.measured);
+    options.compare_only = true;
+    run_diagnosis(job, &args.measured, options)
+}
+
+/// The diagnosis options the measurement's flags set.
+fn base_options(m: &MeasuredArgs) -> Options {
+    Options {
+        terms: Terms {
+            power: m.remove_power,
+            shift: !m.fixed_axis,
+        },
+        lateral_scale: !m.fixed_scale,
+        ..Options::default()
+    }
+}
+
+/// Reads and places the measurement, diagnoses it against `job` and writes the outputs.
+fn run_diagnosis(
+    job: toolmark::io::job::Job,
+    args: &MeasuredArgs,
+    options: Options,
+) -> Result<(), Failure> {
+    if let Some(a) = args.azimuth_deg
+        && !(a.is_finite() && a.abs() <= 360.0)
+    {
+        return Err(Failure::Input(format!(
+            "--azimuth-deg: {a} is out of range; allowed: −360 to 360"
         )));
     }
     let instrument = Instrument {
@@ -129,50 +220,18 @@ pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
     {
         return Err(Failure::Input("--axis-at-mm: give finite numbers".into()));
     }
-    let calibrate_on_mm = match &args.calibrate_on {
-        None => None,
-        Some(text) => Some(parse_range(text)?),
-    };
     let read = read_options(args.lateral_unit, args.height_unit, &args.pixel_um)?;
     let (measurement, source) =
         load_measurement(&args.measured, &read, &placement, instrument).map_err(Failure::Input)?;
-    if !(1..=5).contains(&args.max_effects) {
-        return Err(Failure::Input(format!(
-            "--max-effects: {} is out of range; allowed: 1 to 5",
-            args.max_effects
-        )));
-    }
-    if !args.min_evidence.is_finite() || args.min_evidence < 0.0 {
-        return Err(Failure::Input(format!(
-            "--min-evidence: {} is out of range; allowed: a number ≥ 0",
-            args.min_evidence
-        )));
-    }
-    let known: Vec<&str> = toolmark::diagnose::candidates::candidates_for(&job)
-        .0
-        .iter()
-        .map(|c| c.kind())
-        .collect();
-    if let Some(bad) = args.only.iter().find(|o| !known.contains(&o.as_str())) {
-        return Err(Failure::Input(format!(
-            "--only: \"{bad}\" is not a diagnosable effect of this job; allowed: {}",
-            known.join(", ")
-        )));
-    }
-    let options = Options {
-        terms: Terms {
-            power: args.remove_power,
-            shift: !args.fixed_axis,
-        },
-        max_effects: args.max_effects,
-        min_evidence: args.min_evidence,
-        only: args.only.clone(),
-        calibrate_on_mm,
-    };
     let mut engine = open_engine(args.engine, &job)?;
     println!("engine: {} — {}", engine.info().kind, engine.info().adapter);
-    let out = args.out.unwrap_or_else(|| {
-        PathBuf::from("toolmark-out").join(format!("{}-diagnosis", slug(&job.name)))
+    let out = args.out.clone().unwrap_or_else(|| {
+        let what = if options.compare_only {
+            "vs-measured"
+        } else {
+            "diagnosis"
+        };
+        PathBuf::from("toolmark-out").join(format!("{}-{what}", slug(&job.name)))
     });
     let log = |s: &str| eprintln!("{s}");
     let mut outcome = match diagnose(&job, &measurement, engine.as_mut(), &options, &log) {
@@ -186,13 +245,71 @@ pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
         Err(err) => return Err(Failure::Runtime(err.to_string())),
     };
     merge_source(&mut outcome.diagnosis.measurement, &source);
+    outcome.diagnosis.job.carried_effects = args.effects.as_ref().map(|p| p.display().to_string());
+    if let Some(path) = &args.effects {
+        outcome.effects_fragment = carried_fragment(path, &outcome.effects_fragment)?;
+    }
     let written = write_outputs(&out, &outcome)
         .map_err(|err| Failure::Runtime(format!("writing outputs to {}: {err}", out.display())))?;
-    let d = &outcome.diagnosis;
+    print_summary(&outcome.diagnosis);
+    println!(
+        "\n{} simulations ({} engine), {:.1} s; wrote {} files to {}",
+        outcome.diagnosis.run.simulations,
+        outcome.diagnosis.run.engine,
+        outcome.diagnosis.run.total_s,
+        written.len(),
+        out.display()
+    );
+    if outcome.diagnosis.verdict.status == "does_not_fit" {
+        return Err(Failure::Input(format!(
+            "{}: {}",
+            args.measured.display(),
+            outcome.diagnosis.verdict.sentence
+        )));
+    }
+    Ok(())
+}
+
+/// The effects file to carry on: what was carried in, then what this diagnosis added.
+fn carried_fragment(carried: &Path, fitted: &str) -> Result<String, Failure> {
+    let text = std::fs::read_to_string(carried)
+        .map_err(|e| Failure::Input(format!("--effects {}: {e}", carried.display())))?;
+    Ok(format!(
+        "# Carried from {} (applied before this diagnosis):\n{text}\n{fitted}",
+        carried.display()
+    ))
+}
+
+/// What a person reads first: the verdict, what to do, where the data lies, the
+/// comparison and the shrinkage.
+fn print_summary(d: &toolmark::diagnose::report::Diagnosis) {
     println!("\n{}\n", d.verdict.sentence);
     for a in &d.verdict.advice {
         println!("  at the machine: {a}");
     }
+    let r = &d.registration;
+    println!(
+        "\n  placed: a {} with the axis at {:.4} ± {:.4} mm of the file; lateral scale {:.4} ({}){}",
+        r.trace,
+        r.axis_x_mm,
+        r.axis_x_sigma_mm,
+        r.lateral_scale,
+        r.lateral_scale_status,
+        r.azimuth_deg
+            .map_or(String::new(), |a| format!("; {a:.1}° round the spiral"))
+    );
+    let c = &d.comparison;
+    println!(
+        "  measured PV {:.0} nm, RMS {:.1} nm; simulated PV {:.0} nm, RMS {:.1} nm{}",
+        c.measured.pv_nm,
+        c.measured.rms_nm,
+        c.simulated.pv_nm,
+        c.simulated.rms_nm,
+        c.mark_spacing_ratio.map_or(String::new(), |q| format!(
+            "; mark spacing measured/simulated {q:.4} (median of {} bands)",
+            c.mark_spacing.len()
+        ))
+    );
     println!("\n  {:<34} {:>10} {:>10}", "model", "PV (nm)", "RMS (nm)");
     for step in &d.shrinkage {
         println!(
@@ -206,22 +323,6 @@ pub fn diagnose_cmd(args: DiagnoseArgs) -> Result<(), Failure> {
             h.points, h.before_rms_nm, h.after_rms_nm
         );
     }
-    println!(
-        "\n{} simulations ({} engine), {:.1} s; wrote {} files to {}",
-        d.run.simulations,
-        d.run.engine,
-        d.run.total_s,
-        written.len(),
-        out.display()
-    );
-    if d.verdict.status == "does_not_fit" {
-        return Err(Failure::Input(format!(
-            "{}: {}",
-            args.measured.display(),
-            d.verdict.sentence
-        )));
-    }
-    Ok(())
 }
 
 fn parse_range(text: &str) -> Result<(f64, f64), Failure> {

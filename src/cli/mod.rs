@@ -1,11 +1,11 @@
 //! The command line's subcommands and what they share.
 
-pub mod compare;
 pub mod compensate;
 pub mod correct;
 pub mod diagnose;
 pub mod formulas;
 pub mod run;
+pub mod sweep;
 
 use clap::ValueEnum;
 use std::path::PathBuf;

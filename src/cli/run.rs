@@ -2,8 +2,9 @@
 
 use super::{EngineChoice, Failure, load_job, load_job_with_effects, open_engine, slug};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::path::PathBuf;
-use toolmark::io::outputs::write_outputs;
+use std::path::{Path, PathBuf};
+use toolmark::io::job::resources;
+use toolmark::io::outputs::{prepare_output_dir, write_outputs};
 use toolmark::process::Process;
 use toolmark::run::simulate;
 
@@ -23,17 +24,43 @@ pub struct RunArgs {
     pub effects: Option<PathBuf>,
 }
 
+/// Prints the resolved job on stdout (so `check JOB > resolved.toml` is a job file) and
+/// the verdict, warnings and resource estimate on stderr.
 pub fn check(path: PathBuf) -> Result<(), Failure> {
     let job = load_job(Some(&path))?;
     let resolved =
         toml::to_string_pretty(&job.resolved).map_err(|e| Failure::Runtime(e.to_string()))?;
-    println!(
-        "{}: valid (hash {})\n\n{resolved}",
-        path.display(),
-        job.hash()
-    );
+    print!("{resolved}");
+    eprintln!("{}: valid (hash {})", path.display(), job.hash());
     for warning in &job.warnings {
-        println!("warning: {warning}");
+        eprintln!("warning: {warning}");
+    }
+    let estimate = resources::estimate(&job);
+    eprintln!("estimate: {estimate}");
+    check_memory(&job, estimate.cpu_bytes.min(estimate.gpu_bytes))
+}
+
+/// Refuses (exit 2, naming the grid fields) a job this machine cannot hold, before any
+/// work: `bytes` is the estimated peak for the engine that will run it.
+pub fn check_memory(job: &toolmark::io::job::Job, bytes: f64) -> Result<(), Failure> {
+    match resources::available_bytes() {
+        Some(available) => resources::check_fits(job, bytes, available)
+            .map_err(|err| Failure::Input(err.to_string())),
+        None => Ok(()),
+    }
+}
+
+/// Creates the output folder, proves it writable and clears an earlier job's files, all
+/// before the work starts; says on stderr what was removed.
+pub fn prepare_out(out: &Path) -> Result<(), Failure> {
+    let removed = prepare_output_dir(out)
+        .map_err(|err| Failure::Runtime(format!("--out {}: {err}", out.display())))?;
+    if !removed.is_empty() {
+        eprintln!(
+            "{}: removed {} files an earlier run left there",
+            out.display(),
+            removed.len()
+        );
     }
     Ok(())
 }
@@ -62,6 +89,14 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     let out = args
         .out
         .unwrap_or_else(|| PathBuf::from("toolmark-out").join(slug(&job.name)));
+    let estimate = resources::estimate(&job);
+    let bytes = if info.kind == "gpu" {
+        estimate.gpu_bytes
+    } else {
+        estimate.cpu_bytes
+    };
+    check_memory(&job, bytes)?;
+    prepare_out(&out)?;
 
     let bar = ProgressBar::new(0);
     bar.set_style(
@@ -150,5 +185,38 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         );
     }
     println!("wrote {} files to {}", written.len(), out.display());
+    Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct ReportArgs {
+    /// An output folder of run, diagnose, compensate or correct (holding summary.json,
+    /// diagnosis.json, compensation.json or correction.json and the images).
+    pub dir: PathBuf,
+}
+
+/// Writes (or rewrites) `report.html` for an existing output folder.
+pub fn report(args: ReportArgs) -> Result<(), Failure> {
+    use toolmark::io::html;
+    let read = |name: &str| -> Option<serde_json::Value> {
+        let text = std::fs::read_to_string(args.dir.join(name)).ok()?;
+        serde_json::from_str(&text).ok()
+    };
+    let written = if let Some(doc) = read("diagnosis.json") {
+        html::write_diagnosis_html(&args.dir, &doc)
+    } else if let Some(doc) = read("summary.json") {
+        html::write_run_html(&args.dir, &doc)
+    } else if let Some(doc) = read("compensation.json") {
+        html::write_compensation_html(&args.dir, &doc)
+    } else if let Some(doc) = read("correction.json") {
+        html::write_correction_html(&args.dir, &doc)
+    } else {
+        return Err(Failure::Input(format!(
+            "{}: no summary.json, diagnosis.json, compensation.json or correction.json",
+            args.dir.display()
+        )));
+    };
+    let path = written.map_err(|err| Failure::Runtime(err.to_string()))?;
+    println!("wrote {}", path.display());
     Ok(())
 }

@@ -25,6 +25,10 @@ pub enum Candidate {
     ToolRadiusError,
     SpindleTram,
     RadialRunout,
+    /// Not an effect but registration: where a turned profile lies on the spiral (its
+    /// azimuth from C = 0) sets where the marks fall. Re-fitted with every effect, as
+    /// piston and tilt are re-solved, because a decentre, say, moves the marks too.
+    SpiralAzimuth,
 }
 
 /// One fitted parameter.
@@ -137,7 +141,21 @@ impl Candidate {
             Candidate::ToolRadiusError => "tool_radius_error",
             Candidate::SpindleTram => "spindle_tram",
             Candidate::RadialRunout => "radial_runout",
+            Candidate::SpiralAzimuth => "spiral_azimuth",
         }
+    }
+
+    /// How far the effect moves a turned part's marks out along the radius (mm).
+    pub fn mark_shift_mm(&self, values: &[f64]) -> f64 {
+        match self {
+            Candidate::XDecentre => values[0] * 1e-3,
+            _ => 0.0,
+        }
+    }
+
+    /// A registration term fitted like an effect, never reported as one.
+    pub fn is_registration(&self) -> bool {
+        matches!(self, Candidate::SpiralAzimuth)
     }
 
     /// A name for tables.
@@ -164,6 +182,8 @@ impl Candidate {
                     Candidate::AxialDrift => {
                         vec![parameter("drift", "nm", 10.0, 0.5 * nose_um * 1e3)]
                     }
+                    // 7.2° moves the marks by a fiftieth of a feed.
+                    Candidate::SpiralAzimuth => vec![parameter("offset", "deg", 7.2, 180.0)],
                     _ => vec![
                         parameter("cos", "nm", 10.0, 1e4),
                         parameter("sin", "nm", 10.0, 1e4),
@@ -224,6 +244,7 @@ impl Candidate {
                     Candidate::XDecentre => e.x_decentre_mm += values[0] * 1e-3,
                     Candidate::NoseRadiusError => e.radius_error_mm += values[0] * 1e-3,
                     Candidate::AxialDrift => e.axial_drift_mm += values[0] * 1e-6,
+                    Candidate::SpiralAzimuth => t.azimuth_offset_rad += values[0].to_radians(),
                     Candidate::EdgeWaviness { order } => add_harmonic(
                         &mut e.edge_deviation,
                         *order,
@@ -282,6 +303,7 @@ impl Candidate {
                 );
             }
             Candidate::InclinationError => ("error_deg", values[0]),
+            Candidate::SpiralAzimuth => return String::new(),
             Candidate::EdgeWaviness { order } => {
                 let (amplitude, phase) = amplitude_phase(values);
                 return format!(
@@ -392,6 +414,10 @@ impl Candidate {
                     values[1].atan2(values[0]).to_degrees()
                 )
             }
+            Candidate::SpiralAzimuth => format!(
+                "the profile lies {}° round the spiral from where registration first put it",
+                pm(v, s)
+            ),
         }
     }
 
@@ -437,6 +463,7 @@ impl Candidate {
                 "re-seat the tool or clean the collet: {:.2} µm of runout",
                 values[0].hypot(values[1])
             ),
+            Candidate::SpiralAzimuth => String::new(),
         }
     }
 }

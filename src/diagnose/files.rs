@@ -13,9 +13,12 @@ use std::path::Path;
 /// Where the measurement lies on the part.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Placement {
-    /// A profile's direction on the part (degrees from +X; a multiple of 0.5°).
+    /// A profile's direction on the part (degrees from +X; a multiple of 0.5°). On a
+    /// turned part, where it lies on the program's spiral (C = 0 along +X): stated, it
+    /// is believed where the data cannot tell (see `AzimuthPrior`); unstated, it is
+    /// found from the marks.
     #[serde(default)]
-    pub azimuth_deg: f64,
+    pub azimuth_deg: Option<f64>,
     /// Where the part's axis lies in the file's frame (mm): along the line (first
     /// value), or X and Y on a map. Default: the file's zero for a profile, the map's
     /// centre for a map.
@@ -34,18 +37,24 @@ pub fn load_measurement(
     let (measurement, info, mut notes) = match &surface {
         MeasuredSurface::Profile(p) => {
             let axis = placement.axis_at_mm.map_or(0.0, |a| a[0]);
-            let m = Measurement::line(
+            let azimuth = placement.azimuth_deg.unwrap_or(0.0);
+            let mut m = Measurement::line(
                 &p.x_mm,
                 &p.height_mm,
-                placement.azimuth_deg.to_radians(),
+                azimuth.to_radians(),
                 axis,
                 instrument,
             );
+            m.azimuth_stated = placement.azimuth_deg.is_some();
             let note = format!(
-                "profile along {:.1}° on the part; the axis taken at {axis:.4} mm in the file{}",
-                placement.azimuth_deg,
+                "profile along {azimuth:.1}° on the part{}; the axis searched from {axis:.4} mm in the file{}",
+                if m.azimuth_stated {
+                    ""
+                } else {
+                    " (not stated)"
+                },
                 if placement.axis_at_mm.is_none() {
-                    " (its zero; set --axis-at-mm)"
+                    " (its zero)"
                 } else {
                     ""
                 }

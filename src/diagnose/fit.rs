@@ -1,10 +1,13 @@
 //! Fitting effects by re-simulation: a trial set of effect values is simulated, seen as
 //! the instrument sees it, registered (piston, tilt, power, the axis shift re-solved for
-//! every trial), and judged by its residual. A candidate's start comes from scans along
-//! each parameter (outward in ×3 steps while the residual falls); Levenberg–Marquardt
-//! with finite-difference Jacobians refines all parameters together. Uncertainties
-//! come from the Jacobian at the optimum with the residual's variance, inflated by its
-//! correlation length (neighbouring points are not independent).
+//! every trial), and judged by its residual. A candidate's start comes from a global scan
+//! along each parameter — both signs, magnitudes from a third of its typical size to its
+//! bound in steps of about 3 — refined by golden section between the best value's
+//! neighbours; Levenberg–Marquardt with finite-difference Jacobians then refines all
+//! parameters together. Uncertainties: the larger of the Jacobian's (the residual's
+//! variance inflated by its correlation length) and a block sandwich estimate (residual
+//! structure and model error that the Jacobian's noise model ignores). A value at its
+//! search bound is flagged as such, never reported as a fit.
 
 use super::candidates::{Candidate, Parameter};
 use super::forward::{ForwardError, ForwardModel};
@@ -12,6 +15,7 @@ use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
 use super::zones::correlation_length;
 use crate::numeric::{invert, least_squares, solve_linear, try_golden_section};
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::rc::Rc;
 
@@ -25,6 +29,14 @@ pub struct Problem<'a, 'e> {
     pub model: ForwardModel<'e>,
     pub terms: Terms,
     pub shift: ShiftSearch,
+    /// The points a fit is judged on (a fold's part when some are held out); every
+    /// trial is still registered on all the points: registration places the
+    /// measurement, and one part alone would let a tilt absorb half of a cone.
+    mask: Option<Rc<Vec<bool>>>,
+    /// The points the whole search may judge fits on (`--calibrate-on`: the rest is
+    /// held out); every mask is cut from these.
+    calibration: Option<Rc<Vec<bool>>>,
+    pub prior: Option<AzimuthPrior>,
     cache: HashMap<(String, Vec<u64>), Rc<Evaluation>>,
 }
 
@@ -33,6 +45,23 @@ pub struct Problem<'a, 'e> {
 pub struct Evaluation {
     pub values: Vec<f64>,
     pub registered: Registered,
+    /// The azimuth prior's pseudo-residual (mm; 0 without one): see [`AzimuthPrior`].
+    pub prior_mm: f64,
+}
+
+/// What the user said about where a turned profile lies on the spiral, held as a
+/// belief the data may overrule: a decentre and a drift move the marks alike on a
+/// sphere (as does the azimuth), so only the stated azimuth can tell them apart there.
+/// It enters the fit as one pseudo-residual, `weight · Δ / σ`, Δ the fitted azimuth's
+/// distance from the stated one: at Δ = σ it weighs as much as one effective point.
+#[derive(Debug, Clone, Copy)]
+pub struct AzimuthPrior {
+    /// The stated azimuth relative to the located one (the spiral azimuth member's
+    /// value that agrees with the statement), degrees.
+    pub centre_deg: f64,
+    pub sigma_deg: f64,
+    /// The residual's RMS per effective point (mm).
+    pub weight_mm: f64,
 }
 
 impl Evaluation {
@@ -59,20 +88,44 @@ pub struct Fit {
     /// One standard deviation per value (∞ when the data cannot pin it).
     pub sigmas: Vec<f64>,
     pub evaluation: Rc<Evaluation>,
+    /// Σ r² the fit minimised (mm²): the registered residual on the judged points, and
+    /// the azimuth prior's term.
+    pub objective: f64,
     /// Correlation length of the residual (points) and the effective point count.
     pub correlation_length: f64,
     pub effective_points: f64,
+    /// Per value: it sits at its search bound (the data wants more than the job files
+    /// allow, or the model cannot explain it): not a fit.
+    pub at_bound: Vec<bool>,
+    /// Where registration looked for the axis in this fit.
+    pub frame: ShiftSearch,
 }
 
 impl Fit {
     /// Bayesian information criterion on the effective point count.
     pub fn bic(&self) -> f64 {
         bic(
-            self.evaluation.rss(),
+            self.objective,
             self.evaluation.registered.used,
             self.effective_points,
             self.values.len(),
         )
+    }
+
+    /// The members that are effects (not registration terms), by index.
+    pub fn effect_members(&self) -> Vec<usize> {
+        (0..self.set.len())
+            .filter(|&i| !self.set[i].is_registration())
+            .collect()
+    }
+
+    /// The effects in the set.
+    pub fn effects(&self) -> Vec<Candidate> {
+        self.set
+            .iter()
+            .copied()
+            .filter(|c| !c.is_registration())
+            .collect()
     }
 
     /// The values and sigmas of one member of the set.
@@ -84,6 +137,12 @@ impl Fit {
 }
 
 /// Adds every member of `set` at its values (concatenated) to the job's effects.
+///
+/// Where the set fits the spiral's azimuth, an effect that moves the marks along the
+/// radius (a decentre moves them out by δ) is paired with the turn of the spiral that
+/// moves them back (−2π δ / feed): the azimuth member then holds where the marks are
+/// and the effect what it does besides, so a scan over the effect does not have to
+/// drag the azimuth round the spiral with it.
 pub fn apply_set(set: &[Candidate], values: &[f64], job: &mut crate::io::job::Job) {
     let mut at = 0;
     for c in set {
@@ -91,6 +150,42 @@ pub fn apply_set(set: &[Candidate], values: &[f64], job: &mut crate::io::job::Jo
         c.apply(&values[at..at + n], job);
         at += n;
     }
+    let turn = spiral_compensation_rad(set, values, job);
+    if let crate::process::Process::Turning(t) = &mut job.process {
+        t.azimuth_offset_rad += turn;
+    }
+}
+
+/// How far round the spiral from the located azimuth the set puts the measurement
+/// (degrees): the azimuth member's value and the turn paired with the set's effects.
+pub fn spiral_turn_deg(set: &[Candidate], values: &[f64], job: &crate::io::job::Job) -> f64 {
+    let mut at = 0;
+    let mut member = 0.0;
+    for c in set {
+        if *c == Candidate::SpiralAzimuth {
+            member += values[at];
+        }
+        at += width(c);
+    }
+    member + spiral_compensation_rad(set, values, job).to_degrees()
+}
+
+/// The turn of the spiral that moves back the marks the set's effects move (rad; 0
+/// when the set does not fit the azimuth).
+fn spiral_compensation_rad(set: &[Candidate], values: &[f64], job: &crate::io::job::Job) -> f64 {
+    let Some(turning) = job.process.turning() else {
+        return 0.0;
+    };
+    if !set.contains(&Candidate::SpiralAzimuth) {
+        return 0.0;
+    }
+    let mut at = 0;
+    let mut shift_mm = 0.0;
+    for c in set {
+        shift_mm += c.mark_shift_mm(&values[at..at + width(c)]);
+        at += width(c);
+    }
+    -std::f64::consts::TAU * shift_mm / turning.path.pass_spacing_mm()
 }
 
 /// Parameters a candidate takes.
@@ -120,6 +215,9 @@ impl<'a, 'e> Problem<'a, 'e> {
             model,
             terms,
             shift,
+            mask: None,
+            calibration: None,
+            prior: None,
             cache: HashMap::new(),
         }
     }
@@ -127,6 +225,40 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// Forgets the cached trials (after the axis search moved).
     pub fn clear_cache(&mut self) {
         self.cache.clear();
+    }
+
+    /// Judges fits on the points where `mask` holds (None: all); returns the mask in
+    /// force before.
+    pub fn judge_on(&mut self, mask: Option<Rc<Vec<bool>>>) -> Option<Rc<Vec<bool>>> {
+        std::mem::replace(&mut self.mask, mask)
+    }
+
+    /// Holds out the points where `calibration` is false from every fit (None: none).
+    pub fn calibrate_on(&mut self, calibration: Option<Rc<Vec<bool>>>) {
+        self.calibration = calibration;
+    }
+
+    /// Whether point `i` judges fits now.
+    fn judged(&self, i: usize) -> bool {
+        self.mask.as_ref().is_none_or(|m| m[i]) && self.calibration.as_ref().is_none_or(|c| c[i])
+    }
+
+    /// A trial's residual on the judged points (0 elsewhere and where the simulation
+    /// has no data), then the azimuth prior's pseudo-residual.
+    pub fn residual(&self, e: &Evaluation) -> Vec<f64> {
+        let mut r = e.residual();
+        for (i, v) in r.iter_mut().enumerate() {
+            if !self.judged(i) {
+                *v = 0.0;
+            }
+        }
+        r.push(e.prior_mm);
+        r
+    }
+
+    /// Σ residual² on the judged points.
+    pub fn rss(&self, e: &Evaluation) -> f64 {
+        self.residual(e).iter().map(|v| v * v).sum()
     }
 
     /// Simulates `set` at `values` and registers it (cached by the exact values).
@@ -139,16 +271,70 @@ impl<'a, 'e> Problem<'a, 'e> {
         if let Some(hit) = self.cache.get(&key) {
             return Ok(hit.clone());
         }
-        let sim = self
-            .model
-            .simulate(&|job| apply_set(set, values, job), self.measurement)?;
+        let sim = self.model.simulate(&|job| apply_set(set, values, job))?;
         let registered = register(self.measurement, &sim, self.terms, Some(self.shift));
         let evaluation = Rc::new(Evaluation {
             values: values.to_vec(),
             registered,
+            prior_mm: self.prior_term(set, values),
         });
         self.cache.insert(key, evaluation.clone());
         Ok(evaluation)
+    }
+
+    /// Evaluates each (set, values) trial (those not cached simulated side by side where
+    /// the engine allows), so that later `evaluate` calls find them.
+    pub fn evaluate_many(
+        &mut self,
+        trials: &[(Vec<Candidate>, Vec<f64>)],
+    ) -> Result<(), ForwardError> {
+        let mut missing: Vec<&(Vec<Candidate>, Vec<f64>)> = Vec::new();
+        for trial in trials {
+            let key = cache_key(&trial.0, &trial.1);
+            if !self.cache.contains_key(&key)
+                && !missing.iter().any(|m| cache_key(&m.0, &m.1) == key)
+            {
+                missing.push(trial);
+            }
+        }
+        type Modify<'b> = Box<dyn Fn(&mut crate::io::job::Job) + Sync + 'b>;
+        let modifies: Vec<Modify> = missing
+            .iter()
+            .map(|(set, values)| {
+                Box::new(move |job: &mut crate::io::job::Job| apply_set(set, values, job)) as Modify
+            })
+            .collect();
+        let refs: Vec<&(dyn Fn(&mut crate::io::job::Job) + Sync)> =
+            modifies.iter().map(|m| m.as_ref()).collect();
+        let sims = self.model.simulate_many(&refs)?;
+        let (m, terms, shift) = (self.measurement, self.terms, self.shift);
+        let registered: Vec<Registered> = sims
+            .par_iter()
+            .map(|sim| register(m, sim, terms, Some(shift)))
+            .collect();
+        for ((set, values), registered) in missing.into_iter().zip(registered) {
+            let evaluation = Rc::new(Evaluation {
+                values: values.clone(),
+                registered,
+                prior_mm: self.prior_term(set, values),
+            });
+            self.cache.insert(cache_key(set, values), evaluation);
+        }
+        Ok(())
+    }
+
+    /// The prior's pseudo-residual for `set` at `values` (0 without a prior, or when the
+    /// set does not fit the azimuth).
+    fn prior_term(&self, set: &[Candidate], values: &[f64]) -> f64 {
+        let Some(prior) = self.prior else {
+            return 0.0;
+        };
+        if !set.contains(&Candidate::SpiralAzimuth) {
+            return 0.0;
+        }
+        let turn = spiral_turn_deg(set, values, self.model.base_job());
+        let d = (turn - prior.centre_deg + 180.0).rem_euclid(360.0) - 180.0;
+        prior.weight_mm * d / prior.sigma_deg
     }
 
     /// Fits `set` starting from `start`: a scan along each parameter listed in `scan`
@@ -188,10 +374,12 @@ impl<'a, 'e> Problem<'a, 'e> {
         self.finish(set, parameters, values, &jacobian, &unseen)
     }
 
-    /// The best value of parameter `j` along its axis: outward from the current value
-    /// in ×3 steps of its scale, each way, while the residual falls (finer steps when
-    /// neither way helps). At each step the `others` are re-adjusted by least squares on
-    /// their Jacobian at the start. Returns all values at the best step.
+    /// The best value of parameter `j` along its axis, searched globally: the current
+    /// value, then both signs at magnitudes from a third of the parameter's scale to its
+    /// bound in steps of about 3 (a cone and a cylinder, a larger and a smaller radius, are
+    /// all tried); then golden section between the best value's neighbours. At each
+    /// value the `others` are re-adjusted by least squares on their Jacobian at the
+    /// start. Returns all values at the best one.
     fn scan(
         &mut self,
         set: &[Candidate],
@@ -209,7 +397,8 @@ impl<'a, 'e> Problem<'a, 'e> {
         let at = |problem: &mut Self, v: f64| -> Result<(f64, Vec<f64>), ForwardError> {
             let mut trial = base.to_vec();
             trial[j] = v;
-            let r = problem.evaluate(set, &trial)?.residual();
+            let evaluation = problem.evaluate(set, &trial)?;
+            let r = problem.residual(&evaluation);
             if columns.is_empty() {
                 return Ok((dot(&r, &r), trial));
             }
@@ -236,39 +425,28 @@ impl<'a, 'e> Problem<'a, 'e> {
         };
         let p = &parameters[j];
         let origin = base[j];
+        let trials: Vec<(Vec<Candidate>, Vec<f64>)> = std::iter::once(origin)
+            .chain(scan_values(origin, p.scale, p.bound))
+            .map(|v| {
+                let mut trial = base.to_vec();
+                trial[j] = v;
+                (set.to_vec(), trial)
+            })
+            .collect();
+        self.evaluate_many(&trials)?;
         let mut best = at(self, origin)?;
         // Every value tried, to bracket the best afterwards.
         let mut tried = vec![(origin, best.0)];
-
-        for direction in [1.0, -1.0] {
-            let mut previous = best.0;
-            for multiple in [1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0] {
-                let v = (origin + direction * multiple * p.scale).clamp(-p.bound, p.bound);
-                let trial = at(self, v)?;
-                let rss = trial.0;
-                tried.push((v, rss));
-                if rss < best.0 {
-                    best = trial;
-                }
-                if rss >= previous || v.abs() >= p.bound {
-                    break;
-                }
-                previous = rss;
+        for v in scan_values(origin, p.scale, p.bound) {
+            let trial = at(self, v)?;
+            tried.push((v, trial.0));
+            if trial.0 < best.0 {
+                best = trial;
             }
         }
-        if best.1[j] == origin {
-            for multiple in [0.3, -0.3, 0.1, -0.1] {
-                let v = origin + multiple * p.scale;
-                let trial = at(self, v)?;
-                tried.push((v, trial.0));
-                if trial.0 < best.0 {
-                    best = trial;
-                }
-            }
-        }
-        // Golden-section search between the best step's neighbours: features that
-        // move in whole grid steps (a centre cylinder's edge) leave the residual too
-        // rough for derivatives at the scale of one step.
+        // Golden-section search between the best value's neighbours: features that
+        // move in steps (a centre cylinder's edge between samples) leave the residual
+        // too rough for derivatives there.
         tried.sort_by(|a, b| a.0.total_cmp(&b.0));
         let centre = best.1[j];
         let below = tried.iter().rev().find(|t| t.0 < centre).map(|t| t.0);
@@ -285,8 +463,14 @@ impl<'a, 'e> Problem<'a, 'e> {
         }
         // The linear re-adjustment is a prediction: keep it only if it really helps.
         let (now, then) = (
-            self.evaluate(set, base)?.rss(),
-            self.evaluate(set, &best.1)?.rss(),
+            {
+                let e = self.evaluate(set, base)?;
+                self.rss(&e)
+            },
+            {
+                let e = self.evaluate(set, &best.1)?;
+                self.rss(&e)
+            },
         );
         Ok(if then < now { best.1 } else { base.to_vec() })
     }
@@ -301,17 +485,16 @@ impl<'a, 'e> Problem<'a, 'e> {
         j: usize,
         at: &Evaluation,
     ) -> Result<Vec<f64>, ForwardError> {
-        let p = &parameters[j];
-        let mut h = (0.05 * values[j].abs()).max(0.2 * p.scale);
-        if values[j] + h > p.bound {
-            h = -h;
-        }
+        let h = step(parameters, values, j);
         let mut trial = values.to_vec();
         trial[j] += h;
-        let r1 = self.evaluate(set, &trial)?.residual();
+        let r1 = {
+            let e = self.evaluate(set, &trial)?;
+            self.residual(&e)
+        };
         Ok(r1
             .iter()
-            .zip(at.residual())
+            .zip(self.residual(at))
             .map(|(a, b)| (a - b) / h)
             .collect())
     }
@@ -324,6 +507,14 @@ impl<'a, 'e> Problem<'a, 'e> {
         values: &[f64],
         at: &Evaluation,
     ) -> Result<Vec<Vec<f64>>, ForwardError> {
+        let trials: Vec<(Vec<Candidate>, Vec<f64>)> = (0..values.len())
+            .map(|j| {
+                let mut trial = values.to_vec();
+                trial[j] += step(parameters, values, j);
+                (set.to_vec(), trial)
+            })
+            .collect();
+        self.evaluate_many(&trials)?;
         (0..values.len())
             .map(|j| self.column(set, parameters, values, j, at))
             .collect()
@@ -346,7 +537,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             if k == 0 {
                 break;
             }
-            let r = current.residual();
+            let r = self.residual(&current);
             let jtj = normal_matrix(&jacobian, &free);
             let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], &r)).collect();
             let mut improved = false;
@@ -367,8 +558,9 @@ impl<'a, 'e> Problem<'a, 'e> {
                     trial[j] = (values[j] + s).clamp(-parameters[j].bound, parameters[j].bound);
                 }
                 let evaluation = self.evaluate(set, &trial)?;
-                if evaluation.rss() < current.rss() {
-                    let gain = 1.0 - evaluation.rss() / current.rss();
+                let (now, before) = (self.rss(&evaluation), self.rss(&current));
+                if now < before {
+                    let gain = 1.0 - now / before;
                     let small = free
                         .iter()
                         .zip(&step)
@@ -399,25 +591,33 @@ impl<'a, 'e> Problem<'a, 'e> {
     ) -> Result<Fit, ForwardError> {
         let evaluation = self.evaluate(set, &values)?;
         let tau = correlation_length(self.measurement, &evaluation.registered.residual_mm);
-        let used = evaluation.registered.used as f64;
+        let used = (0..self.measurement.len())
+            .filter(|&i| self.judged(i) && evaluation.registered.residual_mm[i].is_finite())
+            .count() as f64;
         let free = observable(jacobian, frozen);
-        let dof = (used - free.len() as f64 - 4.0).max(1.0);
-        let variance = evaluation.rss() / dof * tau;
-        let jtj = normal_matrix(jacobian, &free);
+        let residual = self.residual(&evaluation);
+        let sigmas_free = uncertainties(jacobian, &free, &residual, tau);
         let mut sigmas = vec![f64::INFINITY; values.len()];
-        if let Some(inv) = invert(&jtj) {
-            for (i, &j) in free.iter().enumerate() {
-                sigmas[j] = (inv[i][i] * variance).max(0.0).sqrt();
-            }
+        for (&j, s) in free.iter().zip(sigmas_free) {
+            sigmas[j] = s;
         }
+        let at_bound = values
+            .iter()
+            .zip(&parameters)
+            .map(|(v, p)| v.abs() >= 0.98 * p.bound)
+            .collect();
+        let objective = self.rss(&evaluation);
         Ok(Fit {
             set: set.to_vec(),
             parameters,
             values,
             sigmas,
             evaluation,
+            objective,
             correlation_length: tau,
             effective_points: used / tau,
+            at_bound,
+            frame: self.shift,
         })
     }
 
@@ -432,7 +632,23 @@ impl<'a, 'e> Problem<'a, 'e> {
         orders: &[f64],
         amplitude_nm: f64,
     ) -> Result<Option<(f64, f64, f64)>, ForwardError> {
-        let r0 = self.evaluate(base, base_values)?.residual();
+        let r0 = {
+            let e = self.evaluate(base, base_values)?;
+            self.residual(&e)
+        };
+        let trials: Vec<(Vec<Candidate>, Vec<f64>)> = orders
+            .iter()
+            .flat_map(|&order| {
+                let mut set = base.to_vec();
+                set.push(Candidate::EdgeWaviness { order });
+                [[amplitude_nm, 0.0], [0.0, amplitude_nm]].map(|ab| {
+                    let mut v = base_values.to_vec();
+                    v.extend(ab);
+                    (set.clone(), v)
+                })
+            })
+            .collect();
+        self.evaluate_many(&trials)?;
         let mut best: Option<(f64, f64, f64, f64)> = None;
         for &order in orders {
             let (rss, a, b) = self.waviness_at(base, base_values, order, amplitude_nm, &r0)?;
@@ -480,7 +696,10 @@ impl<'a, 'e> Problem<'a, 'e> {
             let mut v = base_values.to_vec();
             v.extend([a, b]);
             // The residual removed per nm.
-            let r = self.evaluate(&set, &v)?.residual();
+            let r = {
+                let e = self.evaluate(&set, &v)?;
+                self.residual(&e)
+            };
             Ok(r.iter()
                 .zip(r0)
                 .map(|(x, y)| (y - x) / amplitude_nm)
@@ -501,12 +720,87 @@ impl<'a, 'e> Problem<'a, 'e> {
     }
 }
 
+/// The finite-difference step of parameter `j`: a twentieth of its value or a fifth of
+/// its scale, toward the open side of its bound.
+fn step(parameters: &[Parameter], values: &[f64], j: usize) -> f64 {
+    let p = &parameters[j];
+    let h = (0.05 * values[j].abs()).max(0.2 * p.scale);
+    if values[j] + h > p.bound { -h } else { h }
+}
+
+/// Multiples of a parameter's scale the global scan tries on each side (steps of about
+/// 3; golden section then refines between the best value's neighbours).
+const SCAN_MULTIPLES: [f64; 9] = [0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
+
+/// The values a global scan of one parameter tries around `origin`: both signs, every
+/// multiple of `scale` within the bound, and the bound itself on each side.
+fn scan_values(origin: f64, scale: f64, bound: f64) -> Vec<f64> {
+    let mut values: Vec<f64> = Vec::new();
+    for sign in [1.0, -1.0] {
+        for m in SCAN_MULTIPLES {
+            let v = origin + sign * m * scale;
+            if v.abs() < bound {
+                values.push(v);
+            }
+        }
+        values.push(sign * bound);
+    }
+    values.sort_by(f64::total_cmp);
+    values.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * bound);
+    values.retain(|v| *v != origin);
+    values
+}
+
 /// The parameters whose Jacobian column is not (numerically) zero: those the data sees.
 fn observable(jacobian: &[Vec<f64>], frozen: &[usize]) -> Vec<usize> {
     let norms: Vec<f64> = jacobian.iter().map(|c| dot(c, c)).collect();
     let largest = norms.iter().copied().fold(0.0, f64::max);
     (0..norms.len())
         .filter(|&j| norms[j] > 1e-12 * largest && norms[j] > 0.0 && !frozen.contains(&j))
+        .collect()
+}
+
+/// One-σ uncertainties of the `free` parameters: the larger of the Jacobian's — the
+/// residual's variance inflated by its correlation length `tau` (points) — and a block
+/// sandwich estimate, (JᵀJ)⁻¹ (Σ_b g_b g_bᵀ) (JᵀJ)⁻¹ with g_b = J_bᵀ r_b over blocks of
+/// 5 τ points, which also carries structure the noise model ignores (model error,
+/// correlated residuals). ∞ when JᵀJ is singular.
+pub(super) fn uncertainties(
+    jacobian: &[Vec<f64>],
+    free: &[usize],
+    residual: &[f64],
+    tau: f64,
+) -> Vec<f64> {
+    let k = free.len();
+    let n = residual.len();
+    let Some(inverse) = invert(&normal_matrix(jacobian, free)) else {
+        return vec![f64::INFINITY; k];
+    };
+    let used = residual.iter().filter(|r| **r != 0.0).count() as f64;
+    let variance = dot(residual, residual) / (used - k as f64 - 4.0).max(1.0) * tau;
+    let block = ((5.0 * tau).ceil() as usize).max(n / 200).max(1);
+    let mut meat = vec![vec![0.0; k]; k];
+    for start in (0..n).step_by(block) {
+        let end = (start + block).min(n);
+        let g: Vec<f64> = free
+            .iter()
+            .map(|&a| (start..end).map(|i| jacobian[a][i] * residual[i]).sum())
+            .collect();
+        for a in 0..k {
+            for b in 0..k {
+                meat[a][b] += g[a] * g[b];
+            }
+        }
+    }
+    (0..k)
+        .map(|a| {
+            let jacobian_sigma = (inverse[a][a] * variance).max(0.0).sqrt();
+            let sandwich: f64 = (0..k)
+                .flat_map(|b| (0..k).map(move |c| (b, c)))
+                .map(|(b, c)| inverse[a][b] * meat[b][c] * inverse[c][a])
+                .sum();
+            jacobian_sigma.max(sandwich.max(0.0).sqrt())
+        })
         .collect()
 }
 

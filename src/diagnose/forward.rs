@@ -2,13 +2,15 @@
 //! measured region, and seen at the measured points the way the instrument sees them
 //! (a stylus tip's dilation, a pixel's average).
 
-use super::measurement::{Measurement, Shape};
+use super::measurement::{Instrument, Measurement, Shape};
+use crate::engine::cpu::CpuEngine;
 use crate::engine::{EngineError, RemovalEngine};
 use crate::field::{Layout, PolarGrid};
 use crate::io::job::Job;
 use crate::process::Process;
-use crate::run::{prepare_scenes, remove_all};
+use crate::run::{Groundwork, job_grid, remove_all, scenes_on};
 use glam::DVec2;
+use rayon::prelude::*;
 use std::f64::consts::TAU;
 use std::time::Instant;
 
@@ -26,9 +28,16 @@ pub fn shift_room_mm(measurement: &Measurement) -> f64 {
 
 pub struct ForwardModel<'e> {
     base: Job,
+    /// The base job's meridian and programmed paths, computed once.
+    groundwork: Groundwork,
     engine: &'e mut dyn RemovalEngine,
     /// For a line: the two rows through the axis along it (its azimuth and opposite).
     line_rows: Option<(u32, u32)>,
+    /// Turning: the part's azimuth that the simulation looks along (the program is
+    /// turned so that it lies at the grid's azimuth 0; see `azimuth_offset_rad`).
+    azimuth_rad: f64,
+    instrument: Instrument,
+    pixel_mm: Option<[f64; 2]>,
     pub simulations: usize,
     pub prepare_s: f64,
     pub removal_s: f64,
@@ -49,29 +58,80 @@ impl From<EngineError> for ForwardError {
     }
 }
 
+/// Where the part's axis lies in the measurement's frame and the instrument's lateral
+/// scale: a measured point `p` lies on the part at `(p − shift_mm)·scale`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    pub shift_mm: DVec2,
+    /// True lateral distance per distance in the file (1: the instrument is calibrated).
+    pub scale: f64,
+}
+
+impl Frame {
+    pub const IDENTITY: Frame = Frame {
+        shift_mm: DVec2::ZERO,
+        scale: 1.0,
+    };
+
+    pub fn at(shift_mm: DVec2) -> Frame {
+        Frame {
+            shift_mm,
+            scale: 1.0,
+        }
+    }
+
+    /// A measured point's position on the part.
+    pub fn to_part(&self, p: DVec2) -> DVec2 {
+        (p - self.shift_mm) * self.scale
+    }
+}
+
+/// A job is a part of revolution the diagnosis can simulate.
+fn check_layout(job: &Job) -> Result<(), ForwardError> {
+    if job.layout != Layout::Polar {
+        return Err(ForwardError(
+            "the diagnosis handles parts of revolution (planes, spheres, aspheres); cylinders are not supported yet".into(),
+        ));
+    }
+    Ok(())
+}
+
 impl<'e> ForwardModel<'e> {
-    /// `pitch_mm`: the simulation's ring pitch (the job's own unless the caller refines it).
+    /// The job simulated over the region the measurement covers (its points placed on the
+    /// part, axis at the origin), with room for the registration to move them.
     pub fn new(
         job: &Job,
         measurement: &Measurement,
         engine: &'e mut dyn RemovalEngine,
     ) -> Result<Self, ForwardError> {
-        if job.layout != Layout::Polar {
-            return Err(ForwardError(
-                "the diagnosis handles parts of revolution (planes, spheres, aspheres); cylinders are not supported yet".into(),
-            ));
-        }
+        Self::around(job, measurement, shift_room_mm(measurement), engine)
+    }
+
+    /// As [`ForwardModel::new`], with `room_mm` of lateral slack around the points.
+    pub fn around(
+        job: &Job,
+        measurement: &Measurement,
+        room_mm: f64,
+        engine: &'e mut dyn RemovalEngine,
+    ) -> Result<Self, ForwardError> {
+        check_layout(job)?;
         let mut base = job.clone();
-        let room = shift_room_mm(measurement)
-            + 3.0 * job.pitch_mm
-            + measurement.instrument.stylus_tip_mm.unwrap_or(0.0);
+        let room =
+            room_mm + 3.0 * job.pitch_mm + measurement.instrument.stylus_tip_mm.unwrap_or(0.0);
         let radii = measurement.xy_mm.iter().map(|p| p.length());
         let (r_min, r_max) = radii.fold((f64::INFINITY, 0.0_f64), |(lo, hi), r| {
             (lo.min(r), hi.max(r))
         });
         base.aperture.inner_radius_mm = job.aperture.inner_radius_mm.max(r_min - room).max(0.0);
         base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(r_max + room);
-        let line_rows = match measurement.shape {
+        let turning = job.process.turning().is_some();
+        let (line_rows, azimuth_rad) = match measurement.shape {
+            // A turned part looks the same along every azimuth but for the spiral's
+            // phase: the program is turned instead, and two rows suffice.
+            Shape::Line { azimuth_rad } if turning => {
+                base.azimuths = 2;
+                (Some((0, 1)), azimuth_rad)
+            }
             Shape::Line { azimuth_rad } => {
                 let (rows, row) = line_rows_through(azimuth_rad).ok_or_else(|| {
                     ForwardError(format!(
@@ -80,7 +140,7 @@ impl<'e> ForwardModel<'e> {
                     ))
                 })?;
                 base.azimuths = rows;
-                Some((row, (row + rows / 2) % rows))
+                (Some((row, (row + rows / 2) % rows)), 0.0)
             }
             Shape::Raster { pixel_mm, .. } => {
                 let pixel = pixel_mm[0].min(pixel_mm[1]);
@@ -99,13 +159,52 @@ impl<'e> ForwardModel<'e> {
                     rows = rows.min(spiral.ceil());
                 }
                 base.azimuths = (rows as u32).clamp(16, 8192).next_multiple_of(4);
-                None
+                (None, 0.0)
             }
         };
+        let pixel_mm = match measurement.shape {
+            Shape::Raster { pixel_mm, .. } if measurement.instrument.pixel_averaging => {
+                Some(pixel_mm)
+            }
+            _ => None,
+        };
         Ok(Self {
+            groundwork: Groundwork::of(&base),
             base,
             engine,
             line_rows,
+            azimuth_rad,
+            instrument: measurement.instrument,
+            pixel_mm,
+            simulations: 0,
+            prepare_s: 0.0,
+            removal_s: 0.0,
+        })
+    }
+
+    /// The job simulated from the axis out to `outer_radius_mm` on `rows` rows (the
+    /// registration's wide search: the axis may lie anywhere, and a turned line's
+    /// azimuth on the spiral is not known).
+    pub fn covering(
+        job: &Job,
+        outer_radius_mm: f64,
+        rows: u32,
+        instrument: Instrument,
+        engine: &'e mut dyn RemovalEngine,
+    ) -> Result<Self, ForwardError> {
+        check_layout(job)?;
+        let mut base = job.clone();
+        base.aperture.inner_radius_mm = 0.0;
+        base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(outer_radius_mm);
+        base.azimuths = rows;
+        Ok(Self {
+            groundwork: Groundwork::of(&base),
+            base,
+            engine,
+            line_rows: None,
+            azimuth_rad: 0.0,
+            instrument,
+            pixel_mm: None,
             simulations: 0,
             prepare_s: 0.0,
             removal_s: 0.0,
@@ -126,25 +225,117 @@ impl<'e> ForwardModel<'e> {
         &self.base
     }
 
+    /// The engine, for another model to borrow while this one rests.
+    pub fn engine(&mut self) -> &mut dyn RemovalEngine {
+        &mut *self.engine
+    }
+
     pub fn engine_kind(&self) -> String {
         self.engine.info().kind
+    }
+
+    /// Turning: the part's azimuth the simulation looks along (rad).
+    pub fn azimuth_rad(&self) -> f64 {
+        self.azimuth_rad
+    }
+
+    /// Turning: looks along another azimuth of the part (the spiral's phase there).
+    pub fn set_azimuth(&mut self, azimuth_rad: f64) {
+        self.azimuth_rad = azimuth_rad;
     }
 
     /// Simulates the base job changed by `modify` (the trial effects).
     pub fn simulate(
         &mut self,
         modify: &dyn Fn(&mut Job),
-        measurement: &Measurement,
     ) -> Result<SimulatedSurface, ForwardError> {
-        let mut job = self.base.clone();
-        modify(&mut job);
+        let job = self.trial(modify);
         let started = Instant::now();
-        let scenes = prepare_scenes(&job);
+        let scenes = scenes_on(&job, grid_for(&job, &self.groundwork), &self.groundwork);
         self.prepare_s += started.elapsed().as_secs_f64();
         let started = Instant::now();
         let field = remove_all(&scenes, self.engine, &|_, _| {})?;
         self.removal_s += started.elapsed().as_secs_f64();
         self.simulations += 1;
+        Ok(self.seen().surface(&scenes, &field))
+    }
+
+    /// Simulates several trials; on the CPU engine side by side (each trial on its own
+    /// engine), elsewhere one after the other. The same surfaces as `simulate` gives.
+    pub fn simulate_many(
+        &mut self,
+        modifies: &[&(dyn Fn(&mut Job) + Sync)],
+    ) -> Result<Vec<SimulatedSurface>, ForwardError> {
+        if self.engine.info().kind != "cpu" || modifies.len() < 2 {
+            return modifies.iter().map(|m| self.simulate(*m)).collect();
+        }
+        let started = Instant::now();
+        let jobs: Vec<Job> = modifies.iter().map(|m| self.trial(*m)).collect();
+        let (groundwork, seen) = (&self.groundwork, self.seen());
+        let done: Vec<Result<SimulatedSurface, ForwardError>> = jobs
+            .par_iter()
+            .map(|job| {
+                let scenes = scenes_on(job, grid_for(job, groundwork), groundwork);
+                let field = remove_all(&scenes, &mut CpuEngine, &|_, _| {})?;
+                Ok(seen.surface(&scenes, &field))
+            })
+            .collect();
+        self.removal_s += started.elapsed().as_secs_f64();
+        self.simulations += modifies.len();
+        done.into_iter().collect()
+    }
+
+    /// The base job with a trial's changes, looking along the model's azimuth.
+    fn trial(&self, modify: &dyn Fn(&mut Job)) -> Job {
+        let mut job = self.base.clone();
+        if let Process::Turning(turning) = &mut job.process {
+            turning.azimuth_offset_rad = self.azimuth_rad;
+        }
+        modify(&mut job);
+        job
+    }
+
+    /// How this model's simulations are seen.
+    fn seen(&self) -> Seen {
+        Seen {
+            line_rows: self.line_rows,
+            instrument: self.instrument,
+            pixel_mm: self.pixel_mm,
+        }
+    }
+}
+
+/// The job's grid, with rings just inside and outside r = |h| where a turning tool is
+/// off centre by h: the uncut core below centre (the flank's cone above it) ends there,
+/// and with rings on both sides the simulated edge moves continuously with h, so a fit
+/// of h is not a staircase in ring steps.
+fn grid_for(job: &Job, groundwork: &Groundwork) -> PolarGrid {
+    let grid = job_grid(job, groundwork);
+    match &job.process {
+        Process::Turning(t) if t.effects.centre_height_mm != 0.0 => {
+            let h = t.effects.centre_height_mm.abs();
+            let gap = (1e-3 * job.pitch_mm).min(0.01 * h);
+            grid.with_rings_at(&job.surface, &groundwork.meridian, &[h - gap, h + gap])
+        }
+        _ => grid,
+    }
+}
+
+/// How a model's simulations are seen: along which rows, through which instrument.
+#[derive(Clone, Copy)]
+struct Seen {
+    line_rows: Option<(u32, u32)>,
+    instrument: Instrument,
+    pixel_mm: Option<[f64; 2]>,
+}
+
+impl Seen {
+    /// The machined heights of a removal, seen as the instrument sees them.
+    fn surface(
+        &self,
+        scenes: &[crate::engine::Scene],
+        field: &crate::field::DexelField,
+    ) -> SimulatedSurface {
         let grid = scenes[0].grid().clone();
         let height_mm = (0..grid.sample_count())
             .map(|s| {
@@ -152,23 +343,105 @@ impl<'e> ForwardModel<'e> {
                 ring.height_mm + field.depth_mm[s] / ring.normal.y
             })
             .collect();
-        Ok(SimulatedSurface::new(
+        SimulatedSurface::new(
             grid,
             height_mm,
             self.line_rows,
-            measurement,
-        ))
+            self.instrument,
+            self.pixel_mm,
+        )
     }
 }
 
 /// The fewest (even) rows with one along `azimuth_rad`, and that row; `None` when the
 /// azimuth is not a multiple of 0.5°.
-fn line_rows_through(azimuth_rad: f64) -> Option<(u32, u32)> {
+pub(super) fn line_rows_through(azimuth_rad: f64) -> Option<(u32, u32)> {
     let turns = azimuth_rad.rem_euclid(TAU) / TAU;
     (2..=720).step_by(2).find_map(|rows: u32| {
         let at = turns * rows as f64;
         ((at - at.round()).abs() < 1e-6).then(|| (rows, (at.round() as u32) % rows))
     })
+}
+
+/// A profile through the axis as the instrument records it: signed positions along the
+/// line (mm, increasing; negative beyond the axis) and traced heights (mm).
+#[derive(Debug, Clone)]
+pub struct Trace {
+    pub x: Vec<f64>,
+    pub z: Vec<f64>,
+}
+
+impl Trace {
+    /// The trace through rows `ahead` (positive positions) and `behind` (negative), seen
+    /// through a stylus tip when there is one.
+    fn through(
+        grid: &PolarGrid,
+        height_mm: &[f64],
+        (ahead, behind): (u32, u32),
+        stylus_tip_mm: Option<f64>,
+    ) -> Trace {
+        let (mut x, mut z) = (Vec::new(), Vec::new());
+        let rings = grid.ring_count();
+        for k in (0..rings).rev() {
+            x.push(-grid.rings[k].radius_mm);
+            z.push(height_mm[grid.sample_index(k, behind)]);
+        }
+        if grid.rings[0].radius_mm > 1e-12 {
+            // The grid leaves out the centre: nothing there to interpolate across.
+            x.push(0.0);
+            z.push(f64::NAN);
+        }
+        for k in 0..rings {
+            let r = grid.rings[k].radius_mm;
+            let h = height_mm[grid.sample_index(k, ahead)];
+            if r <= 1e-12 {
+                // The axis sample on both rows: one point, their mean.
+                let last = z.len() - 1;
+                z[last] = 0.5 * (z[last] + h);
+                x[last] = 0.0;
+            } else {
+                x.push(r);
+                z.push(h);
+            }
+        }
+        if let Some(tip) = stylus_tip_mm {
+            z = stylus_trace(&x, &z, tip);
+        }
+        Trace { x, z }
+    }
+
+    /// The traced height at signed position `s` (mm); NaN off the trace.
+    pub fn at(&self, s: f64) -> f64 {
+        interpolate(&self.x, &self.z, s)
+    }
+
+    /// The traced heights at positions `along` of a line whose frame is `(s0, scale)`:
+    /// each point lies at `(along − s0)·scale` on the trace. Ascending positions are
+    /// walked, not searched.
+    pub fn sample(&self, along: &[f64], s0: f64, scale: f64) -> Vec<f64> {
+        let (x, z) = (&self.x, &self.z);
+        let mut k = 0;
+        let mut last = f64::NEG_INFINITY;
+        along
+            .iter()
+            .map(|s| {
+                let u = (s - s0) * scale;
+                if u < last {
+                    k = x.partition_point(|v| *v <= u).saturating_sub(1);
+                }
+                last = u;
+                while k + 1 < x.len() && x[k + 1] <= u {
+                    k += 1;
+                }
+                if k + 1 < x.len() && x[k] <= u {
+                    let t = (u - x[k]) / (x[k + 1] - x[k]);
+                    z[k] + t * (z[k + 1] - z[k])
+                } else {
+                    interpolate(x, z, u)
+                }
+            })
+            .collect()
+    }
 }
 
 /// A simulated surface: heights along Z at every grid sample, and (for a line) the
@@ -177,10 +450,10 @@ pub struct SimulatedSurface {
     pub grid: PolarGrid,
     /// Height along Z of the machined surface at each sample (mm).
     pub height_mm: Vec<f64>,
-    /// Line: (signed position, traced height) through the axis, increasing position.
-    trace: Option<(Vec<f64>, Vec<f64>)>,
+    trace: Option<Trace>,
     /// Raster with pixel averaging: the pixel's size (mm).
     pixel_mm: Option<[f64; 2]>,
+    stylus_tip_mm: Option<f64>,
 }
 
 impl SimulatedSurface {
@@ -188,39 +461,11 @@ impl SimulatedSurface {
         grid: PolarGrid,
         height_mm: Vec<f64>,
         line_rows: Option<(u32, u32)>,
-        measurement: &Measurement,
+        instrument: Instrument,
+        pixel_mm: Option<[f64; 2]>,
     ) -> Self {
-        let trace = line_rows.map(|(ahead, behind)| {
-            let (mut x, mut z) = (Vec::new(), Vec::new());
-            let rings = grid.ring_count();
-            for k in (0..rings).rev() {
-                x.push(-grid.rings[k].radius_mm);
-                z.push(height_mm[grid.sample_index(k, behind)]);
-            }
-            for k in 0..rings {
-                let r = grid.rings[k].radius_mm;
-                let h = height_mm[grid.sample_index(k, ahead)];
-                if r <= 1e-12 {
-                    // The axis sample on both rows: one point, their mean.
-                    let last = z.len() - 1;
-                    z[last] = 0.5 * (z[last] + h);
-                    x[last] = 0.0;
-                } else {
-                    x.push(r);
-                    z.push(h);
-                }
-            }
-            if let Some(tip) = measurement.instrument.stylus_tip_mm {
-                z = stylus_trace(&x, &z, tip);
-            }
-            (x, z)
-        });
-        let pixel_mm = match measurement.shape {
-            Shape::Raster { pixel_mm, .. } if measurement.instrument.pixel_averaging => {
-                Some(pixel_mm)
-            }
-            _ => None,
-        };
+        let trace =
+            line_rows.map(|rows| Trace::through(&grid, &height_mm, rows, instrument.stylus_tip_mm));
         // Each of a pixel's 3 × 3 midpoints stands for a third of it.
         let height_mm = match pixel_mm {
             Some([dx, dy]) => box_filtered(&grid, &height_mm, dx.min(dy) / 3.0),
@@ -231,46 +476,48 @@ impl SimulatedSurface {
             height_mm,
             trace,
             pixel_mm,
+            stylus_tip_mm: instrument.stylus_tip_mm,
         }
     }
 
-    /// The simulated heights at the measured points when the part's axis sits at
-    /// `shift_mm` in the measurement's frame (NaN where the simulation has no data).
-    pub fn sample(&self, measurement: &Measurement, shift_mm: DVec2) -> Vec<f64> {
+    /// The trace through the axis along row `row` and its opposite (the grid's rows
+    /// must be even), as the instrument records it.
+    pub fn trace_along(&self, row: u32) -> Trace {
+        let rows = self.grid.azimuths;
+        Trace::through(
+            &self.grid,
+            &self.height_mm,
+            (row % rows, (row + rows / 2) % rows),
+            self.stylus_tip_mm,
+        )
+    }
+
+    /// The simulated heights at the measured points when the measurement lies on the
+    /// part in `frame` (NaN where the simulation has no data).
+    pub fn sample(&self, measurement: &Measurement, frame: Frame) -> Vec<f64> {
         match &self.trace {
-            Some((x, z)) => {
-                let along = DVec2::from_angle(self.line_azimuth(measurement));
-                let s0 = shift_mm.dot(along);
-                measurement
-                    .along_mm
-                    .iter()
-                    .map(|s| interpolate(x, z, s - s0))
-                    .collect()
+            Some(trace) => {
+                let s0 = frame.shift_mm.dot(measurement.line_direction());
+                trace.sample(&measurement.along_mm, s0, frame.scale)
             }
             None => measurement
                 .xy_mm
                 .iter()
-                .map(|p| self.area_value(*p - shift_mm))
+                .map(|p| self.area_value(frame.to_part(*p), frame.scale))
                 .collect(),
         }
     }
 
-    fn line_azimuth(&self, measurement: &Measurement) -> f64 {
-        match measurement.shape {
-            Shape::Line { azimuth_rad } => azimuth_rad,
-            Shape::Raster { .. } => 0.0,
-        }
-    }
-
-    /// A pixel's value: the point, or the mean over its footprint (3 × 3 midpoints).
-    fn area_value(&self, p: DVec2) -> f64 {
+    /// A pixel's value at part position `p`: the point, or the mean over its footprint
+    /// (3 × 3 midpoints; the footprint scaled with the positions).
+    fn area_value(&self, p: DVec2, scale: f64) -> f64 {
         match self.pixel_mm {
             None => self.at(p),
             Some([dx, dy]) => {
                 let mut sum = 0.0;
                 for i in -1..=1 {
                     for j in -1..=1 {
-                        let offset = DVec2::new(i as f64 * dx, j as f64 * dy) / 3.0;
+                        let offset = DVec2::new(i as f64 * dx, j as f64 * dy) * scale / 3.0;
                         sum += self.at(p + offset);
                     }
                 }
@@ -470,5 +717,205 @@ mod tests {
                 trace[i] - z[i]
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod rotation_tests {
+    use super::*;
+    use crate::engine::cpu::CpuEngine;
+
+    /// Turning the program by δ and looking along azimuth 0 is looking along azimuth δ
+    /// of the part as programmed: the two-row line model equals a grid whose rows hold
+    /// that azimuth (independently built rows, sample for sample).
+    #[test]
+    fn a_turned_program_looks_along_the_azimuth_it_was_turned_to() {
+        let job = Job::from_toml_str(
+            r#"version = 1
+[surface]
+kind = "sphere"
+form = "convex"
+radius_mm = 5.0
+aperture_diameter_mm = 0.4
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.2
+included_angle_deg = 140.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.01
+[grid]
+pitch_um = 1.0
+azimuths = 8
+[[effects]]
+kind = "centre_height"
+height_mm = 0.002
+"#,
+            "test",
+        )
+        .unwrap();
+        let azimuth = 135f64.to_radians();
+        let line = Measurement::line(
+            &[-0.15, 0.15],
+            &[0.0, 0.0],
+            azimuth,
+            0.0,
+            Instrument::default(),
+        );
+        let mut engine = CpuEngine;
+        let mut turned = ForwardModel::new(&job, &line, &mut engine).unwrap();
+        let trace = turned.simulate(&|_| {}).unwrap().trace.unwrap();
+        let mut grid_job = turned.base_job().clone();
+        grid_job.azimuths = 8; // row 3 lies along 135°
+        let mut engine = CpuEngine;
+        let mut rows =
+            ForwardModel::covering(&grid_job, 1.0, 8, Instrument::default(), &mut engine).unwrap();
+        rows.base.aperture = turned.base_job().aperture;
+        let expected = rows.simulate(&|_| {}).unwrap().trace_along(3);
+        assert_eq!(trace.x.len(), expected.x.len());
+        let worst = trace
+            .z
+            .iter()
+            .zip(&expected.z)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-9, "largest difference {worst} mm");
+    }
+}
+
+#[cfg(test)]
+mod decentre_marks_tests {
+    use super::*;
+    use crate::diagnose::candidates::Candidate;
+    use crate::diagnose::fit::apply_set;
+    use crate::engine::cpu::CpuEngine;
+
+    /// A decentre moves a turned part's marks out by δ; paired with the spiral's
+    /// azimuth (`apply_set`) the turn 2π δ/f moves them back: the marks of the
+    /// compensated trace lie where the nominal's do (away from the centre), while the
+    /// uncompensated trace's are δ further out — checked by where each trace best
+    /// matches the nominal's marks.
+    #[test]
+    fn a_decentre_paired_with_the_azimuth_leaves_the_marks_in_place() {
+        let job = Job::from_toml_str(
+            r#"version = 1
+[surface]
+kind = "plane"
+aperture_diameter_mm = 0.6
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.2
+included_angle_deg = 140.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.01
+[grid]
+pitch_um = 0.25
+azimuths = 8
+"#,
+            "test",
+        )
+        .unwrap();
+        let x: Vec<f64> = (-25..=25).map(|i| i as f64 * 0.01).collect();
+        let line = Measurement::line(&x, &vec![0.0; x.len()], 0.0, 0.0, Instrument::default());
+        let mut engine = CpuEngine;
+        let mut model = ForwardModel::new(&job, &line, &mut engine).unwrap();
+        let delta = 0.003;
+        let mut trace = |set: &[Candidate], values: &[f64]| {
+            model
+                .simulate(&|j| apply_set(set, values, j))
+                .unwrap()
+                .trace
+                .unwrap()
+        };
+        let nominal = trace(&[], &[]);
+        let moved = trace(&[Candidate::XDecentre], &[delta * 1e3]);
+        let kept = trace(
+            &[Candidate::SpiralAzimuth, Candidate::XDecentre],
+            &[0.0, delta * 1e3],
+        );
+        // The shift (µm, outward on the + side) that best lays a trace's marks on the
+        // nominal's between r = 0.05 and 0.2 mm (their mean height difference aside).
+        let best_shift = |t: &Trace| -> f64 {
+            (-50..=50)
+                .map(|k| k as f64 * 1e-4)
+                .map(|s| {
+                    let d: Vec<f64> = (0..1500)
+                        .map(|i| 0.05 + i as f64 * 1e-4)
+                        .map(|r| t.at(r + s) - nominal.at(r))
+                        .collect();
+                    let mean = d.iter().sum::<f64>() / d.len() as f64;
+                    let err: f64 = d.iter().map(|v| (v - mean).powi(2)).sum();
+                    (err, s)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .unwrap()
+                .1
+                * 1e3
+        };
+        let (moved_um, kept_um) = (best_shift(&moved), best_shift(&kept));
+        assert!(
+            (moved_um - 3.0).abs() <= 0.15,
+            "uncompensated marks moved {moved_um} µm"
+        );
+        assert!(
+            kept_um.abs() <= 0.15,
+            "compensated marks moved {kept_um} µm"
+        );
+    }
+}
+
+#[cfg(test)]
+mod centre_height_tests {
+    use super::*;
+    use crate::engine::cpu::CpuEngine;
+
+    /// A tool 2.13 µm below centre leaves an uncut core of radius 2.13 µm (the edge
+    /// never reaches r < |h|): on a 0.5 µm ring grid the traced wall must sit at 2.13 µm,
+    /// not at a ring, so that a fit of h is continuous.
+    #[test]
+    fn the_core_a_tool_below_centre_leaves_ends_where_the_tool_does() {
+        let job = Job::from_toml_str(
+            r#"version = 1
+[surface]
+kind = "plane"
+aperture_diameter_mm = 0.2
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.2
+included_angle_deg = 140.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.005
+[grid]
+pitch_um = 0.5
+azimuths = 8
+[[effects]]
+kind = "centre_height"
+height_mm = -0.00213
+"#,
+            "test",
+        )
+        .unwrap();
+        let x: Vec<f64> = (-50..=50).map(|i| i as f64 * 1e-3).collect();
+        let line = Measurement::line(&x, &vec![0.0; x.len()], 0.0, 0.0, Instrument::default());
+        let mut engine = CpuEngine;
+        let mut model = ForwardModel::new(&job, &line, &mut engine).unwrap();
+        let trace = model.simulate(&|_| {}).unwrap().trace.unwrap();
+        // Half-way down the wall, searched on a 1 nm lattice along +x.
+        let (top, floor) = (trace.at(0.0005), trace.at(0.004));
+        assert!(
+            top - floor > 1e-3,
+            "a core stands: {} µm",
+            (top - floor) * 1e3
+        );
+        let wall = (0..4000)
+            .map(|i| i as f64 * 1e-6)
+            .find(|&r| trace.at(r) < 0.5 * (top + floor))
+            .unwrap();
+        assert!((wall - 0.00213).abs() < 2e-6, "wall at {} µm", wall * 1e3);
     }
 }

@@ -41,6 +41,13 @@ pub struct Measurement {
     pub instrument: Instrument,
     /// Points in the file, valid or not.
     pub total_points: usize,
+    /// Where this measurement's origin lies in the file's own lateral coordinates (mm;
+    /// a line uses the first value), and the file's distance per distance here (the
+    /// inverse of the lateral scale once registration has fitted one).
+    pub file_origin_mm: DVec2,
+    pub file_per_mm: f64,
+    /// A line's azimuth was stated by the user (not a default).
+    pub azimuth_stated: bool,
 }
 
 impl Measurement {
@@ -55,6 +62,7 @@ impl Measurement {
     ) -> Self {
         let direction = DVec2::from_angle(azimuth_rad);
         let mut m = Self::empty(Shape::Line { azimuth_rad }, instrument, height_mm.len());
+        m.file_origin_mm = DVec2::new(axis_at_mm, 0.0);
         for (i, (&x, &h)) in positions_mm.iter().zip(height_mm).enumerate() {
             if h.is_finite() && x.is_finite() {
                 let along = x - axis_at_mm;
@@ -80,6 +88,7 @@ impl Measurement {
     ) -> Self {
         let shape = Shape::Raster { nx, ny, pixel_mm };
         let mut m = Self::empty(shape, instrument, height_mm.len());
+        m.file_origin_mm = axis_at_mm;
         for (k, &h) in height_mm.iter().enumerate().take(nx * ny) {
             if h.is_finite() {
                 let (i, j) = (k % nx, k / nx);
@@ -101,6 +110,53 @@ impl Measurement {
             height_mm: Vec::new(),
             instrument,
             total_points,
+            file_origin_mm: DVec2::ZERO,
+            file_per_mm: 1.0,
+            azimuth_stated: false,
+        }
+    }
+
+    /// A line's direction on the part (+X for a raster).
+    pub fn line_direction(&self) -> DVec2 {
+        match self.shape {
+            Shape::Line { azimuth_rad } => DVec2::from_angle(azimuth_rad),
+            Shape::Raster { .. } => DVec2::X,
+        }
+    }
+
+    /// Point `i`'s position in the file's own lateral coordinates (mm): along the line
+    /// (first value), or X and Y of a map.
+    pub fn file_position_mm(&self, i: usize) -> DVec2 {
+        let here = match self.shape {
+            Shape::Line { .. } => DVec2::new(self.along_mm[i], 0.0),
+            Shape::Raster { .. } => self.xy_mm[i],
+        };
+        self.file_origin_mm + here * self.file_per_mm
+    }
+
+    /// Where a position of this measurement's frame lies in the file (mm).
+    pub fn file_position_of(&self, here_mm: DVec2) -> DVec2 {
+        self.file_origin_mm + here_mm * self.file_per_mm
+    }
+
+    /// The points placed on the part by `frame`: each at `(p − shift)·scale`, so the axis
+    /// sits at the origin and lateral distances are true ones.
+    pub fn placed(&self, frame: super::forward::Frame) -> Measurement {
+        let shift_here = match self.shape {
+            Shape::Line { .. } => DVec2::new(frame.shift_mm.dot(self.line_direction()), 0.0),
+            Shape::Raster { .. } => frame.shift_mm,
+        };
+        let s0 = shift_here.x;
+        Measurement {
+            xy_mm: self.xy_mm.iter().map(|p| frame.to_part(*p)).collect(),
+            along_mm: self
+                .along_mm
+                .iter()
+                .map(|a| (a - s0) * frame.scale)
+                .collect(),
+            file_origin_mm: self.file_position_of(shift_here),
+            file_per_mm: self.file_per_mm / frame.scale,
+            ..self.clone()
         }
     }
 
@@ -175,6 +231,9 @@ impl Measurement {
             m.index.push(self.index[i]);
             m.height_mm.push(self.height_mm[i]);
         }
+        m.file_origin_mm = self.file_origin_mm;
+        m.file_per_mm = self.file_per_mm;
+        m.azimuth_stated = self.azimuth_stated;
         m
     }
 }

@@ -5,7 +5,7 @@
 //! its line). Linear terms are solved by least squares for each trial shift; the shift by
 //! a grid search and a golden-section refinement.
 
-use super::forward::SimulatedSurface;
+use super::forward::{Frame, SimulatedSurface};
 use super::measurement::Measurement;
 use crate::numeric::solve_linear;
 use glam::DVec2;
@@ -67,7 +67,7 @@ pub fn register(
 ) -> Registered {
     let Some(search) = search.filter(|_| terms.shift) else {
         let shift = search.map_or(DVec2::ZERO, |s| s.start);
-        return fit_linear(m, &sim.sample(m, shift), shift, terms.power);
+        return fit_linear(m, &sim.sample(m, Frame::at(shift)), shift, terms.power);
     };
     let direction = match m.shape {
         super::measurement::Shape::Line { azimuth_rad } => Some(DVec2::from_angle(azimuth_rad)),
@@ -86,7 +86,12 @@ pub fn register(
     // The axis is judged on the bulk of the points: the worst 5 % (an unmodelled local
     // feature, spikes) do not steer it.
     let objective = |points: &Measurement, shift: DVec2| {
-        let r = fit_linear(points, &sim.sample(points, shift), shift, terms.power);
+        let r = fit_linear(
+            points,
+            &sim.sample(points, Frame::at(shift)),
+            shift,
+            terms.power,
+        );
         if r.used < kept(points) {
             return f64::INFINITY;
         }
@@ -108,7 +113,7 @@ pub fn register(
                 .map(|k| {
                     let centre = search.start + offsets[k] * d;
                     let along = |a: f64| objective(m, centre + a * d);
-                    let a = golden_section(&along, -width, width, 24);
+                    let a = golden_section(&along, -width, width, 14);
                     (along(a), centre + a * d)
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0))
@@ -150,11 +155,11 @@ pub fn register(
         }
     };
     let shift = best.map_or(search.start, |b| b.1);
-    fit_linear(m, &sim.sample(m, shift), shift, terms.power)
+    fit_linear(m, &sim.sample(m, Frame::at(shift)), shift, terms.power)
 }
 
 /// Mean of the smallest `keep` share of the squared finite values.
-fn trimmed_mean_square(values: &[f64], keep: f64) -> f64 {
+pub fn trimmed_mean_square(values: &[f64], keep: f64) -> f64 {
     let mut squares: Vec<f64> = values
         .iter()
         .filter(|v| v.is_finite())
@@ -228,17 +233,18 @@ pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool)
 
 /// The linear terms registration removes (piston, tilt, optionally power), on
 /// coordinates centred over the points the simulation covers.
-struct LinearTerms {
+pub struct LinearTerms {
     raster: bool,
     power: bool,
     shift: DVec2,
-    width: usize,
+    /// How many terms (piston, tilt X[, tilt Y][, power]).
+    pub width: usize,
     centre: [f64; 2],
     used: Vec<usize>,
 }
 
 impl LinearTerms {
-    fn new(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool) -> Self {
+    pub fn new(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool) -> Self {
         let raster = !m.is_line();
         let used: Vec<usize> = (0..m.len()).filter(|&i| simulated[i].is_finite()).collect();
         let n = used.len().max(1) as f64;
@@ -256,7 +262,7 @@ impl LinearTerms {
         }
     }
 
-    fn row(&self, m: &Measurement, i: usize) -> [f64; 4] {
+    pub fn row(&self, m: &Measurement, i: usize) -> [f64; 4] {
         let t = m.tilt_coordinates(i);
         let mut row = [1.0, t[0] - self.centre[0], 0.0, 0.0];
         let mut k = 2;
@@ -272,7 +278,7 @@ impl LinearTerms {
 
     /// Coefficients of the terms, then of the `extra` columns, fitted together to
     /// measured − simulated (zeros when singular).
-    fn solve(&self, m: &Measurement, simulated: &[f64], extra: &[Vec<f64>]) -> Vec<f64> {
+    pub fn solve(&self, m: &Measurement, simulated: &[f64], extra: &[Vec<f64>]) -> Vec<f64> {
         let width = self.width + extra.len();
         let mut normal = vec![vec![0.0; width]; width];
         let mut rhs = vec![0.0; width];
@@ -310,9 +316,12 @@ fn refine_shift(
 ) -> (f64, DVec2) {
     let (mut at, mut best) = (start, objective(start));
     for _ in 0..8 {
-        let model = sim.sample(m, at);
+        let model = sim.sample(m, Frame::at(at));
         let slope = |d: DVec2| -> Vec<f64> {
-            let (ahead, behind) = (sim.sample(m, at + d), sim.sample(m, at - d));
+            let (ahead, behind) = (
+                sim.sample(m, Frame::at(at + d)),
+                sim.sample(m, Frame::at(at - d)),
+            );
             ahead
                 .iter()
                 .zip(&behind)

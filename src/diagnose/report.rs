@@ -11,6 +11,7 @@ use crate::io::colour::ColourMap;
 use crate::io::exr_io::{ExrImage, write_exr};
 use crate::io::plot::{LinePlot, PALETTE, Series, write_line_plot};
 use crate::io::png_out::{FalseColourPlot, write_false_colour_png};
+use glam::DVec2;
 use std::collections::BTreeMap;
 use std::io;
 use std::path::{Path, PathBuf};
@@ -24,6 +25,9 @@ pub struct Diagnosis {
     pub job: JobInfo,
     pub measurement: MeasurementInfo,
     pub registration: RegistrationInfo,
+    /// The job (with any carried effects) against the measurement, before any effect
+    /// is fitted: PV, RMS and the local mark spacing band by band of radius.
+    pub comparison: super::compare::Comparison,
     pub fit_check: FitCheck,
     /// The residual against the job as given, and against it with the accepted effects.
     pub residual_before: ResidualInfo,
@@ -33,6 +37,8 @@ pub struct Diagnosis {
     pub not_diagnosable: Vec<super::NotDiagnosable>,
     /// The accepted effects, fitted together.
     pub accepted: Vec<CandidateResult>,
+    /// The check of every effect tried for acceptance on data it was not fitted on.
+    pub cross_validation: Vec<super::validate::Validation>,
     /// The residual after each step of the greedy combination.
     pub shrinkage: Vec<ShrinkageStep>,
     /// Candidates that explain the data as well as the first (the data cannot tell them apart).
@@ -46,6 +52,9 @@ pub struct Diagnosis {
 pub struct JobInfo {
     pub name: String,
     pub process: String,
+    /// The effects file carried from an earlier part (`--effects`), if any: the job
+    /// was simulated with it.
+    pub carried_effects: Option<String>,
 }
 
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -73,19 +82,16 @@ pub struct MeasurementInfo {
 }
 
 impl MeasurementInfo {
-    pub fn of(
-        on_part: &Measurement,
-        all: &Measurement,
-        fitted: &Measurement,
-        held: Option<&Measurement>,
-    ) -> Self {
+    /// `calibration`: the points fitted when some were held out.
+    pub fn of(on_part: &Measurement, all: &Measurement, calibration: Option<&[bool]>) -> Self {
+        let fitted = calibration.map_or(on_part.len(), |c| c.iter().filter(|k| **k).count());
         Self {
             shape: if all.is_line() { "profile" } else { "map" }.into(),
             points_in_file: all.total_points,
             valid_points: all.len(),
             points_on_part: on_part.len(),
-            points_fitted: fitted.len(),
-            points_held_out: held.map_or(0, Measurement::len),
+            points_fitted: fitted,
+            points_held_out: on_part.len() - fitted,
             extent_mm: on_part.extent_mm(),
             max_radius_mm: on_part.max_radius_mm(),
             spacing_um: on_part.spacing_mm() * 1e3,
@@ -100,13 +106,134 @@ impl MeasurementInfo {
     }
 }
 
+/// Where the measurement lies on the part, and what registration removed.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct RegistrationInfo {
     /// What registration removes: piston, tilt, power, axis position.
     pub terms: Vec<String>,
-    /// Removed against the job as given, and against the final model.
+    /// "diameter" (a profile the axis crosses), "radius" (a profile wholly on one side
+    /// of it) or "map".
+    pub trace: String,
+    /// Where the spindle axis lies, in the measured file's own lateral coordinates (mm;
+    /// as the final model registers it), with one σ (∞: the data cannot fix it; 0: held
+    /// where --axis-at-mm put it).
+    pub axis_x_mm: f64,
+    pub axis_x_sigma_mm: f64,
+    /// Maps: the same along the file's Y.
+    pub axis_y_mm: Option<f64>,
+    pub axis_y_sigma_mm: Option<f64>,
+    /// The instrument's lateral scale: true distance per distance in the file (1: as the
+    /// file says), with σ; fitted within ±2 % where the part's marks fix it.
+    pub lateral_scale: f64,
+    pub lateral_scale_sigma: f64,
+    pub lateral_scale_fitted: bool,
+    /// The scale sits at its search bound: not a fit.
+    pub lateral_scale_at_bound: bool,
+    /// "fitted", "within 2σ of 1: held at 1", "at the search bound …", "not searched …".
+    pub lateral_scale_status: String,
+    /// Turning: the azimuth on the program's spiral (degrees from C = 0, counter-clockwise
+    /// seen from +Z) along which the profile runs (a map: its +X), with σ.
+    pub azimuth_deg: Option<f64>,
+    pub azimuth_sigma_deg: Option<f64>,
+    /// The next best placements (another mark alignment or azimuth) and the residual
+    /// each leaves (nm RMS, the best 95 % of points): how clearly the chosen one wins.
+    pub alternatives: Vec<PlacementInfo>,
+    /// Removed against the job as given, and against the final model (axis in the
+    /// file's frame, µm).
     pub nominal: Registration,
     pub fitted: Registration,
+}
+
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PlacementInfo {
+    pub axis_x_mm: f64,
+    pub axis_y_mm: Option<f64>,
+    pub lateral_scale: f64,
+    pub azimuth_deg: Option<f64>,
+    pub rms_nm: f64,
+}
+
+impl RegistrationInfo {
+    /// `placed`: the measurement as the diagnosis placed it on the part (its frame is
+    /// the one `nominal` and `fitted` were registered in).
+    /// `turn_deg`: how far round the spiral from the located azimuth the final model
+    /// put the measurement.
+    pub fn new(
+        terms: Vec<String>,
+        located: &super::locate::Located,
+        turn_deg: f64,
+        read: &Measurement,
+        placed: &Measurement,
+        mut nominal: Registration,
+        mut fitted: Registration,
+    ) -> Self {
+        let line = read.is_line();
+        let in_file = |shift_um: [f64; 2]| -> DVec2 {
+            let here = DVec2::from_array(shift_um) * 1e-3;
+            let here = if line {
+                DVec2::new(here.dot(placed.line_direction()), 0.0)
+            } else {
+                here
+            };
+            placed.file_position_of(here)
+        };
+        // The axis where the final model put it (the nominal one, when no effect was
+        // accepted): an effect the job lacked can mislead the nominal placement.
+        let axis = in_file(fitted.axis_at_um);
+        for r in [&mut nominal, &mut fitted] {
+            r.axis_at_um = (in_file(r.axis_at_um) * 1e3).to_array();
+        }
+        let file_per_mm = read.file_per_mm;
+        let azimuth = |a: f64| {
+            located
+                .azimuth_fitted
+                .then(|| a.to_degrees().rem_euclid(360.0))
+        };
+        let alternatives = located
+            .alternatives
+            .iter()
+            .map(|p| {
+                let at = read.file_position_of(if line {
+                    DVec2::new(p.frame.shift_mm.dot(read.line_direction()), 0.0)
+                } else {
+                    p.frame.shift_mm
+                });
+                PlacementInfo {
+                    axis_x_mm: at.x,
+                    axis_y_mm: (!line).then_some(at.y),
+                    lateral_scale: p.frame.scale,
+                    azimuth_deg: azimuth(p.azimuth_rad),
+                    rms_nm: p.rms_mm * 1e6,
+                }
+            })
+            .collect();
+        Self {
+            terms,
+            trace: if !line {
+                "map".into()
+            } else if located.crosses_axis(read) {
+                "diameter".into()
+            } else {
+                "radius".into()
+            },
+            axis_x_mm: axis.x,
+            axis_x_sigma_mm: located.sigma_shift_mm[0] * file_per_mm,
+            axis_y_mm: (!line).then_some(axis.y),
+            axis_y_sigma_mm: (!line).then_some(located.sigma_shift_mm[1] * file_per_mm),
+            lateral_scale: located.frame.scale,
+            lateral_scale_sigma: located.sigma_scale,
+            lateral_scale_fitted: located.scale_fitted,
+            lateral_scale_at_bound: located.scale_at_bound(),
+            lateral_scale_status: located.scale_status().into(),
+            azimuth_deg: azimuth(located.azimuth_rad + turn_deg.to_radians()),
+            azimuth_sigma_deg: located
+                .azimuth_fitted
+                .then(|| located.sigma_azimuth_rad.to_degrees()),
+            alternatives,
+            nominal,
+            fitted,
+        }
+    }
 }
 
 #[derive(Debug, Clone, serde::Serialize)]
@@ -165,8 +292,13 @@ pub struct ParameterValue {
     pub name: String,
     pub unit: String,
     pub value: f64,
-    /// One standard deviation (correlated residuals accounted for).
+    /// One standard deviation: the larger of the Jacobian's (correlated residuals
+    /// accounted for), a block sandwich estimate, and half the spread over the folds of
+    /// the prediction check.
     pub sigma: f64,
+    /// The search range is ±bound; a value at it is not a fit.
+    pub bound: f64,
+    pub at_bound: bool,
 }
 
 #[derive(Debug, Clone, serde::Serialize)]
@@ -228,7 +360,7 @@ pub struct RunInfo {
     pub mark_period_um: f64,
 }
 
-/// Writes diagnosis.json, report.md, effects.toml and the images into `dir`.
+/// Writes diagnosis.json, report.md, report.html, effects.toml and the images into `dir`.
 pub fn write_outputs(dir: &Path, outcome: &Outcome) -> io::Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir)?;
     let mut written = Vec::new();
@@ -247,6 +379,8 @@ pub fn write_outputs(dir: &Path, outcome: &Outcome) -> io::Result<Vec<PathBuf>> 
         markdown(&outcome.diagnosis, &images).as_bytes(),
     )?;
     written.extend(images.into_iter().map(|(_, p)| p));
+    let document = serde_json::to_value(&outcome.diagnosis).map_err(io::Error::other)?;
+    written.push(crate::io::html::write_diagnosis_html(dir, &document)?);
     Ok(written)
 }
 

@@ -508,7 +508,7 @@ pub fn generate(
             job: "job.toml".into(),
             measured,
             placement: Placement {
-                azimuth_deg: model.azimuth_deg,
+                azimuth_deg: Some(model.azimuth_deg),
                 axis_at_mm: None,
             },
             instrument: model.instrument(),

@@ -162,34 +162,9 @@ pub fn bands(
 /// Gaussian profile filter (50 % transmission at `cutoff_mm`): along the line, or
 /// separably along a raster's rows and columns.
 pub fn gaussian_lowpass(m: &Measurement, values: &[f64], cutoff_mm: f64) -> Vec<f64> {
-    // ISO 16610-21: s(x) ∝ exp(−π (x / (α λc))²), α = √(ln 2 / π).
-    let width = (std::f64::consts::LN_2 / std::f64::consts::PI).sqrt() * cutoff_mm;
-    let weight = |d: f64| (-std::f64::consts::PI * (d / width).powi(2)).exp();
-    let reach = 2.0 * width;
+    let (weight, reach) = gaussian_weight(cutoff_mm);
     match m.shape {
-        Shape::Line { .. } => {
-            let x = &m.along_mm;
-            let mut out = vec![f64::NAN; values.len()];
-            let mut first = 0;
-            for i in 0..x.len() {
-                while x[first] < x[i] - reach {
-                    first += 1;
-                }
-                let (mut sum, mut norm) = (0.0, 0.0);
-                for j in first..x.len() {
-                    if x[j] > x[i] + reach {
-                        break;
-                    }
-                    if values[j].is_finite() {
-                        let w = weight(x[j] - x[i]);
-                        sum += w * values[j];
-                        norm += w;
-                    }
-                }
-                out[i] = if norm > 0.0 { sum / norm } else { f64::NAN };
-            }
-            out
-        }
+        Shape::Line { .. } => gaussian_lowpass_line(&m.along_mm, values, cutoff_mm),
         Shape::Raster { nx, ny, pixel_mm } => {
             let mut grid = vec![f64::NAN; nx * ny];
             for (i, &k) in m.index.iter().enumerate() {
@@ -208,6 +183,40 @@ pub fn gaussian_lowpass(m: &Measurement, values: &[f64], cutoff_mm: f64) -> Vec<
                 .collect()
         }
     }
+}
+
+/// ISO 16610-21's Gaussian weighting, s(x) ∝ exp(−π (x / (α λc))²) with α = √(ln 2 / π)
+/// (50 % transmission at the cut-off λc), and how far it reaches (2 α λc).
+fn gaussian_weight(cutoff_mm: f64) -> (impl Fn(f64) -> f64, f64) {
+    let width = (std::f64::consts::LN_2 / std::f64::consts::PI).sqrt() * cutoff_mm;
+    let weight = move |d: f64| (-std::f64::consts::PI * (d / width).powi(2)).exp();
+    (weight, 2.0 * width)
+}
+
+/// The Gaussian profile filter on points at ascending positions `x` (NaN values are
+/// gaps, bridged by normalised convolution).
+pub fn gaussian_lowpass_line(x: &[f64], values: &[f64], cutoff_mm: f64) -> Vec<f64> {
+    let (weight, reach) = gaussian_weight(cutoff_mm);
+    let mut out = vec![f64::NAN; values.len()];
+    let mut first = 0;
+    for i in 0..x.len() {
+        while x[first] < x[i] - reach {
+            first += 1;
+        }
+        let (mut sum, mut norm) = (0.0, 0.0);
+        for j in first..x.len() {
+            if x[j] > x[i] + reach {
+                break;
+            }
+            if values[j].is_finite() {
+                let w = weight(x[j] - x[i]);
+                sum += w * values[j];
+                norm += w;
+            }
+        }
+        out[i] = if norm > 0.0 { sum / norm } else { f64::NAN };
+    }
+    out
 }
 
 /// Separable normalised convolution of a raster with NaN gaps: (Σ w v, Σ w) per pixel.

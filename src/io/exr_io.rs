@@ -140,7 +140,35 @@ pub fn read_exr_bytes(bytes: &[u8]) -> io::Result<ExrImage> {
     decode(bytes).map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("EXR: {e}")))
 }
 
+/// No legitimate EXR decodes to more than this many times its own size: deflate's
+/// largest ratio is 1032:1 and the other codecs' are smaller (RLE 64:1).
+const MAX_EXPANSION: usize = 1100;
+
+/// Refuses a file whose headers declare more sample bytes than its size can encode
+/// (a corrupt or hostile header would otherwise make the decoder allocate it all).
+fn check_declared_size(bytes: &[u8]) -> exr::error::Result<()> {
+    let meta = exr::meta::MetaData::read_from_buffered(io::Cursor::new(bytes), false)?;
+    let declared = meta.headers.iter().try_fold(0usize, |sum, header| {
+        let pixels = header
+            .layer_size
+            .width()
+            .checked_mul(header.layer_size.height())?;
+        sum.checked_add(pixels.checked_mul(header.channels.bytes_per_pixel.max(1))?)
+    });
+    let allowed = bytes.len().saturating_mul(MAX_EXPANSION) + (1 << 20);
+    match declared {
+        Some(declared) if declared <= allowed => Ok(()),
+        _ => Err(exr::error::Error::Invalid(
+            "the header declares more pixel data than the file can hold".into(),
+        )),
+    }
+}
+
 fn decode(bytes: &[u8]) -> exr::error::Result<ExrImage> {
+    let checked = catch_unwind(AssertUnwindSafe(|| check_declared_size(bytes)));
+    checked.unwrap_or(Err(exr::error::Error::Invalid(
+        "the EXR header reader panicked".into(),
+    )))?;
     let result = catch_unwind(AssertUnwindSafe(|| {
         read()
             .no_deep_data()

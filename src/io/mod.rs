@@ -5,6 +5,7 @@ pub mod atomic;
 pub mod colour;
 pub mod exr_io;
 pub mod font;
+pub mod html;
 pub mod job;
 pub mod md5;
 pub mod measured;

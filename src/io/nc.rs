@@ -31,6 +31,10 @@
 //! direction is an error. Output C starts at the first block's programmed value and increases;
 //! when the program's C decreased (`spindle_direction == -1`) the unwrapped angle is negated.
 //! A single-block pass has direction +1. Output X, Z are the programmed values plus the G52 offset.
+//!
+//! A planner's bare block file (`C… X… Z…` lines, no header) names no feed mode: the job declares
+//! it (`NcDeclared`, from `process.nc_feed_mode`), and then no F is needed; `process.nc_units`
+//! declares µm where the file's lengths are not mm.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -41,6 +45,8 @@ pub struct NcBlock {
     pub c_deg: f64,
     pub x_mm: f64,
     pub z_mm: f64,
+    /// The F in force; NaN when none was given (allowed only where the job declares
+    /// the feed mode).
     pub feed: f64,
 }
 
@@ -52,10 +58,36 @@ pub struct NcPass {
     pub feed_mode: FeedMode,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum FeedMode {
+    /// G93: F is the inverse of each block's time.
+    #[serde(alias = "G93", alias = "g93")]
     InverseTime,
+    /// G94: F is a feed speed.
+    #[serde(alias = "G94", alias = "g94")]
     PerMinute,
+}
+
+/// What a program's own words may leave unsaid, declared by the job instead: a planner's
+/// bare `C X Z` block file has no header setting the feed mode, and may give its
+/// lengths in µm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NcDeclared {
+    /// The feed mode in force at the start (a G93/G94 in the program still changes it).
+    /// With a declared mode, cutting blocks need no F (the feed is then unknown, NaN).
+    pub feed_mode: Option<FeedMode>,
+    /// Millimetres per unit of the program's X, Z and G52 values.
+    pub mm_per_length_unit: f64,
+}
+
+impl Default for NcDeclared {
+    fn default() -> Self {
+        Self {
+            feed_mode: None,
+            mm_per_length_unit: 1.0,
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -393,6 +425,7 @@ struct PassBuilder {
 
 #[derive(Default)]
 struct Machine {
+    declared: NcDeclared,
     vars: BTreeMap<u32, f64>,
     mode: Option<FeedMode>,
     feed: Option<f64>,
@@ -512,7 +545,11 @@ impl Machine {
                 || "non-zero G52 Y offset: this lathe has no Y axis",
             )?;
             self.close_pass(); // a new frame starts a new pass
-            self.offset = [x.unwrap_or(self.offset[0]), z.unwrap_or(self.offset[1])];
+            let unit = self.declared.mm_per_length_unit;
+            self.offset = [
+                x.map_or(self.offset[0], |x| x * unit),
+                z.map_or(self.offset[1], |z| z * unit),
+            ];
             return Ok(stop);
         }
         check(y.is_none(), line, || "Y word: this lathe has no Y axis")?;
@@ -538,16 +575,22 @@ impl Machine {
 
     fn cut(&mut self, line: usize, c: f64, x: f64, z: f64) -> Result<(), NcError> {
         let Some(mode) = self.mode else {
-            return fail(line, "cutting block before any G93/G94 feed mode");
+            return fail(
+                line,
+                "cutting block before any G93/G94 feed mode (a bare C-X-Z file: declare it in the job, process.nc_feed_mode = \"inverse_time\" or \"per_minute\")",
+            );
         };
-        let Some(feed) = self.feed else {
-            return fail(line, "cutting block with no feed F in force");
+        let feed = match (self.feed, self.declared.feed_mode) {
+            (Some(feed), _) => feed,
+            (None, Some(_)) => f64::NAN,
+            (None, None) => return fail(line, "cutting block with no feed F in force"),
         };
+        let unit = self.declared.mm_per_length_unit;
         let mut block = NcBlock {
             line,
             c_deg: c,
-            x_mm: x + self.offset[0],
-            z_mm: z + self.offset[1],
+            x_mm: x * unit + self.offset[0],
+            z_mm: z * unit + self.offset[1],
             feed,
         };
         let Some(p) = self.pass.as_mut() else {
@@ -590,6 +633,11 @@ impl Machine {
 
 /// Parses and executes an NC program, returning its cutting passes.
 pub fn parse_nc(text: &str) -> Result<NcProgram, NcError> {
+    parse_nc_declared(text, NcDeclared::default())
+}
+
+/// As [`parse_nc`], with what the program leaves unsaid declared by the job.
+pub fn parse_nc_declared(text: &str, declared: NcDeclared) -> Result<NcProgram, NcError> {
     let mut prog: Vec<(usize, Stmt)> = Vec::new();
     for (i, raw) in text.lines().enumerate() {
         let s = strip(raw, i + 1)?;
@@ -641,7 +689,11 @@ pub fn parse_nc(text: &str) -> Result<NcProgram, NcError> {
             format!("WHILE … DO {label} has no matching END {label}"),
         );
     }
-    let mut m = Machine::default();
+    let mut m = Machine {
+        declared,
+        mode: declared.feed_mode,
+        ..Machine::default()
+    };
     let mut iterations = vec![0u32; prog.len()];
     let (mut pc, mut executed) = (0, 0usize);
     while let Some((line, stmt)) = prog.get(pc) {
@@ -895,6 +947,29 @@ mod tests {
 
     /// Random bytes, NC-flavoured token soup, and truncated or mutated copies of the real
     /// program must all give Ok or Err, never a panic.
+    #[test]
+    fn bare_blocks_need_a_declared_feed_mode_and_take_declared_units() {
+        let bare = "C0 X1000 Z50\nC0.5 X999.9 Z49.99\nC1 X999.8 Z49.98\n";
+        let e = err(bare);
+        assert_eq!(e.line, 1);
+        assert!(e.message.contains("process.nc_feed_mode"), "{}", e.message);
+        let declared = NcDeclared {
+            feed_mode: Some(FeedMode::InverseTime),
+            mm_per_length_unit: 1e-3,
+        };
+        let prog = parse_nc_declared(bare, declared).expect("declared bare blocks run");
+        assert_eq!(prog.passes.len(), 1);
+        let b = &prog.passes[0].blocks;
+        assert_eq!(b.len(), 3);
+        assert!((b[2].x_mm - 0.9998).abs() < 1e-12 && (b[2].z_mm - 0.04998).abs() < 1e-12);
+        assert!(b[0].feed.is_nan(), "no F given: the feed is unknown");
+        // The program's own words still rule where it has them.
+        let with_header = format!("G94 F5\n{bare}");
+        let prog = parse_nc_declared(&with_header, declared).unwrap();
+        assert_eq!(prog.passes[0].feed_mode, FeedMode::PerMinute);
+        assert_eq!(prog.passes[0].blocks[0].feed, 5.0);
+    }
+
     #[test]
     fn fuzz_never_panics() {
         let mut seed = 0x2545_f491_4f6c_dd1du64;

@@ -18,7 +18,7 @@ use super::atomic::write_bytes_atomically;
 use super::colour::ColourMap;
 use super::exr_io::{ExrImage, write_exr};
 use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
-use super::png_out::{FalseColourPlot, write_false_colour_png, write_png16_gray};
+use super::png_out::{FalseColourPlot, MapGeometry, write_map_png, write_png16_gray};
 use crate::analysis::{Raster, top_view, top_view_within};
 use crate::correct::part_sphere;
 use crate::process::Process;
@@ -32,6 +32,81 @@ use std::time::Instant;
 
 pub const SUMMARY_SCHEMA: &str = "toolmark.summary/1";
 
+/// Every file name a toolmark command writes into an output folder (run, compensate,
+/// correct and their reports): what [`prepare_output_dir`] clears from a reused folder.
+pub const OUTPUT_FILE_NAMES: &[&str] = &[
+    "surface.exr",
+    "polar.exr",
+    "deviation.png",
+    "deviation_colour.png",
+    "scallop_colour.png",
+    "deviation_centre.png",
+    "centre_profile.png",
+    "cutting_diameter.png",
+    "radial_profile.csv",
+    "summary.json",
+    "job.resolved.toml",
+    "report.html",
+    "correction.csv",
+    "compensated.toml",
+    "compensated.nc",
+    "compensation.json",
+    "form_error.png",
+    "corrected.toml",
+    "corrected_short.toml",
+    "corrected_past.toml",
+    "correction.json",
+    "centre_before.png",
+    "centre_after.png",
+    "centre_profiles.png",
+];
+
+/// Sub-folders of an output folder that hold a run's outputs (`correct`).
+const OUTPUT_SUBFOLDERS: &[&str] = &["before", "after"];
+
+/// Makes `dir` ready for a command's outputs before any work starts: creates it, proves
+/// it writable (a probe file written and removed), and removes the files an earlier
+/// toolmark command left there ([`OUTPUT_FILE_NAMES`], also in `before/` and `after/`,
+/// and stale temporaries), so the folder never mixes two jobs. Other files are left
+/// alone. Returns the files removed.
+pub fn prepare_output_dir(dir: &Path) -> io::Result<Vec<PathBuf>> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::AlreadyExists,
+            "exists and is not a folder",
+        ));
+    }
+    std::fs::create_dir_all(dir)?;
+    let probe = dir.join(format!(".toolmark-write-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"probe")?;
+    std::fs::remove_file(&probe)?;
+    let mut removed = clear_outputs(dir)?;
+    for sub in OUTPUT_SUBFOLDERS {
+        let sub = dir.join(sub);
+        if sub.is_dir() {
+            removed.extend(clear_outputs(&sub)?);
+        }
+    }
+    Ok(removed)
+}
+
+/// Removes toolmark's own output files (and temporaries) directly inside `dir`.
+fn clear_outputs(dir: &Path) -> io::Result<Vec<PathBuf>> {
+    let mut removed = Vec::new();
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let ours = OUTPUT_FILE_NAMES.contains(&name.as_str())
+            || (name.starts_with('.') && name.contains(".tmp-"));
+        if ours && entry.file_type()?.is_file() {
+            std::fs::remove_file(entry.path())?;
+            removed.push(entry.path());
+        }
+    }
+    removed.sort();
+    Ok(removed)
+}
+
 /// Writes all outputs of a run into `dir` and returns the paths written.
 pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
     let started = Instant::now();
@@ -39,33 +114,22 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let grid = result.grid();
     let pixels = result.job.map_pixels as usize;
 
-    // Per-sample quantities in report units, then their top views.
     let deviation_nm: Vec<f64> = result.field.depth_mm.iter().map(|d| d * 1e6).collect();
     let scallop_nm: Vec<f64> = result.scallops.map_mm.iter().map(|d| d * 1e6).collect();
     let protrusion_nm: Vec<f64> = result.protrusion.map_mm.iter().map(|d| d * 1e6).collect();
-    // The machined height: nominal z plus the normal offset seen along Z.
     let rings = grid.ring_count();
-    let height_mm: Vec<f64> = result
-        .field
-        .depth_mm
-        .iter()
-        .enumerate()
-        .map(|(sample, depth)| {
-            let ring = &grid.rings[sample % rings];
-            ring.height_mm + depth / ring.normal.y
-        })
-        .collect();
-    let deviation_map = top_view(grid, &deviation_nm, pixels);
-    let scallop_map = top_view(grid, &scallop_nm, pixels);
-    let height_map = top_view(grid, &height_mm, pixels);
-    let protrusion_map = top_view(grid, &protrusion_nm, pixels);
-    // Milling: the effective cutting diameter (0 where nothing cut).
     let diameter_mm: Option<Vec<f64>> = result.cutting_diameter_mm.as_ref().map(|d| {
         d.iter()
             .map(|v| if v.is_finite() { *v } else { 0.0 })
             .collect()
     });
-    let diameter_map = diameter_mm.as_ref().map(|d| top_view(grid, d, pixels));
+    let TopViews {
+        deviation_nm: deviation_map,
+        scallop_nm: scallop_map,
+        height_mm: height_map,
+        protrusion_nm: protrusion_map,
+        cutting_diameter_mm: diameter_map,
+    } = top_views(result);
 
     let attributes = common_attributes(result, &deviation_map);
     let mut written = Vec::new();
@@ -160,12 +224,26 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     // whole surface sits above nominal; the bar is labelled in true deviation values and
     // spans at least ±1 nm, so a clean part is white rather than its numerical dust.
     let (low, high, mean) = valid_range(&deviation_map);
-    let half_range = (high - mean).max(mean - low).max(1.0);
+    // The colour bar spans 99.8 % of the pixels: a single pixel at the axis must not
+    // wash out the rest of the map; the footer says how many lie beyond the bar's ends.
+    let (p_low, p_high) = percentiles(&deviation_map, 0.001);
+    let half_range = (p_high - mean).max(mean - p_low).max(1.0);
+    let beyond = pixels_beyond(&deviation_map, mean - half_range, mean + half_range);
     let footer = format!(
-        "PV {:.1} nm  RMS {:.1} nm  white = mean {mean:.2} nm  {} engine",
-        stats.pv_nm, stats.rms_nm, result.engine.kind
+        "map PV {:.2} nm  RMS {:.2} nm  white = mean {mean:.2} nm{},  all samples PV {:.1} nm  RMS {:.1} nm{}  {} engine",
+        high - low,
+        raster_rms(&deviation_map),
+        match beyond {
+            0 => String::new(),
+            n => format!(" ({n} pixels beyond the bar, drawn at its ends)"),
+        },
+        stats.pv_nm,
+        stats.rms_nm,
+        finer_than_pixels(stats.pv_nm, f64::from(high - low)),
+        result.engine.kind
     );
-    write_false_colour_png(
+    let geometry = MapGeometry::centred(deviation_map.half_width_mm, pixels);
+    write_map_png(
         &file("deviation_colour.png"),
         &FalseColourPlot {
             values: &deviation_map.values,
@@ -178,14 +256,18 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
             unit_label: "deviation (nm)",
             footer: &footer,
         },
+        &geometry,
         &png_text(&attributes),
     )?;
+    let (scallop_low, scallop_high, _) = valid_range(&scallop_map);
     let scallop_footer = match &result.scallops.stats {
-        Some(s) => format!("scallop max {:.1} nm  mean {:.1} nm", s.max_nm, s.mean_nm),
+        Some(s) => format!(
+            "map {scallop_low:.1} to {scallop_high:.1} nm (pixel means),  cusps max {:.1} nm  mean {:.1} nm",
+            s.max_nm, s.mean_nm
+        ),
         None => "scallops not resolved by the grid".to_string(),
     };
-    let (scallop_low, scallop_high, _) = valid_range(&scallop_map);
-    write_false_colour_png(
+    write_map_png(
         &file("scallop_colour.png"),
         &FalseColourPlot {
             values: &scallop_map.values,
@@ -198,13 +280,14 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
             unit_label: "scallop (nm)",
             footer: &scallop_footer,
         },
+        &geometry,
         &png_text(&attributes),
     )?;
 
     if let Some(map) = &diameter_map {
         let (low, high, _) = valid_range(map);
         let stats = cutting_diameter_stats(result);
-        write_false_colour_png(
+        write_map_png(
             &file("cutting_diameter.png"),
             &FalseColourPlot {
                 values: &map.values,
@@ -228,6 +311,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
                     ),
                 },
             },
+            &geometry,
             &png_text(&attributes),
         )?;
     }
@@ -254,6 +338,7 @@ pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>>
     let summary = summary_json(result, &deviation_map, png_scale, output_s);
     let text = serde_json::to_string_pretty(&summary).map_err(io::Error::other)?;
     write_bytes_atomically(&file("summary.json"), text.as_bytes())?;
+    written.push(super::html::write_run_html(dir, &summary)?);
     Ok(written)
 }
 
@@ -298,7 +383,7 @@ pub fn write_centre_map(
         ),
     };
     let attributes = common_attributes(result, &map);
-    write_false_colour_png(
+    write_map_png(
         path,
         &FalseColourPlot {
             values: &map.values,
@@ -310,11 +395,13 @@ pub fn write_centre_map(
             title: &format!("{}: central ±{:.3} mm", result.job.name, half_width_mm),
             unit_label: "deviation (nm)",
             footer: &format!(
-                "zone PV {:.1} nm  {feature}  {} engine",
+                "map PV {:.2} nm  RMS {:.2} nm  {feature}  {} engine",
                 high - low,
+                raster_rms(&map),
                 result.engine.kind
             ),
         },
+        &MapGeometry::centred(half_width_mm, PIXELS),
         &png_text(&attributes),
     )?;
     Ok(range)
@@ -405,6 +492,57 @@ fn common_attributes(result: &RunResult, map: &Raster) -> BTreeMap<String, Strin
     ])
 }
 
+/// RMS about the mean of a raster's valid pixels (what the map draws).
+pub fn raster_rms(map: &Raster) -> f64 {
+    let values: Vec<f64> = map
+        .values
+        .iter()
+        .zip(&map.valid)
+        .filter(|(_, valid)| **valid)
+        .map(|(v, _)| f64::from(*v))
+        .collect();
+    if values.is_empty() {
+        return 0.0;
+    }
+    let mean = values.iter().sum::<f64>() / values.len() as f64;
+    (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / values.len() as f64).sqrt()
+}
+
+/// The `tail` and 1 − `tail` quantiles of a raster's valid pixels.
+fn percentiles(map: &Raster, tail: f64) -> (f32, f32) {
+    let mut values: Vec<f32> = map
+        .values
+        .iter()
+        .zip(&map.valid)
+        .filter(|(_, valid)| **valid)
+        .map(|(v, _)| *v)
+        .collect();
+    if values.is_empty() {
+        return (0.0, 0.0);
+    }
+    values.sort_by(f32::total_cmp);
+    let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
+    (at(tail), at(1.0 - tail))
+}
+
+/// Valid pixels outside [low, high].
+fn pixels_beyond(map: &Raster, low: f32, high: f32) -> usize {
+    map.values
+        .iter()
+        .zip(&map.valid)
+        .filter(|(v, valid)| **valid && (**v < low || **v > high))
+        .count()
+}
+
+/// Says why the samples' PV exceeds the map's: texture finer than a pixel.
+fn finer_than_pixels(samples_pv: f64, map_pv: f64) -> &'static str {
+    if samples_pv > 1.5 * map_pv + 0.1 {
+        " (texture finer than a pixel)"
+    } else {
+        ""
+    }
+}
+
 /// (min, max, mean) of a raster's valid pixels; zeros when none is valid.
 fn valid_range(map: &Raster) -> (f32, f32, f32) {
     let (mut low, mut high, mut sum, mut count) =
@@ -440,21 +578,73 @@ pub struct Png16Scale {
     pub scale_nm_per_count: f64,
 }
 
-fn write_deviation_png16(
-    path: &Path,
-    map: &Raster,
-    attributes: &BTreeMap<String, String>,
-) -> io::Result<Png16Scale> {
+/// The 16-bit PNG's scale for a deviation raster: its valid range over 65534 counts.
+pub fn png16_scale(map: &Raster) -> Png16Scale {
     let (min, max, _) = valid_range(map);
     let (min, max) = (min as f64, max as f64);
-    let scale = Png16Scale {
+    Png16Scale {
         offset_nm: min,
         scale_nm_per_count: if max > min {
             (max - min) / 65534.0
         } else {
             1.0
         },
-    };
+    }
+}
+
+/// The top views a run draws (nm, mm for heights and diameters) on the job's map grid.
+pub struct TopViews {
+    pub deviation_nm: Raster,
+    pub scallop_nm: Raster,
+    pub height_mm: Raster,
+    pub protrusion_nm: Raster,
+    /// Milling only.
+    pub cutting_diameter_mm: Option<Raster>,
+}
+
+/// Every top view of a run (what `surface.exr` holds).
+pub fn top_views(result: &RunResult) -> TopViews {
+    let grid = result.grid();
+    let pixels = result.job.map_pixels as usize;
+    let nm = |v: &[f64]| v.iter().map(|d| d * 1e6).collect::<Vec<f64>>();
+    let rings = grid.ring_count();
+    let height_mm: Vec<f64> = result
+        .field
+        .depth_mm
+        .iter()
+        .enumerate()
+        .map(|(sample, depth)| {
+            let ring = &grid.rings[sample % rings];
+            ring.height_mm + depth / ring.normal.y
+        })
+        .collect();
+    let diameter = result.cutting_diameter_mm.as_ref().map(|d| {
+        let finite: Vec<f64> = d
+            .iter()
+            .map(|v| if v.is_finite() { *v } else { 0.0 })
+            .collect();
+        top_view(grid, &finite, pixels)
+    });
+    TopViews {
+        deviation_nm: top_view(grid, &nm(&result.field.depth_mm), pixels),
+        scallop_nm: top_view(grid, &nm(&result.scallops.map_mm), pixels),
+        height_mm: top_view(grid, &height_mm, pixels),
+        protrusion_nm: top_view(grid, &nm(&result.protrusion.map_mm), pixels),
+        cutting_diameter_mm: diameter,
+    }
+}
+
+/// `summary.json` of a run without writing anything (the timing of the output step is 0).
+pub fn summary(result: &RunResult, deviation_map: &Raster) -> serde_json::Value {
+    summary_json(result, deviation_map, png16_scale(deviation_map), 0.0)
+}
+
+fn write_deviation_png16(
+    path: &Path,
+    map: &Raster,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<Png16Scale> {
+    let scale = png16_scale(map);
     // 0 marks pixels outside the aperture; valid pixels use 1..=65535.
     let samples: Vec<u16> = map
         .values
@@ -557,6 +747,11 @@ fn summary_json(
         "deviation": result.deviation,
         "scallop": scallop,
         "protrusion": result.protrusion,
+        "texture": crate::analysis::texture::analyse_texture(
+            grid,
+            &result.field,
+            job.process.pass_spacing_mm(),
+        ),
         "cutting_diameter": cutting_diameter_stats(result),
         "maps": {
             "pixels": map.pixels,

@@ -2,7 +2,7 @@
 //! curves. Axes carry tick labels and their units; a legend names each series.
 
 use super::font::{GLYPH_HEIGHT, draw_text, text_width};
-use super::png_out::{display_range, format_tick, nice_ticks, write_png};
+use super::png_out::{display_range_f64, format_tick, nice_ticks, write_png};
 use image::{Rgb, RgbImage};
 use std::io;
 use std::path::Path;
@@ -48,7 +48,16 @@ fn blend_pixel(canvas: &mut RgbImage, x: i64, y: i64, colour: [u8; 3]) {
 }
 
 /// A 2-pixel line from (x0, y0) to (x1, y1) (simple DDA; plots need no anti-aliasing).
+/// Segments reaching far outside the canvas (or not finite) are skipped: their step
+/// count would be astronomical (a float-max height once made this loop run forever).
 fn draw_line(canvas: &mut RgbImage, (x0, y0): (f64, f64), (x1, y1): (f64, f64), colour: [u8; 3]) {
+    let limit = 4.0 * f64::from(canvas.width().max(canvas.height()));
+    if ![x0, y0, x1, y1]
+        .iter()
+        .all(|v| v.is_finite() && v.abs() <= limit)
+    {
+        return;
+    }
     let steps = (x1 - x0).abs().max((y1 - y0).abs()).ceil().max(1.0) as usize;
     for i in 0..=steps {
         let t = i as f64 / steps as f64;
@@ -71,14 +80,11 @@ pub fn write_line_plot(path: &Path, plot: &LinePlot) -> io::Result<()> {
                 (lo.min(v), hi.max(v))
             })
     };
-    let (x_lo, x_hi) = {
-        let (lo, hi) = bounds(&|s| s.x.to_vec());
-        display_range((lo as f32, hi as f32))
-    };
+    let (x_lo, x_hi) = display_range_f64(bounds(&|s| s.x.to_vec()));
     let (y_lo, y_hi) = {
         let (lo, hi) = bounds(&|s| s.y.to_vec());
         let pad = 0.05 * (hi - lo);
-        display_range(((lo - pad) as f32, (hi + pad) as f32))
+        display_range_f64((lo - pad, hi + pad))
     };
     let mut canvas = RgbImage::from_pixel(WIDTH, HEIGHT, Rgb([255, 255, 255]));
     let (plot_w, plot_h) = (

@@ -45,6 +45,39 @@ pub struct FalseColourPlot<'a> {
     pub footer: &'a str,
 }
 
+/// Where a map's pixels lie on the part: pixel (0, 0)'s centre and the pixel pitch, in
+/// mm, with +X to the right and +Y up (row 0 = the +Y edge), seen from +Z.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapGeometry {
+    pub pixel_mm: f64,
+    /// Left edge of column 0 (mm).
+    pub left_mm: f64,
+    /// Top edge of row 0 (mm).
+    pub top_mm: f64,
+}
+
+impl MapGeometry {
+    /// A map centred on the axis, `half_width_mm` to each side.
+    pub fn centred(half_width_mm: f64, pixels: usize) -> Self {
+        MapGeometry {
+            pixel_mm: 2.0 * half_width_mm / pixels as f64,
+            left_mm: -half_width_mm,
+            top_mm: half_width_mm,
+        }
+    }
+}
+
+/// [`write_false_colour_png`] for a map of the part: adds x and y axes in mm, a scale
+/// bar and the orientation mark (+X right, +Y up, seen from +Z).
+pub fn write_map_png(
+    path: &Path,
+    plot: &FalseColourPlot,
+    geometry: &MapGeometry,
+    text: &[(String, String)],
+) -> io::Result<()> {
+    write_annotated(path, plot, Some(geometry), text)
+}
+
 /// Renders `plot` one image pixel per value inside a white margin and writes it
 /// as an 8-bit RGB PNG with the given text chunks.
 ///
@@ -57,6 +90,15 @@ pub fn write_false_colour_png(
     plot: &FalseColourPlot,
     text: &[(String, String)],
 ) -> io::Result<()> {
+    write_annotated(path, plot, None, text)
+}
+
+fn write_annotated(
+    path: &Path,
+    plot: &FalseColourPlot,
+    geometry: Option<&MapGeometry>,
+    text: &[(String, String)],
+) -> io::Result<()> {
     let (width, height) = (plot.width, plot.height);
     check_len("false-colour values", plot.values.len(), width, height)?;
     check_len("validity mask", plot.valid.len(), width, height)?;
@@ -64,7 +106,7 @@ pub fn write_false_colour_png(
         let message = format!("{width}×{height} map is too large to plot");
         return Err(invalid_input(message));
     }
-    let canvas = render(plot);
+    let canvas = render(plot, geometry);
     let format = (png::ColorType::Rgb, png::BitDepth::Eight);
     write_png(path, canvas.dimensions(), format, canvas.as_raw(), text)
 }
@@ -121,7 +163,11 @@ const GAP: u32 = 8;
 const TITLE_SCALE: u32 = 3;
 const LABEL_SCALE: u32 = 2;
 const LABEL_HEIGHT: u32 = GLYPH_HEIGHT * LABEL_SCALE;
-const MAP_X: u32 = MARGIN;
+/// Room left of the map for the y axis's tick labels.
+const AXIS_LEFT: u32 = 7 * 6 * LABEL_SCALE + 8;
+const MAP_X: u32 = MARGIN + AXIS_LEFT;
+/// Rows below the map: x tick labels, then the scale bar and orientation mark.
+const AXIS_BELOW: u32 = LABEL_HEIGHT + 2 * GAP + LABEL_HEIGHT + 2 * GAP + 30 + GAP;
 /// Top of the map and colour bar: below the title row and the unit-label row.
 /// The extra half label leaves room for the top tick label, which rises above the bar.
 const MAP_TOP: u32 =
@@ -138,7 +184,7 @@ const INK: [u8; 3] = [0, 0, 0];
 const FRAME: [u8; 3] = [64, 64, 64];
 const INVALID: [u8; 3] = [128, 128, 128];
 
-fn render(plot: &FalseColourPlot) -> RgbImage {
+fn render(plot: &FalseColourPlot, geometry: Option<&MapGeometry>) -> RgbImage {
     let (lo, hi) = display_range(plot.range);
     let (ticks, step) = nice_ticks(lo, hi);
     let labels: Vec<String> = ticks.iter().map(|&v| format_tick(v, step)).collect();
@@ -151,8 +197,8 @@ fn render(plot: &FalseColourPlot) -> RgbImage {
         .max(bar_x + text_width(plot.unit_label, LABEL_SCALE))
         .max(MARGIN + text_width(plot.title, TITLE_SCALE))
         .max(MARGIN + text_width(plot.footer, LABEL_SCALE));
-    // Leave room for the bottom tick label, which hangs below the bar.
-    let footer_y = MAP_TOP + bar_height + LABEL_HEIGHT + GAP;
+    // Leave room for the bottom tick label, which hangs below the bar, and the axes.
+    let footer_y = MAP_TOP + bar_height.max(plot.height + AXIS_BELOW) + LABEL_HEIGHT + GAP;
     let size = (right + MARGIN, footer_y + LABEL_HEIGHT + MARGIN);
     let mut canvas = RgbImage::from_pixel(size.0, size.1, Rgb(WHITE));
 
@@ -175,6 +221,9 @@ fn render(plot: &FalseColourPlot) -> RgbImage {
         canvas.put_pixel(MAP_X + x, MAP_TOP + y, Rgb(colour));
     }
     draw_frame(&mut canvas, MAP_X, MAP_TOP, plot.width, plot.height);
+    if let Some(geometry) = geometry {
+        draw_axes(&mut canvas, plot, geometry);
+    }
 
     // The colour bar, top = high end, with a tick and label at each nice value.
     let bar_span = f64::from(bar_height - 1);
@@ -204,6 +253,122 @@ fn render(plot: &FalseColourPlot) -> RgbImage {
     canvas
 }
 
+/// Ticks in mm along the map's bottom and left edges, then below them a scale bar of a
+/// round length near a fifth of the width and the orientation mark: arrows +X (right)
+/// and +Y (up), "seen from +Z".
+fn draw_axes(canvas: &mut RgbImage, plot: &FalseColourPlot, g: &MapGeometry) {
+    let (w, h) = (f64::from(plot.width), f64::from(plot.height));
+    let bottom = MAP_TOP + plot.height;
+    let (x_lo, x_hi) = (g.left_mm, g.left_mm + w * g.pixel_mm);
+    let (y_lo, y_hi) = (g.top_mm - h * g.pixel_mm, g.top_mm);
+    if !(x_hi > x_lo && y_hi > y_lo) {
+        return;
+    }
+    let (x_ticks, x_step) = sparse_ticks(x_lo, x_hi, plot.width);
+    for x in x_ticks {
+        let px = MAP_X + ((x - x_lo) / g.pixel_mm).round().clamp(0.0, w - 1.0) as u32;
+        for y in bottom + 1..bottom + 1 + TICK_LENGTH {
+            canvas.put_pixel(px, y, Rgb(INK));
+        }
+        let label = format_tick(x, x_step);
+        let half = text_width(&label, LABEL_SCALE) / 2;
+        put_text(
+            canvas,
+            px.saturating_sub(half),
+            bottom + TICK_LENGTH + 2,
+            &label,
+            LABEL_SCALE,
+        );
+    }
+    let (y_ticks, y_step) = sparse_ticks(y_lo, y_hi, plot.height);
+    for y in y_ticks {
+        let py = MAP_TOP + ((y_hi - y) / g.pixel_mm).round().clamp(0.0, h - 1.0) as u32;
+        for x in MAP_X - 1 - TICK_LENGTH..MAP_X - 1 {
+            canvas.put_pixel(x, py, Rgb(INK));
+        }
+        let label = format_tick(y, y_step);
+        let width = text_width(&label, LABEL_SCALE);
+        let x = (MAP_X - TICK_LENGTH - 4).saturating_sub(width);
+        put_text(
+            canvas,
+            x,
+            py.saturating_sub(LABEL_HEIGHT / 2),
+            &label,
+            LABEL_SCALE,
+        );
+    }
+    put_text(
+        canvas,
+        MARGIN,
+        MAP_TOP - LABEL_HEIGHT - GAP,
+        "y (mm)",
+        LABEL_SCALE,
+    );
+    // Scale bar: the largest 1/2/5×10^n mm not above a fifth of the width.
+    let row = bottom + TICK_LENGTH + LABEL_HEIGHT + 2 * GAP + LABEL_HEIGHT / 2;
+    let target = 0.2 * (x_hi - x_lo);
+    let exponent = target.log10().floor();
+    let length_mm = [5.0, 2.0, 1.0]
+        .iter()
+        .map(|m| m * 10f64.powf(exponent))
+        .find(|l| *l <= target)
+        .unwrap_or(10f64.powf(exponent));
+    let length_px = (length_mm / g.pixel_mm).round().max(1.0) as u32;
+    for dy in 0..4 {
+        for x in MAP_X..MAP_X + length_px {
+            canvas.put_pixel(x, row - 2 + dy, Rgb(INK));
+        }
+    }
+    let label = format!("{} mm", format_tick(length_mm, length_mm));
+    put_text(
+        canvas,
+        MAP_X + length_px + 8,
+        row - LABEL_HEIGHT / 2,
+        &label,
+        LABEL_SCALE,
+    );
+    let axis_label = "x (mm)";
+    let axis_x = MAP_X
+        + plot
+            .width
+            .saturating_sub(text_width(axis_label, LABEL_SCALE));
+    put_text(
+        canvas,
+        axis_x,
+        row - LABEL_HEIGHT / 2,
+        axis_label,
+        LABEL_SCALE,
+    );
+    // Orientation mark below: +X → and +Y ↑, seen from +Z.
+    let (ox, oy) = (MAP_X + 4, row + LABEL_HEIGHT + 2 * GAP + 20);
+    for i in 0..24 {
+        canvas.put_pixel(ox + i, oy, Rgb(INK));
+        canvas.put_pixel(ox, oy - i, Rgb(INK));
+    }
+    for i in 0..4 {
+        canvas.put_pixel(ox + 23 - i, oy - i, Rgb(INK));
+        canvas.put_pixel(ox + 23 - i, oy + i, Rgb(INK));
+        canvas.put_pixel(ox - i, oy - 23 + i, Rgb(INK));
+        canvas.put_pixel(ox + i, oy - 23 + i, Rgb(INK));
+    }
+    put_text(canvas, ox + 28, oy - LABEL_HEIGHT / 2, "+X", LABEL_SCALE);
+    put_text(canvas, ox + 8, oy - 24, "+Y", LABEL_SCALE);
+    let note = "top view, seen from +Z (toward the tool)";
+    put_text(canvas, ox + 64, oy - LABEL_HEIGHT / 2, note, LABEL_SCALE);
+}
+
+/// At most one tick per 70 image pixels, so labels never overlap.
+fn sparse_ticks(lo: f64, hi: f64, pixels: u32) -> (Vec<f64>, f64) {
+    let (ticks, step) = nice_ticks(lo, hi);
+    let keep = (ticks.len() as u32).div_ceil((pixels / 70).max(2)).max(1) as usize;
+    let zero_first = ticks
+        .iter()
+        .position(|t| (t / step).round() as i64 % keep as i64 == 0);
+    let start = zero_first.unwrap_or(0);
+    let picked: Vec<f64> = ticks.iter().skip(start).step_by(keep).copied().collect();
+    (picked, step * keep as f64)
+}
+
 /// Draws black text; positions fit in i32 because map sides are capped by `MAX_MAP_SIDE`.
 fn put_text(canvas: &mut RgbImage, x: u32, y: u32, text: &str, scale: u32) {
     draw_text(canvas, x as i32, y as i32, text, scale, INK);
@@ -225,7 +390,17 @@ fn draw_frame(canvas: &mut RgbImage, x: u32, y: u32, width: u32, height: u32) {
 /// The range actually displayed: `range` itself when it is finite and non-empty,
 /// otherwise one unit either side of its centre (never dividing by zero).
 pub(crate) fn display_range((lo, hi): (f32, f32)) -> (f64, f64) {
-    let (lo, hi) = (f64::from(lo), f64::from(hi));
+    display_range_f64((f64::from(lo), f64::from(hi)))
+}
+
+/// [`display_range`] for f64 ends; a span too wide for f64 (ends near ±f64::MAX) is
+/// halved about its centre so that every later difference stays finite.
+pub(crate) fn display_range_f64((lo, hi): (f64, f64)) -> (f64, f64) {
+    let (lo, hi) = if (hi - lo).is_infinite() && lo.is_finite() && hi.is_finite() {
+        (lo / 4.0, hi / 4.0)
+    } else {
+        (lo, hi)
+    };
     let centre = match (lo.is_finite(), hi.is_finite()) {
         (true, true) if lo < hi => return (lo, hi),
         (true, true) if lo > hi => return (hi, lo),
@@ -410,7 +585,10 @@ mod tests {
             range: (5.0, 5.0),
             ..sample_plot(&[5.0], &[true], 1)
         };
-        assert_eq!(render(&plot).get_pixel(MAP_X, MAP_TOP).0, [255, 255, 255]);
+        assert_eq!(
+            render(&plot, None).get_pixel(MAP_X, MAP_TOP).0,
+            [255, 255, 255]
+        );
     }
 
     #[test]

@@ -34,6 +34,11 @@ pub struct TurningProcess {
     pub correction: NormalCorrection,
     pub effects: TurningEffects,
     pub spindle_rpm: Option<f64>,
+    /// The program turned about the spindle axis by this angle (rad): the part is
+    /// simulated as if rotated so that its azimuth `azimuth_offset_rad` lies at the
+    /// grid's azimuth 0. Jobs run at 0; the diagnosis uses it to look along any azimuth
+    /// of a spiral with few rows (a measured line's azimuth on the spiral is unknown).
+    pub azimuth_offset_rad: f64,
 }
 
 /// Milling with an end mill or a disc cutter.
@@ -138,6 +143,44 @@ impl TurningPath {
         match self {
             TurningPath::Spiral(spiral) => spiral.start_radius_mm,
             TurningPath::Nc(nc) => nc.outer_contact_radius_mm,
+        }
+    }
+
+    /// The median radial feed per revolution between radii `from_mm` and `to_mm` (the
+    /// nominal spacing where the path has no revolution there).
+    pub fn median_feed_mm(&self, from_mm: f64, to_mm: f64) -> f64 {
+        match self {
+            TurningPath::Spiral(spiral) => spiral.feed_per_rev_mm,
+            TurningPath::Nc(nc) => {
+                let mut feeds: Vec<f64> = nc
+                    .tables
+                    .iter()
+                    .flat_map(PoseTable::radial_feeds_mm)
+                    .filter(|(r, f)| (from_mm..=to_mm).contains(r) && *f > 1e-6)
+                    .map(|(_, f)| f)
+                    .collect();
+                feeds.sort_by(f64::total_cmp);
+                feeds
+                    .get(feeds.len() / 2)
+                    .copied()
+                    .unwrap_or(nc.pass_spacing_mm)
+            }
+        }
+    }
+
+    /// The smallest radial feed per revolution between radii `from_mm` and `to_mm`
+    /// (programs may vary it with radius); the nominal spacing when none is found there.
+    pub fn smallest_feed_mm(&self, from_mm: f64, to_mm: f64) -> f64 {
+        match self {
+            TurningPath::Spiral(spiral) => spiral.feed_per_rev_mm,
+            TurningPath::Nc(nc) => nc
+                .tables
+                .iter()
+                .flat_map(PoseTable::radial_feeds_mm)
+                .filter(|(r, f)| (from_mm..=to_mm).contains(r) && *f > 1e-6)
+                .map(|(_, f)| f)
+                .reduce(f64::min)
+                .unwrap_or(nc.pass_spacing_mm),
         }
     }
 

@@ -47,6 +47,17 @@ impl PoseTable {
         self.pose_at_step(u)
     }
 
+    /// The nose centre's radial advance over one revolution from each node on (mm), with
+    /// the radius midway (mm): where the program puts its marks, and how far apart.
+    pub fn radial_feeds_mm(&self) -> Vec<(f64, f64)> {
+        let steps = self.steps_per_rev as usize;
+        self.poses
+            .iter()
+            .zip(self.poses.iter().skip(steps))
+            .map(|(a, b)| (0.5 * (a.x_mm + b.x_mm), (a.x_mm - b.x_mm).abs()))
+            .collect()
+    }
+
     /// The pose at fractional node index `u`.
     pub fn pose_at_step(&self, u: f64) -> Option<ToolPose> {
         let last = self.poses.len().checked_sub(1)? as f64;

@@ -587,12 +587,9 @@ pub fn apply_edge_profile(
     mode: TurningMode,
     warnings: &mut Vec<String>,
 ) -> Result<(), JobError> {
-    if !effects.edge_deviation.is_zero() {
-        return Err(error(
-            "tool.edge_profile".into(),
-            "cannot be combined with an edge_waviness effect: the measured edge already holds its waviness",
-        ));
-    }
+    // Edge waviness given as an effect (a calibration carried from an earlier part) is
+    // added to the measured edge's own deviation.
+    let waviness = std::mem::take(&mut effects.edge_deviation);
     let edge =
         read_edge_csv(profile).map_err(|err| error("tool.edge_profile".into(), err.to_string()))?;
     let smoothing = spec.edge_profile_smoothing_points.unwrap_or(51);
@@ -612,6 +609,9 @@ pub fn apply_edge_profile(
         start
     };
     effects.radius_error_mm += edge.radius_mm - tool.nose_radius_mm;
+    for (i, v) in values.iter_mut().enumerate() {
+        *v += waviness.at(start + step * i as f64);
+    }
     effects.edge_deviation = AngleTable {
         start_rad: start,
         step_rad: step,

@@ -33,6 +33,8 @@ pub fn validate_generating(
             ("end_radius_mm", spec.end_radius_mm.is_some()),
             ("nc_program", spec.nc_program.is_some()),
             ("nc_reference", spec.nc_reference.is_some()),
+            ("nc_feed_mode", spec.nc_feed_mode.is_some()),
+            ("nc_units", spec.nc_units.is_some()),
             ("compensation", spec.compensation.is_some()),
             ("path", spec.path.is_some()),
             ("axes", spec.axes.is_some()),

@@ -34,6 +34,8 @@ pub fn validate_milling(
             ("end_radius_mm", spec.end_radius_mm.is_some()),
             ("nc_program", spec.nc_program.is_some()),
             ("nc_reference", spec.nc_reference.is_some()),
+            ("nc_feed_mode", spec.nc_feed_mode.is_some()),
+            ("nc_units", spec.nc_units.is_some()),
             ("compensation", spec.compensation.is_some()),
             ("inclination_deg", spec.inclination_deg.is_some()),
             ("plunge_axis", spec.plunge_axis.is_some()),

@@ -11,6 +11,7 @@ mod effects;
 mod generating;
 mod milling;
 mod process;
+pub mod resources;
 mod surface;
 
 pub use effects::{
@@ -202,6 +203,24 @@ pub enum ProcessKind {
     Milling,
 }
 
+/// Unit of an NC program's lengths.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum NcUnits {
+    #[serde(rename = "mm")]
+    Millimetre,
+    #[serde(rename = "um", alias = "µm")]
+    Micrometre,
+}
+
+impl NcUnits {
+    pub fn mm_per_unit(self) -> f64 {
+        match self {
+            NcUnits::Millimetre => 1.0,
+            NcUnits::Micrometre => 1e-3,
+        }
+    }
+}
+
 /// The `[process]` table. Turning fields: mode, feeds, spindle_rpm, depth_of_cut_mm,
 /// start/end_radius_mm, nc_program, nc_reference, compensation; generating fields:
 /// inclination_deg, plunge_axis, tool_rpm, workpiece_rpm, spark_out_revolutions,
@@ -240,6 +259,13 @@ pub struct ProcessSpec {
     /// What the program's X/Z locate: "nose_centre" (default) or "tip".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub nc_reference: Option<NcReference>,
+    /// The feed mode a program that sets none starts in (a planner's bare `C X Z`
+    /// block file): "inverse_time" (G93) or "per_minute" (G94).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nc_feed_mode: Option<crate::io::nc::FeedMode>,
+    /// Unit of the program's X and Z: "mm" (default) or "um".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nc_units: Option<NcUnits>,
     /// A normal correction (`radius_mm,normal_offset_nm` CSV, as `toolmark compensate`
     /// writes): the path cuts that much deeper along the surface normal.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -513,6 +539,7 @@ impl Job {
             .name
             .clone()
             .unwrap_or_else(|| default_name.to_string());
+        check_name(&name)?;
         resolved.name = Some(name.clone());
         let mut warnings = Vec::new();
 
@@ -525,6 +552,8 @@ impl Job {
             }
             ProcessKind::Milling => milling::validate_milling(&file, &mut resolved, &mut warnings)?,
         };
+        settle_feed(&mut resolved.process);
+        warn_deep_cut(&resolved.process, &mut warnings);
         let layout = match file.surface.kind {
             SurfaceKind::Cylinder => {
                 let length = required(
@@ -560,16 +589,7 @@ impl Job {
                 format!("{azimuths} is out of range; allowed: 1 to 65536"),
             ));
         }
-        let meridian_span = match layout {
-            crate::field::Layout::Polar => {
-                meridian.arc_length_at(aperture.outer_radius_mm)
-                    - meridian.arc_length_at(aperture.inner_radius_mm)
-            }
-            crate::field::Layout::Extruded { .. } => {
-                2.0 * meridian.arc_length_at(aperture.outer_radius_mm)
-            }
-        };
-        let samples = (meridian_span / pitch_mm + 1.0).floor() * azimuths as f64;
+        let samples = grid_samples(&meridian, &aperture, layout, pitch_mm, azimuths);
         if samples > MAX_SAMPLES {
             return Err(error(
                 "grid.pitch_um",
@@ -631,6 +651,18 @@ impl Job {
         )
     }
 
+    /// Samples on the job's grid (rings × azimuths), as validation counts them.
+    pub fn sample_count(&self) -> u64 {
+        let samples = grid_samples(
+            &self.meridian(),
+            &self.aperture,
+            self.layout,
+            self.pitch_mm,
+            self.azimuths,
+        );
+        samples as u64
+    }
+
     /// Canonical JSON of the resolved job.
     pub fn canonical_json(&self) -> String {
         serde_json::to_string(&self.resolved).unwrap_or_default()
@@ -644,6 +676,75 @@ impl Job {
             hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
         }
         format!("{hash:016x}")
+    }
+}
+
+/// Rings over the meridian span times azimuth rows.
+fn grid_samples(
+    meridian: &MeridianArcLength,
+    aperture: &Aperture,
+    layout: crate::field::Layout,
+    pitch_mm: f64,
+    azimuths: u32,
+) -> f64 {
+    let meridian_span = match layout {
+        crate::field::Layout::Polar => {
+            meridian.arc_length_at(aperture.outer_radius_mm)
+                - meridian.arc_length_at(aperture.inner_radius_mm)
+        }
+        crate::field::Layout::Extruded { .. } => {
+            2.0 * meridian.arc_length_at(aperture.outer_radius_mm)
+        }
+    };
+    (meridian_span / pitch_mm + 1.0).floor() * azimuths as f64
+}
+
+/// Longest job name accepted (it becomes a folder name and file metadata).
+pub const MAX_NAME_CHARS: usize = 200;
+
+/// A job name must fit a folder name and the outputs' metadata: at most
+/// [`MAX_NAME_CHARS`] characters, no control characters.
+fn check_name(name: &str) -> Result<(), JobError> {
+    let length = name.chars().count();
+    if length > MAX_NAME_CHARS {
+        return Err(error(
+            "name",
+            format!("{length} characters; allowed: 1 to {MAX_NAME_CHARS}"),
+        ));
+    }
+    if name.trim().is_empty() || name.chars().any(char::is_control) {
+        return Err(error(
+            "name",
+            "empty or holding control characters; allowed: 1 to 200 printable characters",
+        ));
+    }
+    Ok(())
+}
+
+/// A resolved turning job carries the feed per revolution it derived; a job that gave
+/// `spindle_rpm + feed_mm_per_min` keeps the spindle speed and the derived feed only, so
+/// `job.resolved.toml` passes `check` again (the two forms are exclusive).
+fn settle_feed(resolved: &mut ProcessSpec) {
+    if resolved.kind == ProcessKind::Turning
+        && resolved.feed_per_rev_mm.is_some()
+        && resolved.feed_mm_per_min.is_some()
+    {
+        resolved.feed_mm_per_min = None;
+    }
+}
+
+/// A depth of cut well beyond the stock allowance cuts below the nominal surface: allowed
+/// (a deliberate undersize), but said.
+fn warn_deep_cut(resolved: &ProcessSpec, warnings: &mut Vec<String>) {
+    if let (Some(stock), Some(depth)) = (resolved.stock_allowance_mm, resolved.depth_of_cut_mm)
+        && depth > 2.0 * stock
+        && depth - stock > 1e-4
+    {
+        warnings.push(format!(
+            "process.depth_of_cut_mm = {depth} mm is {:.0}× the stock allowance ({stock} mm): the tool cuts {:.1} µm below the nominal surface",
+            depth / stock.max(f64::MIN_POSITIVE),
+            (depth - stock) * 1e3
+        ));
     }
 }
 

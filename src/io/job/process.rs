@@ -4,11 +4,11 @@
 use super::effects::{apply_edge_profile, turning_effects};
 use super::surface::{self, MAX_SLOPE_DEG, usable_at, usable_over};
 use super::{
-    Aperture, JobError, JobFile, ProcessSpec, SurfaceKind, SurfaceSpec, ToolKind, ToolSpec, check,
-    error, reject_unused, required, resolve_file,
+    Aperture, JobError, JobFile, NcUnits, ProcessSpec, SurfaceKind, SurfaceSpec, ToolKind,
+    ToolSpec, check, error, reject_unused, required, resolve_file,
 };
 use crate::geometry::{ArcNoseTool, MeridianArcLength, SurfaceOfRevolution};
-use crate::io::nc::parse_nc;
+use crate::io::nc::{NcDeclared, parse_nc_declared};
 use crate::process::nc_path::{pass_pose_table, path_envelope};
 use crate::process::{
     FeedAlong, NcPath, NcReference, NormalCorrection, Process, TurningMode, TurningPath,
@@ -133,6 +133,7 @@ pub fn validate_turning(
             correction,
             effects,
             spindle_rpm,
+            azimuth_offset_rad: 0.0,
         }),
     ))
 }
@@ -235,11 +236,17 @@ fn validate_spiral(
     tool: &ArcNoseTool,
     warnings: &mut Vec<String>,
 ) -> Result<(TurningSpiral, Option<f64>), JobError> {
-    if spec.nc_reference.is_some() {
-        return Err(error(
-            "process.nc_reference",
-            "is only used with nc_program; remove it",
-        ));
+    for (field, given) in [
+        ("nc_reference", spec.nc_reference.is_some()),
+        ("nc_feed_mode", spec.nc_feed_mode.is_some()),
+        ("nc_units", spec.nc_units.is_some()),
+    ] {
+        if given {
+            return Err(error(
+                &format!("process.{field}"),
+                "is only used with nc_program; remove it",
+            ));
+        }
     }
     let (feed, spindle_rpm) = feed_and_speed(spec)?;
     let coverable = tool.coverable_feed_mm();
@@ -375,7 +382,11 @@ fn validate_nc(
         )
     };
     let text = std::fs::read_to_string(program).map_err(|err| in_program(err.to_string()))?;
-    let parsed = parse_nc(&text).map_err(|err| in_program(err.to_string()))?;
+    let declared = NcDeclared {
+        feed_mode: spec.nc_feed_mode,
+        mm_per_length_unit: spec.nc_units.map_or(1.0, NcUnits::mm_per_unit),
+    };
+    let parsed = parse_nc_declared(&text, declared).map_err(|err| in_program(err.to_string()))?;
     if parsed.passes.is_empty() {
         return Err(in_program("no cutting pass (C-X-Z blocks) found".into()));
     }

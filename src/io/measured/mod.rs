@@ -421,7 +421,18 @@ impl MeasuredSurface {
             MeasuredSurface::Map(m) => &m.info,
         }
     }
+
+    pub fn info_mut(&mut self) -> &mut ReadInfo {
+        match self {
+            MeasuredSurface::Profile(p) => &mut p.info,
+            MeasuredSurface::Map(m) => &mut m.info,
+        }
+    }
 }
+
+/// Notes that start with this are integrity warnings (a checksum that does not match):
+/// besides the report, [`read_measured`] says them on stderr at once.
+pub const WARNING_NOTE: &str = "warning: ";
 
 /// What the user declares about a file (CLI `--lateral-unit`, `--height-unit`,
 /// `--pixel-um`). A declaration that contradicts the file is an error.
@@ -564,17 +575,25 @@ fn resolve_pixel(
 /// Reads a measured profile or height map; see the module docs for the formats and the
 /// detection rules. Errors name the file.
 pub fn read_measured(path: &Path, options: &ReadOptions) -> Result<MeasuredSurface, MeasuredError> {
-    in_file(
+    let surface = in_file(
         path,
         read_bytes(path).and_then(|b| read_measured_bytes(path, &b, options)),
-    )
+    )?;
+    for note in &surface.info().notes {
+        if let Some(warning) = note.strip_prefix(WARNING_NOTE) {
+            eprintln!("warning: {}: {warning}", path.display());
+        }
+    }
+    Ok(surface)
 }
 
 const ZIP_MAGIC: &[u8] = b"PK\x03\x04";
 const EXR_MAGIC: &[u8] = &[0x76, 0x2f, 0x31, 0x01];
 const GSF_MAGIC: &[u8] = b"Gwyddion Simple Field";
 
-fn read_measured_bytes(
+/// [`read_measured`] on bytes already in memory; `path` only gives the extension (for
+/// the format hints) and is not opened. The fuzz harness drives the readers through it.
+pub fn read_measured_bytes(
     path: &Path,
     bytes: &[u8],
     options: &ReadOptions,

@@ -239,11 +239,7 @@ mod tests {
     use std::path::PathBuf;
 
     fn data(name: &str) -> PathBuf {
-        Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/data/upm-spdt/"
-        ))
-        .join(name)
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/data/upm-spdt/")).join(name)
     }
 
     #[test]

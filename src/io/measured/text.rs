@@ -73,6 +73,10 @@ pub(super) enum Cell {
     Text,
 }
 
+/// Heights at or beyond this magnitude are an instrument's invalid marker (several
+/// write `f32::MAX`, 3.4028e38, or `f64::MAX`), not a measurement: read as invalid.
+pub(super) const INVALID_MARKER_MIN: f64 = 3.0e38;
+
 pub(super) fn cell(text: &str) -> Cell {
     let lower = text.to_ascii_lowercase();
     let marker = text.is_empty()
@@ -83,7 +87,7 @@ pub(super) fn cell(text: &str) -> Cell {
         );
     match text.parse::<f64>() {
         _ if marker => Cell::Invalid,
-        Ok(v) if v.is_finite() => Cell::Number(v),
+        Ok(v) if v.is_finite() && v.abs() < INVALID_MARKER_MIN => Cell::Number(v),
         Ok(_) => Cell::Invalid,
         Err(_) => Cell::Text,
     }
@@ -268,6 +272,71 @@ fn is_y(base: &str) -> bool {
 
 /// Reads a text file as a profile, XYZ points or a grid (see the module docs).
 pub(super) fn read(text: &str, options: &ReadOptions) -> Result<MeasuredSurface, MeasuredError> {
+    if uses_decimal_comma(text) {
+        let text = text
+            .lines()
+            .map(|line| match line.trim_start().starts_with('#') {
+                true => line.to_string(),
+                false => line.replace(',', "."),
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        let mut surface = read_table(&text, options)?;
+        surface
+            .info_mut()
+            .notes
+            .push("decimal commas read as decimal points (`;`, tab or space separated)".into());
+        return Ok(surface);
+    }
+    read_table(text, options)
+}
+
+/// Whether the data lines write decimals with a comma (European exports: `0,25;1,5`):
+/// a data line then splits on `;`, tabs or spaces into cells that are all numbers once
+/// one comma is read as the point, at least one of them with a comma. A comma-separated
+/// file (`0.25,1.5`) never qualifies: its cells hold no separator but the comma.
+fn uses_decimal_comma(text: &str) -> bool {
+    let decimal_comma = |cell: &str| {
+        let (whole, fraction) = match cell.split_once(',') {
+            Some(parts) => parts,
+            None => return cell.parse::<f64>().is_ok(),
+        };
+        let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+        let whole = whole.trim_start_matches(['+', '-']);
+        let mantissa = fraction.split(['e', 'E']).next().unwrap_or("");
+        digits(whole)
+            && digits(mantissa)
+            && !fraction.contains(',')
+            && format!("{whole}.{fraction}").parse::<f64>().is_ok()
+    };
+    let mut data_lines = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .filter(|l| {
+            l.bytes()
+                .next()
+                .is_some_and(|b| b.is_ascii_digit() || b"+-".contains(&b))
+        })
+        .take(20)
+        .peekable();
+    if data_lines.peek().is_none() {
+        return false;
+    }
+    data_lines.all(|line| {
+        let cells: Vec<&str> = line
+            .split(|c: char| c == ';' || c == '\t' || c.is_whitespace())
+            .filter(|c| !c.is_empty())
+            .collect();
+        cells.len() >= 2
+            && cells.iter().any(|c| c.contains(','))
+            && cells
+                .iter()
+                .all(|c| decimal_comma(c) || cell(c) == Cell::Invalid)
+    })
+}
+
+fn read_table(text: &str, options: &ReadOptions) -> Result<MeasuredSurface, MeasuredError> {
     let table = Table::parse(text)?;
     if table.meta.marks_grid() {
         let why = "a `# grid` or `# pixel…` comment marks it as a grid";

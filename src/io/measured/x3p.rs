@@ -400,7 +400,8 @@ fn check_md5(declared: Option<&str>, data: &[u8], what: &str, notes: &mut Vec<St
         && !d.eq_ignore_ascii_case(&md5_hex(data))
     {
         notes.push(format!(
-            "the MD5 checksum of {what} does not match the one the file declares (not enforced)"
+            "{}the MD5 checksum of {what} does not match the one the file declares: the data may be corrupt (read anyway)",
+            super::WARNING_NOTE
         ));
     }
 }

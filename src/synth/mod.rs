@@ -1,22 +1,39 @@
-//! Measured-like data from a job and effects the diagnosis is not told: the part is
-//! simulated (finer than a diagnosis simulates it), then "measured" through an
-//! instrument model — a stylus tip or pixel averaging, sampling, a mount that tilts,
-//! lifts and decentres the part, white and 1/f noise, dropouts. What was applied is
-//! the truth, kept apart from the data.
+//! Measured-like data from a job and effects the diagnosis is not told, made apart from
+//! the diagnosis's forward model so that a benchmark built on it can see that model's
+//! errors: a turned part comes from the section model (`section.rs`, the surface
+//! computed from the cut's physics, with effects the diagnosis has no candidate for
+//! added on request), a generated or milled part from the simulation engine on a fine
+//! grid read by this module's own interpolation (`simulated.rs`); either is then
+//! "measured" by this module's instrument (`instrument.rs`: a stylus tip's trace or
+//! pixel averaging over a dense lattice), a lateral scale error, a mount that tilts,
+//! lifts and decentres the part, white and 1/f noise, and dropouts. What was applied
+//! is the truth, kept apart from the data.
 
-use crate::diagnose::forward::{ForwardError, ForwardModel, SimulatedSurface};
-use crate::diagnose::measurement::{Instrument, Measurement};
+pub mod instrument;
+pub mod section;
+mod simulated;
+pub mod unmodelled;
+
+use crate::diagnose::forward::ForwardError;
+use crate::diagnose::measurement::Instrument;
 use crate::engine::RemovalEngine;
+use crate::field::Layout;
 use crate::io::job::Job;
+use crate::process::Process;
 use glam::DVec2;
+use rayon::prelude::*;
+use section::TurnedSection;
 use serde::{Deserialize, Serialize};
+use simulated::{SimulatedPart, rows_along};
+pub use unmodelled::Unmodelled;
 
 /// The instrument and the mount, as a measurement file (TOML `[measurement]`) gives them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MeasurementModel {
     pub kind: MeasurementKind,
-    /// Profile: direction of the line (degrees from +X; a multiple of 0.5°).
+    /// Profile: direction of the line on the part as programmed (degrees from +X, the
+    /// direction of spindle angle C = 0; generating and milling: a multiple of 0.5°).
     #[serde(default)]
     pub azimuth_deg: f64,
     /// Profile: the line's extent in the instrument's frame (mm; default ±0.95 of the
@@ -48,6 +65,13 @@ pub struct MeasurementModel {
     pub piston_um: f64,
     #[serde(default)]
     pub decentre_um: [f64; 2],
+    /// The instrument's lateral distances per true distance (a calibration error:
+    /// 1.005 records 1.005 mm for every true mm); 0.9 to 1.1.
+    #[serde(default = "default_lateral_scale")]
+    pub lateral_scale: f64,
+    /// Effects that are not diagnosis candidates (turning only; see `unmodelled`).
+    #[serde(default)]
+    pub unmodelled: Vec<Unmodelled>,
     /// Noise: white (RMS nm) and 1/f (RMS nm, equal power per octave).
     #[serde(default)]
     pub white_noise_nm: f64,
@@ -75,6 +99,10 @@ fn default_spacing_um() -> f64 {
 
 fn default_dropout_run() -> f64 {
     4.0
+}
+
+fn default_lateral_scale() -> f64 {
+    1.0
 }
 
 /// Measured-like data: positions in the instrument's frame, heights (mm, NaN = dropout).
@@ -108,6 +136,7 @@ impl MeasurementModel {
         finite("dropout_fraction", self.dropout_fraction, 0.0, 0.5)?;
         finite("dropout_run", self.dropout_run, 1.0, 1e4)?;
         finite("piston_um", self.piston_um, -1e4, 1e4)?;
+        finite("lateral_scale", self.lateral_scale, 0.9, 1.1)?;
         for (i, t) in self.tilt_urad.iter().enumerate() {
             finite(&format!("tilt_urad[{i}]"), *t, -1e5, 1e5)?;
         }
@@ -123,6 +152,10 @@ impl MeasurementModel {
         if let Some(tip) = self.stylus_tip_um {
             finite("stylus_tip_um", tip, 0.01, 1e4)?;
         }
+        if job.layout != Layout::Polar {
+            return Err("synth handles parts of revolution (planes, spheres, aspheres); cylinders are not supported yet".into());
+        }
+        self.validate_unmodelled(job)?;
         match self.kind {
             MeasurementKind::Profile => {
                 let (from, to) = self.line_span(job);
@@ -135,6 +168,12 @@ impl MeasurementModel {
                     return Err(
                         "measurement.spacing_um: more than 2 million points along the line".into(),
                     );
+                }
+                if job.process.turning().is_none() && rows_along(self.azimuth_deg).is_none() {
+                    return Err(format!(
+                        "measurement.azimuth_deg: {} is not a multiple of 0.5°; allowed for generating and milling jobs: multiples of 0.5°",
+                        self.azimuth_deg
+                    ));
                 }
             }
             MeasurementKind::Map => {
@@ -153,6 +192,27 @@ impl MeasurementModel {
         Ok(())
     }
 
+    fn validate_unmodelled(&self, job: &Job) -> Result<(), String> {
+        let Process::Turning(turning) = &job.process else {
+            return match self.unmodelled.first() {
+                None => Ok(()),
+                Some(effect) => Err(format!(
+                    "measurement.unmodelled[0]: \"{}\" is modelled for turning jobs only, and this is a {} job; allowed here: no unmodelled effects",
+                    effect.name(),
+                    match job.process {
+                        Process::Generating(_) => "generating",
+                        _ => "milling",
+                    }
+                )),
+            };
+        };
+        let half_span_deg = turning.tool.half_span_rad().to_degrees();
+        for (i, effect) in self.unmodelled.iter().enumerate() {
+            effect.validate(i, half_span_deg)?;
+        }
+        Ok(())
+    }
+
     fn line_span(&self, job: &Job) -> (f64, f64) {
         let r = 0.95 * job.aperture.outer_radius_mm;
         (self.from_mm.unwrap_or(-r), self.to_mm.unwrap_or(r))
@@ -166,40 +226,14 @@ impl MeasurementModel {
         }
     }
 
-    /// The points the instrument takes, in its own frame (axis at its origin).
-    fn template(&self, job: &Job) -> (Measurement, Vec<f64>, DVec2, f64, [usize; 2]) {
-        match self.kind {
-            MeasurementKind::Profile => {
-                let (from, to) = self.line_span(job);
-                let step = self.spacing_um * 1e-3;
-                let count = ((to - from) / step).floor() as usize + 1;
-                let positions: Vec<f64> = (0..count).map(|i| from + i as f64 * step).collect();
-                let zeros = vec![0.0; count];
-                let m = Measurement::line(
-                    &positions,
-                    &zeros,
-                    self.azimuth_deg.to_radians(),
-                    0.0,
-                    self.instrument(),
-                );
-                (m, positions, DVec2::ZERO, 0.0, [0, 0])
-            }
-            MeasurementKind::Map => {
-                let [nx, ny] = self.pixels.unwrap_or([0, 0]);
-                let pitch = self.pixel_um.unwrap_or(1.0) * 1e-3;
-                let origin = -0.5 * DVec2::new((nx - 1) as f64, (ny - 1) as f64) * pitch;
-                let zeros = vec![0.0; nx * ny];
-                let m = Measurement::raster(
-                    (nx, ny),
-                    origin,
-                    [pitch, pitch],
-                    &zeros,
-                    DVec2::ZERO,
-                    self.instrument(),
-                );
-                (m, Vec::new(), origin, pitch, [nx, ny])
-            }
-        }
+    /// Where the part's axis lies in the instrument's frame (mm).
+    fn decentre_mm(&self) -> DVec2 {
+        DVec2::from_array(self.decentre_um) * 1e-3
+    }
+
+    /// A point of the instrument's frame on the part (mm, axis at the origin).
+    fn to_part(&self, p: DVec2) -> DVec2 {
+        (p - self.decentre_mm()) / self.lateral_scale
     }
 }
 
@@ -210,87 +244,210 @@ pub fn synthesize(
     engine: &mut dyn RemovalEngine,
 ) -> Result<Synthetic, ForwardError> {
     model.validate(job).map_err(ForwardError)?;
-    let (template, positions, origin, pitch, pixels) = model.template(job);
-    // The truth is simulated twice as finely as a diagnosis will, and its pixels are
-    // averaged here point by point (not by the diagnosis's own filter).
-    let mut points = template.clone();
-    points.instrument.pixel_averaging = false;
-    let mut forward = ForwardModel::new(job, &points, engine)?;
-    forward.refine(2.0);
-    let surface = forward.simulate(&|_| {}, &points)?;
-    let decentre = DVec2::from_array(model.decentre_um) * 1e-3;
-    let shift = if template.is_line() {
-        decentre.x * DVec2::from_angle(model.azimuth_deg.to_radians())
-    } else {
-        decentre
-    };
-    let clean = if template.instrument.pixel_averaging {
-        let spacing = 2.0 * forward.base_job().pitch_mm;
-        pixel_means(&surface, &template, shift, pitch, spacing)
-    } else {
-        surface.sample(&template, shift)
+    let mut synthetic = match model.kind {
+        MeasurementKind::Profile => measure_profile(job, model, engine),
+        MeasurementKind::Map => measure_map(job, model, engine),
+    }
+    .map_err(ForwardError)?;
+    let (nx, ny) = match model.kind {
+        MeasurementKind::Profile => (synthetic.height_mm.len(), 1),
+        MeasurementKind::Map => (synthetic.pixels[0], synthetic.pixels[1]),
     };
     let mut rng = Rng::new(model.seed);
-    let noise = noise(&template, model, &mut rng);
+    let noise = noise(nx, ny, model, &mut rng);
     let slope = DVec2::from_array(model.tilt_urad) * 1e-6;
-    let mut height_mm: Vec<f64> = (0..template.len())
+    // The mount tilts about the instrument's own origin.
+    let mount: Vec<f64> = (0..noise.len())
         .map(|i| {
-            let t = template.tilt_coordinates(i);
-            clean[i] + model.piston_um * 1e-3 + slope.x * t[0] + slope.y * t[1] + noise[i]
+            let at = match model.kind {
+                MeasurementKind::Profile => DVec2::new(synthetic.positions_mm[i], 0.0),
+                MeasurementKind::Map => synthetic.pixel_centre_mm(i),
+            };
+            model.piston_um * 1e-3 + slope.dot(at) + noise[i]
         })
         .collect();
-    drop_out(&mut height_mm, model, &mut rng);
+    for (h, m) in synthetic.height_mm.iter_mut().zip(mount) {
+        *h += m;
+    }
+    drop_out(&mut synthetic.height_mm, model, &mut rng);
+    Ok(synthetic)
+}
+
+impl Synthetic {
+    /// Map: pixel `i`'s centre in the instrument's frame (row-major).
+    fn pixel_centre_mm(&self, i: usize) -> DVec2 {
+        let nx = self.pixels[0];
+        self.origin_mm + DVec2::new((i % nx) as f64, (i / nx) as f64) * self.pixel_mm
+    }
+}
+
+/// The surface a synthetic measurement reads: a turned part's section model, or a
+/// generated or milled part simulated by the engine.
+enum Part {
+    Turned(Box<TurnedSection>),
+    Simulated(SimulatedPart),
+}
+
+impl Part {
+    /// `radii_mm`: the radii the instrument reads (for the simulated grid's extent);
+    /// `pitch_mm`, `rows`: the simulated grid.
+    fn new(
+        job: &Job,
+        model: &MeasurementModel,
+        radii_mm: (f64, f64),
+        pitch_mm: f64,
+        rows: u32,
+        engine: &mut dyn RemovalEngine,
+    ) -> Result<Self, String> {
+        if job.process.turning().is_some() {
+            return Ok(Part::Turned(Box::new(TurnedSection::new(
+                job,
+                &model.unmodelled,
+            )?)));
+        }
+        let room = 3.0 * pitch_mm;
+        let radii = ((radii_mm.0 - room).max(0.0), radii_mm.1 + room);
+        SimulatedPart::new(job, radii, pitch_mm, rows, engine).map(Part::Simulated)
+    }
+
+    fn height_at(&self, p: DVec2) -> f64 {
+        match self {
+            Part::Turned(section) => section.height_at(p),
+            Part::Simulated(part) => part.height_at(p),
+        }
+    }
+}
+
+/// Lattice points per stylus tip radius in the dense section a trace is taken over.
+const STYLUS_STEPS_PER_TIP: f64 = 200.0;
+
+/// A profile along the line: positions in the instrument's frame, each read on the
+/// part at (position − decentre)/scale along the line's azimuth, through the stylus
+/// tip when there is one.
+fn measure_profile(
+    job: &Job,
+    model: &MeasurementModel,
+    engine: &mut dyn RemovalEngine,
+) -> Result<Synthetic, String> {
+    let (from, to) = model.line_span(job);
+    let step = model.spacing_um * 1e-3;
+    let count = ((to - from) / step).floor() as usize + 1;
+    let positions_mm: Vec<f64> = (0..count).map(|i| from + i as f64 * step).collect();
+    let direction = DVec2::from_angle(model.azimuth_deg.to_radians());
+    // A profile's axis sits at the first decentre value along its line.
+    let along: Vec<f64> = positions_mm
+        .iter()
+        .map(|p| (p - model.decentre_mm().x) / model.lateral_scale)
+        .collect();
+    let tip = model.stylus_tip_um.map_or(0.0, |t| t * 1e-3);
+    let reach = along.iter().fold(0.0_f64, |m, s| m.max(s.abs())) + tip;
+    let inner = if along[0] * along[count - 1] > 0.0 {
+        along[0].abs().min(along[count - 1].abs()) - tip
+    } else {
+        0.0
+    };
+    let rows = rows_along(model.azimuth_deg).unwrap_or(2);
+    let part = Part::new(job, model, (inner, reach), 0.5 * job.pitch_mm, rows, engine)?;
+    let height = |s: f64| part.height_at(s * direction);
+    let height_mm = match model.stylus_tip_um {
+        None => along.par_iter().map(|s| height(*s)).collect(),
+        Some(_) => {
+            let lattice_step = tip / STYLUS_STEPS_PER_TIP;
+            let t: Vec<f64> = instrument::stylus_lattice(&along, tip, lattice_step)
+                .into_iter()
+                .map(|k| k as f64 * lattice_step)
+                .collect();
+            let z: Vec<f64> = t.par_iter().map(|s| height(*s)).collect();
+            instrument::stylus_trace(&t, &z, &along, tip)
+        }
+    };
     Ok(Synthetic {
         measurement: model.clone(),
-        positions_mm: positions,
-        origin_mm: origin,
-        pixel_mm: pitch,
-        pixels,
+        positions_mm,
+        origin_mm: DVec2::ZERO,
+        pixel_mm: 0.0,
+        pixels: [0, 0],
         height_mm,
     })
 }
 
-/// Each pixel's mean: point values on an n × n lattice over its square footprint, no
-/// further apart than `spacing_mm` (at most 64 × 64).
-fn pixel_means(
-    surface: &SimulatedSurface,
-    m: &Measurement,
-    shift: DVec2,
-    pixel_mm: f64,
-    spacing_mm: f64,
-) -> Vec<f64> {
-    let n = ((pixel_mm / spacing_mm).ceil() as usize).clamp(4, 64);
-    let offsets: Vec<f64> = (0..n)
-        .map(|i| ((i as f64 + 0.5) / n as f64 - 0.5) * pixel_mm)
+/// Largest lattice across a pixel's footprint.
+const MAX_FOOTPRINT_POINTS: usize = 32;
+
+/// A map: pixel centres in the instrument's frame about its origin, each read on the
+/// part at (centre − decentre)/scale, as the mean over its footprint (a pixel of the
+/// instrument covers pitch/scale of the part) or the point at its centre.
+fn measure_map(
+    job: &Job,
+    model: &MeasurementModel,
+    engine: &mut dyn RemovalEngine,
+) -> Result<Synthetic, String> {
+    let [nx, ny] = model.pixels.unwrap_or([0, 0]);
+    let pitch = model.pixel_um.unwrap_or(1.0) * 1e-3;
+    let origin = -0.5 * DVec2::new((nx - 1) as f64, (ny - 1) as f64) * pitch;
+    let centres: Vec<DVec2> = (0..nx * ny)
+        .map(|i| model.to_part(origin + DVec2::new((i % nx) as f64, (i / nx) as f64) * pitch))
         .collect();
-    m.xy_mm
+    let footprint_mm = pitch / model.lateral_scale;
+    let half_diagonal = footprint_mm / std::f64::consts::SQRT_2;
+    let (near, far) = centres
         .iter()
-        .map(|p| {
-            let sum: f64 = offsets
-                .iter()
-                .flat_map(|dy| offsets.iter().map(move |dx| DVec2::new(*dx, *dy)))
-                .map(|d| surface.at(*p + d - shift))
-                .sum();
-            sum / (n * n) as f64
-        })
-        .collect()
+        .fold((f64::INFINITY, 0.0_f64), |(lo, hi), c| {
+            (lo.min(c.length()), hi.max(c.length()))
+        });
+    // Generating and milling: rings and rows no further apart than an eighth of a
+    // pixel (or half the job's pitch, if finer), so the lattice below reads resolved marks.
+    let sim_pitch = (0.5 * job.pitch_mm).max(footprint_mm / 8.0);
+    let reach = far + half_diagonal;
+    let rows = ((std::f64::consts::TAU * reach / sim_pitch).ceil() as u32)
+        .clamp(16, 8192)
+        .next_multiple_of(4);
+    let part = Part::new(
+        job,
+        model,
+        (near - half_diagonal, reach),
+        sim_pitch,
+        rows,
+        engine,
+    )?;
+    // The lattice resolves the marks: 8 points per pass spacing (turning), or one per
+    // simulated ring pitch; at least 4 × 4.
+    let resolve = match &job.process {
+        Process::Turning(turning) => turning.path.pass_spacing_mm() / 8.0,
+        _ => sim_pitch,
+    };
+    let n = ((footprint_mm / resolve).ceil() as usize).clamp(4, MAX_FOOTPRINT_POINTS);
+    let footprint = if model.pixel_averaging {
+        instrument::footprint(footprint_mm, n)
+    } else {
+        vec![DVec2::ZERO]
+    };
+    let height = |p: DVec2| part.height_at(p);
+    let height_mm = centres
+        .par_iter()
+        .map(|c| instrument::pixel_mean(&height, *c, &footprint))
+        .collect();
+    Ok(Synthetic {
+        measurement: model.clone(),
+        positions_mm: Vec::new(),
+        origin_mm: origin,
+        pixel_mm: pitch,
+        pixels: [nx, ny],
+        height_mm,
+    })
 }
 
 /// White plus 1/f noise (mm) per point: the 1/f part a sum of octaves of Gaussian-
 /// smoothed white noise (σ = 1, 2, 4 … points), each scaled to the same variance,
 /// which gives equal power per octave.
-fn noise(m: &Measurement, model: &MeasurementModel, rng: &mut Rng) -> Vec<f64> {
-    let n = m.len();
+fn noise(nx: usize, ny: usize, model: &MeasurementModel, rng: &mut Rng) -> Vec<f64> {
+    let n = nx * ny;
     let white: Vec<f64> = (0..n)
         .map(|_| model.white_noise_nm * 1e-6 * rng.normal())
         .collect();
     if model.pink_noise_nm <= 0.0 {
         return white;
     }
-    let (nx, ny) = match m.shape {
-        crate::diagnose::measurement::Shape::Line { .. } => (n, 1),
-        crate::diagnose::measurement::Shape::Raster { nx, ny, .. } => (nx, ny),
-    };
     let longest = nx.max(ny) as f64;
     let mut pink = vec![0.0; n];
     let mut octave = 0;

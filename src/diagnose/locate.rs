@@ -1,0 +1,915 @@
+//! Where the measurement lies on the part — registration first (DESIGN §8.1).
+//!
+//! A profile's axis may cross it anywhere (an interferometer trace is often a diameter)
+//! or lie beyond its ends (a radius); the instrument's lateral scale is often a few tenths
+//! of a percent off; and on a turned part the line's azimuth on the spiral sets where its
+//! marks fall. All three are found from what the data carries — the form and the tool
+//! marks — by a search over the whole admissible range (every axis position that keeps
+//! the points on the part, every azimuth, scales within ±2 %) followed by Gauss–Newton
+//! refinement of the best few; never a search near where the file puts its zero.
+//!
+//! A map's axis is searched over the whole field the same way (a grid, then
+//! Gauss–Newton), with the scale when the map resolves the marks.
+
+use super::DiagnoseError;
+use super::fit::uncertainties;
+use super::forward::{ForwardModel, Frame, SimulatedSurface, Trace, shift_room_mm};
+use super::measurement::{Measurement, Shape};
+use super::register::{LinearTerms, ShiftSearch, Terms, fit_linear, register, trimmed_mean_square};
+use super::zones::{correlation_length, gaussian_lowpass_line};
+use crate::engine::RemovalEngine;
+use crate::io::job::Job;
+use crate::numeric::try_golden_section;
+use crate::process::Process;
+use glam::DVec2;
+use rayon::prelude::*;
+use std::f64::consts::TAU;
+
+/// Rows of the wide search's simulation of a turned part: the spiral's phase every
+/// 11.25°, so its marks move at most 1/64 of a feed between neighbouring rows.
+const SCAN_ROWS: u32 = 32;
+/// Largest lateral scale error searched (a white-light interferometer's lateral
+/// calibration is commonly 0.3–1 % off).
+pub const SCALE_BOUND: f64 = 0.02;
+/// Points the wide search judges (a subsample), and the refinement.
+const SCAN_POINTS: usize = 800;
+const REFINE_POINTS: usize = 6000;
+/// Local minima of the wide search refined.
+const CANDIDATES: usize = 8;
+/// Share of the points that must lie on the simulated part in any placement.
+const ON_PART: f64 = 0.9;
+
+/// Where the measurement lies on the part.
+#[derive(Debug, Clone)]
+pub struct Located {
+    /// In the measurement's frame as read: the axis position and the lateral scale.
+    pub frame: Frame,
+    /// Turning: the part azimuth (on the program's spiral) of the line, or of the map's
+    /// +X; otherwise the line's azimuth as given.
+    pub azimuth_rad: f64,
+    /// One standard deviation of the axis position (mm; along the line first), the
+    /// scale and the azimuth; 0 where the value was held, ∞ where the data cannot fix it.
+    pub sigma_shift_mm: [f64; 2],
+    pub sigma_scale: f64,
+    pub sigma_azimuth_rad: f64,
+    /// The scale was searched; and it came out within 2σ of 1, so it is held at 1.
+    pub scale_fitted: bool,
+    pub scale_held: bool,
+    pub azimuth_fitted: bool,
+    /// RMS of the residual the nominal model leaves in this placement (mm).
+    pub rms_mm: f64,
+    /// The next best placements, each a different local minimum (mark alignment or
+    /// azimuth), with their residual RMS: how clearly the best one wins.
+    pub alternatives: Vec<Placement>,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct Placement {
+    pub frame: Frame,
+    pub azimuth_rad: f64,
+    pub rms_mm: f64,
+}
+
+impl Located {
+    /// A line's axis lies between its ends with at least a tenth of the points on each
+    /// side: the line is a diameter.
+    pub fn crosses_axis(&self, m: &Measurement) -> bool {
+        if !m.is_line() {
+            return false;
+        }
+        let s0 = self.frame.shift_mm.dot(m.line_direction());
+        let below = m.along_mm.iter().filter(|a| **a < s0).count();
+        let share = below as f64 / m.len().max(1) as f64;
+        (0.1..=0.9).contains(&share)
+    }
+
+    /// Whether the scale sits at its search bound (not a fit).
+    pub fn scale_at_bound(&self) -> bool {
+        self.scale_fitted && (self.frame.scale - 1.0).abs() > 0.999 * SCALE_BOUND
+    }
+
+    /// What became of the lateral scale, in words.
+    pub fn scale_status(&self) -> &'static str {
+        match (self.scale_fitted, self.scale_held, self.scale_at_bound()) {
+            (false, _, _) => "not searched (the data carries no marks to fix it)",
+            (true, true, _) => "within 2σ of 1: held at 1",
+            (true, false, true) => "at the search bound (±2 %): not a fit",
+            (true, false, false) => "fitted",
+        }
+    }
+}
+
+/// How the search runs.
+#[derive(Debug, Clone, Copy)]
+pub struct LocateOptions {
+    pub terms: Terms,
+    /// Fit the instrument's lateral scale (only where the process leaves marks).
+    pub scale: bool,
+}
+
+/// Finds where `m` lies on the job's part.
+pub fn locate(
+    job: &Job,
+    m: &Measurement,
+    engine: &mut dyn RemovalEngine,
+    options: LocateOptions,
+    log: &dyn Fn(&str),
+) -> Result<Located, DiagnoseError> {
+    match m.shape {
+        Shape::Line { azimuth_rad } => locate_line(job, m, azimuth_rad, engine, options, log),
+        Shape::Raster { .. } => locate_map(job, m, engine, options, log),
+    }
+}
+
+/// The spacing of the process's marks near radii up to `r_max_mm` (the smallest where
+/// a program varies it), or None for a process without marks along the meridian.
+pub fn mark_spacing_mm(job: &Job, r_max_mm: f64) -> Option<f64> {
+    match &job.process {
+        Process::Turning(t) => Some(t.path.smallest_feed_mm(0.0, r_max_mm)),
+        Process::Milling(m) => Some(m.setup.stepover_mm),
+        Process::Generating(_) => None,
+    }
+    .filter(|s| *s > 0.0)
+}
+
+/// The process's own mark spacing between radii `from_mm` and `to_mm` (the median feed
+/// there, for programs that vary it), or None for a process without marks along the
+/// meridian.
+pub fn local_mark_spacing_mm(job: &Job, from_mm: f64, to_mm: f64) -> Option<f64> {
+    match &job.process {
+        Process::Turning(t) => Some(t.path.median_feed_mm(from_mm, to_mm)),
+        Process::Milling(m) => Some(m.setup.stepover_mm),
+        Process::Generating(_) => None,
+    }
+    .filter(|s| *s > 0.0)
+}
+
+/// The `q` quantile of the values (0–1).
+fn quantile(values: &[f64], q: f64) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+/// Every `n`-th point so that at most `count` remain.
+fn subsample(m: &Measurement, count: usize) -> Measurement {
+    let stride = m.len().div_ceil(count).max(1);
+    m.subset(|i| i % stride == 0)
+}
+
+fn locate_line(
+    job: &Job,
+    m: &Measurement,
+    line_azimuth: f64,
+    engine: &mut dyn RemovalEngine,
+    options: LocateOptions,
+    log: &dyn Fn(&str),
+) -> Result<Located, DiagnoseError> {
+    let outer = job.aperture.outer_radius_mm;
+    let (lo, hi) = (quantile(&m.along_mm, 0.02), quantile(&m.along_mm, 0.98));
+    // Axis positions that keep the bulk of the points on the part — where the process
+    // leaves marks to place the line by. Without marks (a generated sphere) a shift is
+    // a tilt to first order and only a central feature tells: the axis is looked for
+    // near where the file puts it.
+    let marked = mark_spacing_mm(job, outer).is_some();
+    let near = shift_room_mm(m);
+    let (a_min, a_max) = match (options.terms.shift, marked) {
+        (false, _) => (0.0, 0.0),
+        (true, true) => (hi - outer, lo + outer),
+        (true, false) => ((hi - outer).max(-near), (lo + outer).min(near)),
+    };
+    if a_min > a_max {
+        return Err(DiagnoseError::DoesNotFit(format!(
+            "the profile spans {:.4} mm (between its 2nd and 98th percentile points), more than the part's diameter of {:.4} mm: a lateral unit error, or another part",
+            hi - lo,
+            2.0 * outer
+        )));
+    }
+    let reach = (hi - a_min).max(a_max - lo).min(outer);
+    let typical = local_mark_spacing_mm(job, 0.0, reach);
+    // The scale is fixed by marks the profile resolves (six points a mark, six marks).
+    let marks = typical.filter(|f| *f >= 6.0 * m.spacing_mm() && hi - lo >= 6.0 * f);
+    let scale = options.scale && marks.is_some();
+    let turning = job.process.turning().is_some();
+    let room =
+        typical.unwrap_or(0.0) + 4.0 * job.pitch_mm + m.instrument.stylus_tip_mm.unwrap_or(0.0);
+    let r_model = (reach * (1.0 + SCALE_BOUND) + room).min(outer);
+    log(&format!(
+        "locating the profile: axis anywhere in {:.4}–{:.4} mm of the file{}{}",
+        m.file_position_of(DVec2::new(a_min, 0.0)).x,
+        m.file_position_of(DVec2::new(a_max, 0.0)).x,
+        if turning {
+            ", every azimuth of the spiral"
+        } else {
+            ""
+        },
+        if scale {
+            ", lateral scale within ±2 %"
+        } else {
+            ""
+        }
+    ));
+
+    // The wide search on one simulation — every azimuth (turning) or the line's own.
+    // Where the profile resolves the marks, they alone place it (the form taken out of
+    // both): a form error the job lacks — a decentre's cone, a radius error — would
+    // otherwise pull the axis, and on a sphere an axis shift is a tilt to first order.
+    let rows = if turning {
+        SCAN_ROWS
+    } else {
+        line_rows(line_azimuth)?.0
+    };
+    let mut model = ForwardModel::covering(job, r_model, rows, m.instrument, engine)?;
+    let surface = model.simulate(&|_| {})?;
+    let seen = |trace: Trace| match marks {
+        Some(f) => high_passed_trace(trace, 2.5 * f),
+        None => trace,
+    };
+    let traces: Vec<(f64, Trace)> = if turning {
+        (0..rows)
+            .map(|j| (TAU * j as f64 / rows as f64, seen(surface.trace_along(j))))
+            .collect()
+    } else {
+        vec![(
+            line_azimuth,
+            seen(surface.trace_along(line_rows(line_azimuth)?.1)),
+        )]
+    };
+    let raw = subsample(m, REFINE_POINTS);
+    let m = &match marks {
+        Some(f) => high_passed(m, 2.5 * f),
+        None => m.clone(),
+    };
+    let step = typical.map_or((a_max - lo).max(hi - a_min) / 200.0, |f| f / 8.0);
+    let power = options.terms.power;
+    let starts = wide_scan(
+        m,
+        &traces,
+        grid(a_min, a_max, step),
+        power,
+        typical.unwrap_or(step),
+    );
+    if starts.is_empty() {
+        return Err(DiagnoseError::DoesNotFit(
+            "no placement of the profile keeps its points on the simulated part".into(),
+        ));
+    }
+
+    // Refine each start: the azimuth by golden section (a fresh two-row simulation per
+    // trial), the axis by Gauss–Newton.
+    let fine = subsample(m, REFINE_POINTS);
+    let mut line = ForwardModel::covering(job, r_model, 2, m.instrument, model.engine())?;
+    let row_step = TAU / rows as f64;
+    // (the trace as simulated, and as judged: its form taken out where the marks rule).
+    let mut trace_at = |phi: f64| -> Result<(Trace, Trace), DiagnoseError> {
+        let as_simulated = if turning {
+            line.set_azimuth(phi);
+            line.simulate(&|_| {})?.trace_along(0)
+        } else {
+            surface.trace_along(line_rows(line_azimuth)?.1)
+        };
+        Ok((as_simulated.clone(), seen(as_simulated)))
+    };
+    // Marks repeat: a scale that moves the farthest point by half a mark aligns it
+    // with the next, so the scale is searched only short of that (and within ±2 %).
+    let scale_bound = |a: f64| -> Option<f64> {
+        let f = marks.filter(|_| scale)?;
+        let far = fine
+            .along_mm
+            .iter()
+            .map(|x| (x - a).abs())
+            .fold(0.0, f64::max);
+        Some((0.5 * f / far.max(f)).min(SCALE_BOUND))
+    };
+    let mut refine = |a: f64,
+                      azimuth: f64,
+                      bound: Option<f64>|
+     -> Result<Option<(Placement, LineFit)>, DiagnoseError> {
+        let mut best: Option<(Placement, LineFit)> = None;
+        let mut at_azimuth = |phi: f64| -> Result<f64, DiagnoseError> {
+            let start = best.as_ref().map_or((a, 1.0), |b| (b.1.along, b.1.scale));
+            let (as_simulated, judged) = trace_at(phi)?;
+            let mut fit = refine_line(&fine, &judged, start, (a_min, a_max), power, bound);
+            fit.with_form = line_objective(&raw, &as_simulated, fit.along, fit.scale, power);
+            let value = fit.objective;
+            if best.as_ref().is_none_or(|b| value < b.1.objective) {
+                best = Some((placement(m, &fit, phi), fit));
+            }
+            Ok(value)
+        };
+        at_azimuth(azimuth)?;
+        if turning {
+            try_golden_section(&mut at_azimuth, azimuth - row_step, azimuth + row_step, 9)?;
+        }
+        Ok(best)
+    };
+    let mut placements: Vec<(Placement, LineFit)> = Vec::new();
+    for &(_, t, a) in &starts {
+        placements.extend(refine(a, traces[t].0, scale_bound(a))?);
+    }
+    let placements = distinct_placements(
+        placements,
+        typical.unwrap_or(step),
+        row_step,
+        marks.is_some(),
+    );
+    let (mut best, mut fit) = placements[0].clone();
+    // The scale is kept only when 2σ from 1 (on a sphere a scale is a power term: an
+    // uncertain one would bend the form); else the placement is found again at 1.
+    let mut scale_sigma = 0.0;
+    let mut scale_held = false;
+    if scale_bound(fit.along).is_some() {
+        scale_sigma = line_sigmas(&fine, &fit, None, power, true).scale;
+        scale_held = (fit.scale - 1.0).abs() < 2.0 * scale_sigma;
+        if scale_held && let Some(again) = refine(fit.along, best.azimuth_rad, None)? {
+            (best, fit) = again;
+        }
+    }
+    // Uncertainties of the axis and the azimuth (a central difference of the trace).
+    let azimuth_column = if turning {
+        let h = 0.02 * row_step;
+        let (ahead, behind) = (
+            trace_at(best.azimuth_rad + h)?.1,
+            trace_at(best.azimuth_rad - h)?.1,
+        );
+        let (a, b) = (
+            ahead.sample(&fine.along_mm, fit.along, fit.scale),
+            behind.sample(&fine.along_mm, fit.along, fit.scale),
+        );
+        Some(
+            a.iter()
+                .zip(&b)
+                .map(|(p, q)| (p - q) / (2.0 * h))
+                .collect::<Vec<f64>>(),
+        )
+    } else {
+        None
+    };
+    let sigmas = line_sigmas(&fine, &fit, azimuth_column.as_deref(), power, false);
+    log(&format!(
+        "axis at {:.4} mm of the file (± {:.4}), lateral scale {:.4}{}, residual {:.1} nm RMS",
+        m.file_position_of(best.frame.shift_mm.dot(m.line_direction()) * DVec2::X)
+            .x,
+        sigmas.along * m.file_per_mm,
+        best.frame.scale,
+        if turning {
+            format!(", azimuth {:.1}°", best.azimuth_rad.to_degrees())
+        } else {
+            String::new()
+        },
+        best.rms_mm * 1e6
+    ));
+    Ok(Located {
+        frame: best.frame,
+        azimuth_rad: best.azimuth_rad,
+        sigma_shift_mm: [sigmas.along, 0.0],
+        sigma_scale: scale_sigma,
+        sigma_azimuth_rad: sigmas.azimuth,
+        scale_fitted: scale,
+        scale_held,
+        azimuth_fitted: turning,
+        rms_mm: best.rms_mm,
+        alternatives: placements[1..].iter().map(|p| p.0).collect(),
+    })
+}
+
+/// The wide search: every trace (azimuth) at every axis position, the trimmed mean
+/// square residual of a subsample; the best local minima, distinct in axis position
+/// by a third of `apart` (a mark spacing) on neighbouring azimuths.
+fn wide_scan(
+    m: &Measurement,
+    traces: &[(f64, Trace)],
+    positions: Vec<f64>,
+    power: bool,
+    apart: f64,
+) -> Vec<(f64, usize, f64)> {
+    let coarse = ScanPoints::new(&subsample(m, SCAN_POINTS));
+    let scan: Vec<Vec<f64>> = traces
+        .par_iter()
+        .map(|(_, trace)| {
+            let mut scratch = Vec::new();
+            positions
+                .iter()
+                .map(|&a| coarse.objective(trace, a, 1.0, power, &mut scratch))
+                .collect()
+        })
+        .collect();
+    let mut starts: Vec<(f64, usize, f64)> = Vec::new();
+    for (t, values) in scan.iter().enumerate() {
+        for k in local_minima(values) {
+            starts.push((values[k], t, positions[k]));
+        }
+    }
+    starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    distinct(starts, apart / 3.0, traces.len(), CANDIDATES)
+}
+
+/// A line fit as a placement of the measurement.
+fn placement(m: &Measurement, fit: &LineFit, azimuth_rad: f64) -> Placement {
+    Placement {
+        frame: Frame {
+            shift_mm: fit.along * m.line_direction(),
+            scale: fit.scale,
+        },
+        azimuth_rad,
+        rms_mm: fit.objective.sqrt(),
+    }
+}
+
+/// Refinements of neighbouring starts that met are one placement (axis within an
+/// eighth of a mark, azimuth within two rows); best first. Where the marks placed the
+/// line, placements whose marks fit within half again of the best are alike to the
+/// marks (a whole mark along, or half a mark and half a turn: a spiral of even feed
+/// repeats but at its centre): among those the form decides — its higher orders
+/// (a sphere's r⁴) fix the axis where the marks cannot.
+fn distinct_placements(
+    mut placements: Vec<(Placement, LineFit)>,
+    marks: f64,
+    row_step: f64,
+    by_marks: bool,
+) -> Vec<(Placement, LineFit)> {
+    placements.sort_by(|a, b| a.1.objective.total_cmp(&b.1.objective));
+    if by_marks && let Some(first) = placements.first().map(|p| p.1.objective) {
+        let (mut alike, rest): (Vec<_>, Vec<_>) = placements
+            .into_iter()
+            .partition(|p| p.1.objective <= 1.5 * first);
+        alike.sort_by(|a, b| a.1.with_form.total_cmp(&b.1.with_form));
+        placements = alike.into_iter().chain(rest).collect();
+    }
+    let close = |a: &Placement, b: &Placement| {
+        let turn = (a.azimuth_rad - b.azimuth_rad).rem_euclid(TAU);
+        (a.frame.shift_mm - b.frame.shift_mm).length() < marks / 8.0
+            && turn.min(TAU - turn) < 2.0 * row_step
+    };
+    let mut kept: Vec<(Placement, LineFit)> = Vec::new();
+    for p in placements {
+        if !kept.iter().any(|k| close(&k.0, &p.0)) {
+            kept.push(p);
+        }
+    }
+    kept
+}
+
+/// The points with their form taken out: heights minus their Gaussian low-pass at
+/// `cutoff_mm` (in position order).
+fn high_passed(m: &Measurement, cutoff_mm: f64) -> Measurement {
+    let order = {
+        let mut o: Vec<usize> = (0..m.len()).collect();
+        o.sort_by(|&a, &b| m.along_mm[a].total_cmp(&m.along_mm[b]));
+        o
+    };
+    let sorted = m.subset(|_| true);
+    let x: Vec<f64> = order.iter().map(|&i| m.along_mm[i]).collect();
+    let z: Vec<f64> = order.iter().map(|&i| m.height_mm[i]).collect();
+    let low = gaussian_lowpass_line(&x, &z, cutoff_mm);
+    let mut height = vec![0.0; m.len()];
+    for (k, &i) in order.iter().enumerate() {
+        height[i] = z[k] - low[k];
+    }
+    Measurement {
+        height_mm: height,
+        ..sorted
+    }
+}
+
+/// A trace with its form taken out the same way.
+fn high_passed_trace(trace: Trace, cutoff_mm: f64) -> Trace {
+    let low = gaussian_lowpass_line(&trace.x, &trace.z, cutoff_mm);
+    let z = trace.z.iter().zip(&low).map(|(a, b)| a - b).collect();
+    Trace { x: trace.x, z }
+}
+
+/// The fewest rows with one along the azimuth, and that row.
+fn line_rows(azimuth_rad: f64) -> Result<(u32, u32), DiagnoseError> {
+    super::forward::line_rows_through(azimuth_rad).ok_or_else(|| {
+        DiagnoseError::Forward(format!(
+            "the profile's azimuth {:.4}° is not a multiple of 0.5°",
+            azimuth_rad.to_degrees()
+        ))
+    })
+}
+
+/// Evenly spaced values from `lo` to `hi` at most `step` apart (one value when equal).
+fn grid(lo: f64, hi: f64, step: f64) -> Vec<f64> {
+    let n = ((hi - lo) / step).ceil().max(0.0) as usize;
+    if n == 0 {
+        return vec![0.5 * (lo + hi)];
+    }
+    (0..=n)
+        .map(|k| lo + (hi - lo) * k as f64 / n as f64)
+        .collect()
+}
+
+/// The trimmed mean square residual of the trace placed with its axis at `along` and
+/// scale `scale` (piston, tilt and power removed); ∞ when too few points lie on it.
+fn line_objective(m: &Measurement, trace: &Trace, along: f64, scale: f64, power: bool) -> f64 {
+    let model = trace.sample(&m.along_mm, along, scale);
+    let shift = along * m.line_direction();
+    let r = fit_linear(m, &model, shift, power);
+    if (r.used as f64) < ON_PART * m.len() as f64 {
+        return f64::INFINITY;
+    }
+    trimmed_mean_square(&r.residual_mm, 0.95)
+}
+
+/// A profile's points as the wide search judges them: positions ascending, heights.
+struct ScanPoints {
+    along: Vec<f64>,
+    height: Vec<f64>,
+    centre: f64,
+}
+
+impl ScanPoints {
+    fn new(m: &Measurement) -> Self {
+        let mut order: Vec<usize> = (0..m.len()).collect();
+        order.sort_by(|&a, &b| m.along_mm[a].total_cmp(&m.along_mm[b]));
+        let along: Vec<f64> = order.iter().map(|&i| m.along_mm[i]).collect();
+        let centre = along.iter().sum::<f64>() / along.len().max(1) as f64;
+        Self {
+            height: order.iter().map(|&i| m.height_mm[i]).collect(),
+            along,
+            centre,
+        }
+    }
+
+    /// As [`line_objective`], without allocating: the trace is walked along the
+    /// ascending positions and the linear terms solved from their 3 × 3 normal
+    /// equations (`scratch` holds the residuals).
+    fn objective(
+        &self,
+        trace: &Trace,
+        along: f64,
+        scale: f64,
+        power: bool,
+        scratch: &mut Vec<f64>,
+    ) -> f64 {
+        let width = if power { 3 } else { 2 };
+        let (mut normal, mut rhs) = ([[0.0; 3]; 3], [0.0; 3]);
+        scratch.clear();
+        let mut k = 0;
+        let mut model = Vec::with_capacity(self.along.len());
+        for (x, y) in self.along.iter().zip(&self.height) {
+            let u = (x - along) * scale;
+            while k + 1 < trace.x.len() && trace.x[k + 1] <= u {
+                k += 1;
+            }
+            let value = if k + 1 < trace.x.len() && trace.x[k] <= u {
+                let t = (u - trace.x[k]) / (trace.x[k + 1] - trace.x[k]);
+                trace.z[k] + t * (trace.z[k + 1] - trace.z[k])
+            } else {
+                f64::NAN
+            };
+            model.push(value);
+            if value.is_finite() {
+                let row = [1.0, x - self.centre, (x - along) * (x - along)];
+                let target = y - value;
+                for a in 0..width {
+                    rhs[a] += row[a] * target;
+                    for b in 0..width {
+                        normal[a][b] += row[a] * row[b];
+                    }
+                }
+            }
+        }
+        let used = model.iter().filter(|v| v.is_finite()).count();
+        if (used as f64) < ON_PART * self.along.len() as f64 {
+            return f64::INFINITY;
+        }
+        let matrix: Vec<Vec<f64>> = (0..width).map(|a| normal[a][..width].to_vec()).collect();
+        let Some(c) = crate::numeric::solve_linear(&matrix, &rhs[..width]) else {
+            return f64::INFINITY;
+        };
+        for ((x, y), m) in self.along.iter().zip(&self.height).zip(&model) {
+            if m.is_finite() {
+                let p = (x - along) * (x - along);
+                let fitted = c[0] + c[1] * (x - self.centre) + if power { c[2] * p } else { 0.0 };
+                scratch.push(y - m - fitted);
+            }
+        }
+        trimmed_mean_square(scratch, 0.95)
+    }
+}
+
+/// Indices of the local minima of a sequence (ends count when lower than their one
+/// neighbour); flat runs give their first point.
+fn local_minima(values: &[f64]) -> Vec<usize> {
+    let n = values.len();
+    (0..n)
+        .filter(|&k| values[k].is_finite())
+        .filter(|&k| {
+            (k == 0 || values[k - 1] > values[k]) && (k + 1 == n || values[k + 1] >= values[k])
+        })
+        .collect()
+}
+
+/// The best `count` starts (value, trace, axis), dropping any within `apart` of
+/// a better one on the same or a neighbouring trace (of `traces`, in a circle).
+fn distinct(
+    sorted: Vec<(f64, usize, f64)>,
+    apart: f64,
+    traces: usize,
+    count: usize,
+) -> Vec<(f64, usize, f64)> {
+    let neighbours = |a: usize, b: usize| {
+        let d = a.abs_diff(b);
+        d.min(traces - d) <= 1
+    };
+    let mut kept: Vec<(f64, usize, f64)> = Vec::new();
+    for s in sorted {
+        if kept.len() == count {
+            break;
+        }
+        if !kept
+            .iter()
+            .any(|k| neighbours(k.1, s.1) && (k.2 - s.2).abs() < apart)
+        {
+            kept.push(s);
+        }
+    }
+    kept
+}
+
+/// A profile placed on a trace: axis position along the line (mm), scale, and the
+/// trimmed mean square residual.
+#[derive(Debug, Clone)]
+struct LineFit {
+    along: f64,
+    scale: f64,
+    objective: f64,
+    trace: Trace,
+    /// The objective with the form left in (where the marks alone placed the line).
+    with_form: f64,
+}
+
+/// Gauss–Newton on the axis position (within `a_min..=a_max`) and scale (with piston,
+/// tilt and power solved in the same linear step), from `start`; a step is kept only while it lowers the
+/// trimmed objective, else halved (twice).
+fn refine_line(
+    m: &Measurement,
+    trace: &Trace,
+    start: (f64, f64),
+    (a_min, a_max): (f64, f64),
+    power: bool,
+    scale_bound: Option<f64>,
+) -> LineFit {
+    let fit_scale = scale_bound.is_some();
+    let bound = scale_bound.unwrap_or(0.0);
+    let (mut along, mut scale) = (start.0, if fit_scale { start.1 } else { 1.0 });
+    let mut best = line_objective(m, trace, along, scale, power);
+    for _ in 0..12 {
+        let columns = frame_columns(m, trace, along, scale, fit_scale);
+        let model = trace.sample(&m.along_mm, along, scale);
+        let terms = LinearTerms::new(m, &model, along * m.line_direction(), power);
+        let c = terms.solve(m, &model, &columns);
+        let step_along = c[terms.width];
+        let step_scale = if fit_scale { c[terms.width + 1] } else { 0.0 };
+        let mut improved = false;
+        for shrink in [1.0, 0.5, 0.25] {
+            let (a, s) = (
+                (along + shrink * step_along).clamp(a_min, a_max),
+                (scale + shrink * step_scale).clamp(1.0 - bound, 1.0 + bound),
+            );
+            let value = line_objective(m, trace, a, s, power);
+            if value < best {
+                (along, scale, best) = (a, s, value);
+                improved = true;
+                break;
+            }
+        }
+        if !improved || step_along.abs() < 1e-7 && step_scale.abs() < 1e-7 {
+            break;
+        }
+    }
+    LineFit {
+        along,
+        scale,
+        objective: best,
+        trace: trace.clone(),
+        with_form: best,
+    }
+}
+
+/// The model's derivatives with respect to the axis position and (when fitted) the
+/// scale, from the trace's slope (central differences over a fifth of its spacing).
+fn frame_columns(
+    m: &Measurement,
+    trace: &Trace,
+    along: f64,
+    scale: f64,
+    fit_scale: bool,
+) -> Vec<Vec<f64>> {
+    let h = 0.2 * (trace.x[1] - trace.x[0]).abs().max(1e-7);
+    let slope: Vec<f64> = m
+        .along_mm
+        .iter()
+        .map(|x| {
+            let u = (x - along) * scale;
+            (trace.at(u + h) - trace.at(u - h)) / (2.0 * h)
+        })
+        .collect();
+    let mut columns = vec![slope.iter().map(|d| -scale * d).collect::<Vec<f64>>()];
+    if fit_scale {
+        columns.push(
+            m.along_mm
+                .iter()
+                .zip(&slope)
+                .map(|(x, d)| (x - along) * d)
+                .collect(),
+        );
+    }
+    columns
+}
+
+struct LineSigmas {
+    along: f64,
+    scale: f64,
+    azimuth: f64,
+}
+
+/// One-σ uncertainties of a line's placement (see [`placement_sigmas`]).
+fn line_sigmas(
+    m: &Measurement,
+    fit: &LineFit,
+    azimuth_column: Option<&[f64]>,
+    power: bool,
+    fit_scale: bool,
+) -> LineSigmas {
+    let model = fit.trace.sample(&m.along_mm, fit.along, fit.scale);
+    let mut columns = frame_columns(m, &fit.trace, fit.along, fit.scale, fit_scale);
+    if let Some(c) = azimuth_column {
+        columns.push(c.to_vec());
+    }
+    let sigmas = placement_sigmas(m, &model, fit.along * m.line_direction(), power, &columns);
+    LineSigmas {
+        along: sigmas[0],
+        scale: if fit_scale { sigmas[1] } else { 0.0 },
+        azimuth: if azimuth_column.is_some() {
+            sigmas[columns.len() - 1]
+        } else {
+            0.0
+        },
+    }
+}
+
+/// One-σ uncertainties of placement parameters whose model derivatives are `columns`,
+/// fitted with the registration's linear terms: the fits' own estimate (the larger of
+/// the Jacobian's, inflated by the residual's correlation length, and a block sandwich).
+fn placement_sigmas(
+    m: &Measurement,
+    model: &[f64],
+    shift: DVec2,
+    power: bool,
+    columns: &[Vec<f64>],
+) -> Vec<f64> {
+    let registered = fit_linear(m, model, shift, power);
+    let terms = LinearTerms::new(m, model, shift, power);
+    let usable = |i: usize| {
+        registered.residual_mm[i].is_finite() && columns.iter().all(|c| c[i].is_finite())
+    };
+    let mut jacobian: Vec<Vec<f64>> = (0..terms.width)
+        .map(|k| {
+            (0..m.len())
+                .map(|i| if usable(i) { terms.row(m, i)[k] } else { 0.0 })
+                .collect()
+        })
+        .collect();
+    jacobian.extend(columns.iter().map(|c| {
+        (0..m.len())
+            .map(|i| if usable(i) { c[i] } else { 0.0 })
+            .collect::<Vec<f64>>()
+    }));
+    let residual: Vec<f64> = (0..m.len())
+        .map(|i| {
+            if usable(i) {
+                registered.residual_mm[i]
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let tau = correlation_length(m, &registered.residual_mm);
+    let free: Vec<usize> = (0..jacobian.len()).collect();
+    uncertainties(&jacobian, &free, &residual, tau)[terms.width..].to_vec()
+}
+
+/// A map's axis anywhere in its field: the registration's grid search over the field
+/// and Gauss–Newton refinement; the scale when the map resolves the marks.
+fn locate_map(
+    job: &Job,
+    m: &Measurement,
+    engine: &mut dyn RemovalEngine,
+    options: LocateOptions,
+    log: &dyn Fn(&str),
+) -> Result<Located, DiagnoseError> {
+    let (lo, hi) = m.xy_mm.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let half = 0.5 * (hi - lo);
+    let centre = 0.5 * (hi + lo);
+    let pixel = m.spacing_mm();
+    let marks = mark_spacing_mm(job, m.max_radius_mm() + half.length());
+    let resolved = marks.is_some_and(|f| pixel <= f / 3.0);
+    let scale = options.scale && resolved;
+    // The simulation covers every radius an axis inside the field can give.
+    let room = half.max_element();
+    let mut model = ForwardModel::around(job, m, room, engine)?;
+    let surface: SimulatedSurface = model.simulate(&|_| {})?;
+    let search = if options.terms.shift {
+        let reach = half.max_element().max(pixel);
+        let step = match marks {
+            Some(f) if resolved => (f / 6.0).max(reach / 40.0),
+            _ => reach / 12.0,
+        };
+        Some(ShiftSearch {
+            start: centre,
+            half_width_mm: reach,
+            step_mm: step,
+            refine: 3,
+        })
+    } else {
+        None
+    };
+    log(&format!(
+        "locating the map: axis anywhere within its {:.4} × {:.4} mm field",
+        2.0 * half.x,
+        2.0 * half.y
+    ));
+    let registered = register(m, &surface, options.terms, search);
+    let mut frame = Frame::at(registered.shift_mm);
+    if scale {
+        frame = refine_map_scale(m, &surface, frame, options.terms.power);
+    }
+    let sigmas = map_sigmas(m, &surface, frame, options.terms.power, scale);
+    let scale_held = scale && (frame.scale - 1.0).abs() < 2.0 * sigmas[2];
+    if scale_held {
+        frame.scale = 1.0;
+    }
+    let model_values = surface.sample(m, frame);
+    let final_fit = fit_linear(m, &model_values, frame.shift_mm, options.terms.power);
+    Ok(Located {
+        frame,
+        azimuth_rad: 0.0,
+        sigma_shift_mm: [sigmas[0], sigmas[1]],
+        sigma_scale: if scale { sigmas[2] } else { 0.0 },
+        sigma_azimuth_rad: 0.0,
+        scale_fitted: scale,
+        scale_held,
+        azimuth_fitted: false,
+        rms_mm: (final_fit.rss / final_fit.used.max(1) as f64).sqrt(),
+        alternatives: Vec::new(),
+    })
+}
+
+/// Golden-section search of a map's scale with the axis held (the axis search already
+/// found the marks' centre, which the scale cannot move).
+fn refine_map_scale(m: &Measurement, sim: &SimulatedSurface, frame: Frame, power: bool) -> Frame {
+    let objective = |s: f64| -> f64 {
+        let f = Frame { scale: s, ..frame };
+        let r = fit_linear(m, &sim.sample(m, f), f.shift_mm, power);
+        if (r.used as f64) < ON_PART * m.len() as f64 {
+            return f64::INFINITY;
+        }
+        trimmed_mean_square(&r.residual_mm, 0.95)
+    };
+    let scale =
+        super::register::golden_section(&objective, 1.0 - SCALE_BOUND, 1.0 + SCALE_BOUND, 30);
+    Frame { scale, ..frame }
+}
+
+/// One-σ uncertainties of a map's axis (x, y) and scale, by central differences of the
+/// model, as for a line.
+fn map_sigmas(
+    m: &Measurement,
+    sim: &SimulatedSurface,
+    frame: Frame,
+    power: bool,
+    scale: bool,
+) -> [f64; 3] {
+    let h = 0.25 * m.spacing_mm();
+    let difference = |a: Frame, b: Frame, step: f64| -> Vec<f64> {
+        sim.sample(m, a)
+            .iter()
+            .zip(sim.sample(m, b))
+            .map(|(p, q)| (p - q) / (2.0 * step))
+            .collect()
+    };
+    let shifted = |d: DVec2| Frame {
+        shift_mm: frame.shift_mm + d,
+        ..frame
+    };
+    let mut columns = vec![
+        difference(shifted(DVec2::new(h, 0.0)), shifted(DVec2::new(-h, 0.0)), h),
+        difference(shifted(DVec2::new(0.0, h)), shifted(DVec2::new(0.0, -h)), h),
+    ];
+    if scale {
+        let ds = 1e-4;
+        let scaled = |s: f64| Frame {
+            scale: frame.scale + s,
+            ..frame
+        };
+        columns.push(difference(scaled(ds), scaled(-ds), ds));
+    }
+    let sigmas = placement_sigmas(m, &sim.sample(m, frame), frame.shift_mm, power, &columns);
+    [sigmas[0], sigmas[1], if scale { sigmas[2] } else { 0.0 }]
+}

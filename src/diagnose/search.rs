@@ -1,0 +1,474 @@
+//! Which effect (DESIGN §8.3): every candidate is fitted alone and ranked by the evidence
+//! it adds (ΔBIC on the residual's effective point count); then effects are combined
+//! greedily. An effect is accepted only when it adds ΔBIC above the threshold, stands 3σ
+//! from zero, sits inside its search range (a value at the bound is not a fit), and
+//! predicts the data it was not fitted on (`validate`). A last backward pass drops an
+//! effect the others have come to explain.
+
+use super::candidates::Candidate;
+use super::fit::{Fit, Problem, bic, width};
+use super::forward::ForwardError;
+use super::measurement::Measurement;
+use super::register::{ShiftSearch, register};
+use super::validate::{Fold, Validation, cross_validate};
+use super::zones;
+use super::{DiagnoseError, Options};
+use crate::io::job::Job;
+use crate::process::TurningMode;
+use glam::DVec2;
+
+/// Most edge-waviness orders combined.
+const MAX_WAVINESS_ORDERS: usize = 3;
+/// Candidates of one greedy round tried for acceptance, best evidence first.
+const TRIES_PER_ROUND: usize = 3;
+
+/// What the search found.
+#[derive(Default)]
+pub struct Search {
+    /// Every candidate fitted alone, strongest evidence first, with its evidence.
+    pub singles: Vec<(Fit, f64)>,
+    /// The accepted set after each step (greedy additions, then a drop).
+    pub steps: Vec<Fit>,
+    pub accepted: Option<Fit>,
+    /// The cross-validation of every effect tried for acceptance.
+    pub validations: Vec<Validation>,
+    /// Effects with evidence that were not accepted, and why.
+    pub refused: Vec<(String, String)>,
+}
+
+/// The job as given, registered: the registration terms that are fitted like effects
+/// (a turned profile's azimuth on the spiral) fitted alone; an empty set otherwise.
+pub fn registration_base(problem: &mut Problem, spiral: bool) -> Result<Fit, ForwardError> {
+    if spiral {
+        problem.fit(&[Candidate::SpiralAzimuth], vec![0.0], &[])
+    } else {
+        problem.fit(&[], Vec::new(), &[])
+    }
+}
+
+/// Runs the search on `problem` from `base` (the job as given, registered in the
+/// nominal frame).
+#[allow(clippy::too_many_arguments)]
+pub fn search<'a>(
+    problem: &mut Problem<'a, '_>,
+    base: &Fit,
+    candidates: &[Candidate],
+    job: &Job,
+    folds: &'a [Fold],
+    period_mm: f64,
+    options: &Options,
+    log: &dyn Fn(&str),
+) -> Result<Search, DiagnoseError> {
+    let mut found = Search::default();
+    let fitted = problem.measurement;
+    let nominal_frame = problem.shift;
+    let mut fits = Vec::new();
+    for c in candidates {
+        log(&format!("fitting {}", c.label()));
+        if let Some(fit) = fit_new(problem, &base.set, &base.values, *c, job, fitted)? {
+            fits.push(refit_if_axis_moves(
+                problem,
+                fit,
+                base,
+                nominal_frame,
+                period_mm,
+                job,
+                fitted,
+                log,
+            )?);
+            problem.shift = nominal_frame;
+            problem.clear_cache();
+        }
+    }
+    // The combinations start in the frame of the single that fits best.
+    if let Some(best) = fits
+        .iter()
+        .min_by(|a, b| a.objective.total_cmp(&b.objective))
+    {
+        problem.shift = best.frame;
+        problem.clear_cache();
+    }
+    let (rss0, k0) = (base.objective, base.values.len());
+    let n_eff = common_effective_points(&fits, problem, fitted)?;
+    found.singles = fits
+        .into_iter()
+        .map(|fit| {
+            let e = evidence(rss0, k0, &fit, n_eff);
+            (fit, e)
+        })
+        .collect();
+    found.singles.sort_by(|a, b| b.1.total_cmp(&a.1));
+
+    let mut current: Fit = base.clone();
+    while current.effect_members().len() < options.max_effects {
+        if !current.effect_members().is_empty() {
+            problem.shift = current.frame;
+            problem.clear_cache();
+        }
+        let round = greedy_round(problem, &found.singles, &current, job, fitted, log)?;
+        let (rss_before, k_before) = (current.objective, current.values.len());
+        let n_eff = common_effective_points(&round, problem, fitted)?;
+        let mut ranked: Vec<(Fit, f64)> = round
+            .into_iter()
+            .map(|fit| {
+                let e = evidence(rss_before, k_before, &fit, n_eff);
+                (fit, e)
+            })
+            .collect();
+        ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let mut taken = None;
+        for (mut fit, e) in ranked.into_iter().take(TRIES_PER_ROUND) {
+            if e <= options.min_evidence {
+                break;
+            }
+            let member = fit.set.len() - 1;
+            let label = fit.set[member].label();
+            if let Some(why) = not_a_fit(&fit, member) {
+                log(&format!("{label}: {why}"));
+                found.refused.push((label, why));
+                continue;
+            }
+            log(&format!(
+                "{label}: checking that it predicts data it was not fitted on"
+            ));
+            let validation =
+                cross_validate(problem, folds, &fit.set, &fit.values, fit.frame.start)?;
+            let passed = validation.passed;
+            if passed {
+                widen_sigmas(&mut fit, member, &validation.spread);
+            } else {
+                log(&format!("{label}: not accepted — {}", validation.reason));
+                found.refused.push((label, validation.reason.clone()));
+            }
+            found.validations.push(validation);
+            if passed {
+                taken = Some(fit);
+                break;
+            }
+        }
+        match taken {
+            Some(fit) => {
+                found.steps.push(fit.clone());
+                current = fit;
+            }
+            None => break,
+        }
+    }
+    if current.effect_members().len() > 1
+        && let Some(reduced) = drop_redundant(problem, &current, options, log)?
+    {
+        found.steps.push(reduced.clone());
+        current = reduced;
+    }
+    found.accepted = (!current.effect_members().is_empty()).then_some(current);
+    Ok(found)
+}
+
+/// Why member `member` of a fit is not a fit at all, if it is not: a value at its search
+/// bound, or values within 3σ of zero.
+fn not_a_fit(fit: &Fit, member: usize) -> Option<String> {
+    let start: usize = fit.set[..member].iter().map(width).sum();
+    let n = width(&fit.set[member]);
+    if let Some(j) = (start..start + n).find(|&j| fit.at_bound[j]) {
+        let p = &fit.parameters[j];
+        return Some(format!(
+            "{} {:.4} {} sits at its search bound (±{:.4} {}): not a fit",
+            p.name, fit.values[j], p.unit, p.bound, p.unit
+        ));
+    }
+    if !significant(fit, member) {
+        return Some("within 3σ of zero".into());
+    }
+    None
+}
+
+/// A fold-tested effect's σ is at least half the spread of its values over the folds.
+fn widen_sigmas(fit: &mut Fit, member: usize, spread: &[f64]) {
+    let start: usize = fit.set[..member].iter().map(width).sum();
+    for (j, s) in spread.iter().enumerate() {
+        if s.is_finite() && fit.sigmas[start + j].is_finite() {
+            fit.sigmas[start + j] = fit.sigmas[start + j].max(*s);
+        }
+    }
+}
+
+/// One greedy round: every candidate not yet taken fitted on top of `cur` (the singles
+/// themselves in the first round); a further waviness order while fewer than
+/// `MAX_WAVINESS_ORDERS` are taken.
+fn greedy_round(
+    problem: &mut Problem,
+    singles: &[(Fit, f64)],
+    cur: &Fit,
+    job: &Job,
+    fitted: &Measurement,
+    log: &dyn Fn(&str),
+) -> Result<Vec<Fit>, DiagnoseError> {
+    if cur.effect_members().is_empty() {
+        return Ok(singles.iter().map(|(f, _)| f.clone()).collect());
+    }
+    let mut round = Vec::new();
+    let effects = cur.effects();
+    let waviness_taken = effects
+        .iter()
+        .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
+        .count();
+    for (single, evidence) in singles {
+        // An effect that explains nothing alone is not looked for beside others.
+        if *evidence <= 0.0 {
+            continue;
+        }
+        let c = *single.set.last().expect("a single has its candidate");
+        let is_waviness = matches!(c, Candidate::EdgeWaviness { .. });
+        let taken = effects.iter().any(|t| t.kind() == c.kind());
+        if taken && !(is_waviness && waviness_taken < MAX_WAVINESS_ORDERS) {
+            continue;
+        }
+        let c = if is_waviness {
+            Candidate::EdgeWaviness { order: 0.0 }
+        } else {
+            c
+        };
+        log(&format!("fitting {} with {}", c.label(), labels(&effects)));
+        if let Some(fit) = fit_new(problem, &cur.set, &cur.values, c, job, fitted)? {
+            round.push(fit);
+        }
+    }
+    Ok(round)
+}
+
+/// One backward pass: the first effect the others explain as well without it is dropped.
+fn drop_redundant(
+    problem: &mut Problem,
+    cur: &Fit,
+    options: &Options,
+    log: &dyn Fn(&str),
+) -> Result<Option<Fit>, DiagnoseError> {
+    for drop in cur.effect_members() {
+        let rest: Vec<Candidate> = cur
+            .set
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != drop)
+            .map(|(_, c)| *c)
+            .collect();
+        let start: Vec<f64> = (0..cur.set.len())
+            .filter(|i| *i != drop)
+            .flat_map(|i| cur.values_of(i).0.to_vec())
+            .collect();
+        let reduced = problem.fit(&rest, start, &[])?;
+        let e = evidence(
+            reduced.objective,
+            reduced.values.len(),
+            cur,
+            cur.effective_points,
+        );
+        if e < options.min_evidence {
+            log(&format!(
+                "{} adds nothing beyond the others: dropped",
+                cur.set[drop].label()
+            ));
+            return Ok(Some(reduced));
+        }
+    }
+    Ok(None)
+}
+
+/// A strong effect the nominal model lacked can mislead the nominal registration by
+/// whole mark periods — or, on a turned spiral of even feed, by half a mark with the
+/// spiral half a turn round: the single fit is registered again over ±2.5 marks, as it
+/// is and (where the spiral's azimuth is fitted) half a turn round, and refitted where
+/// that puts the axis if it moved; the better of the two fits is kept.
+#[allow(clippy::too_many_arguments)]
+fn refit_if_axis_moves(
+    problem: &mut Problem,
+    fit: Fit,
+    base: &Fit,
+    nominal: ShiftSearch,
+    period_mm: f64,
+    job: &Job,
+    fitted: &Measurement,
+    log: &dyn Fn(&str),
+) -> Result<Fit, DiagnoseError> {
+    if !problem.terms.shift {
+        return Ok(fit);
+    }
+    let wide = ShiftSearch {
+        start: nominal.start,
+        half_width_mm: 2.5 * period_mm,
+        step_mm: 0.125 * period_mm,
+        refine: 3,
+    };
+    let spiral = fit.set.iter().position(|c| *c == Candidate::SpiralAzimuth);
+    let turns: &[f64] = if spiral.is_some() {
+        &[0.0, 180.0]
+    } else {
+        &[0.0]
+    };
+    let mut best: Option<(f64, Vec<f64>, DVec2)> = None;
+    for &turn in turns {
+        let mut values = fit.values.clone();
+        if let Some(i) = spiral {
+            values[i] += turn;
+        }
+        let sim = problem
+            .model
+            .simulate(&|job| super::fit::apply_set(&fit.set, &values, job))?;
+        let again = register(fitted, &sim, problem.terms, Some(wide));
+        if best.as_ref().is_none_or(|b| again.rss < b.0) {
+            best = Some((again.rss, values, again.shift_mm));
+        }
+    }
+    let Some((_, values, shift)) = best else {
+        return Ok(fit);
+    };
+    if values == fit.values && (shift - nominal.start).length() <= 0.25 * period_mm {
+        return Ok(fit);
+    }
+    let c = *fit.set.last().expect("a single has its candidate");
+    log(&format!(
+        "{} moves the axis: registering again and refitting it",
+        c.label()
+    ));
+    problem.shift = super::local_search(shift, period_mm);
+    problem.clear_cache();
+    let refit = problem.fit(&fit.set, values, &[])?;
+    let refit = match fit_new(problem, &base.set, &base.values, c, job, fitted)? {
+        Some(r) if r.objective < refit.objective => r,
+        _ => refit,
+    };
+    Ok(if refit.objective < fit.objective {
+        refit
+    } else {
+        fit
+    })
+}
+
+/// Fits candidate `c` on top of `base` (at `base_values`); `None` when it cannot be
+/// fitted here (waviness with no resolvable order).
+pub fn fit_new(
+    problem: &mut Problem,
+    base: &[Candidate],
+    base_values: &[f64],
+    c: Candidate,
+    job: &Job,
+    fitted: &Measurement,
+) -> Result<Option<Fit>, ForwardError> {
+    let mut set = base.to_vec();
+    let mut start = base_values.to_vec();
+    let first = start.len();
+    match c {
+        // A waviness candidate not yet fitted: its order is screened first, away from
+        // the orders already in the set.
+        Candidate::EdgeWaviness { order: 0.0 } => {
+            let taken: Vec<f64> = base
+                .iter()
+                .filter_map(|b| match b {
+                    Candidate::EdgeWaviness { order } => Some(*order),
+                    _ => None,
+                })
+                .collect();
+            let orders: Vec<f64> = waviness_orders(job, fitted)
+                .into_iter()
+                .filter(|o| taken.iter().all(|t| (o / t - 1.0).abs() > 0.1))
+                .collect();
+            if orders.is_empty() {
+                return Ok(None);
+            }
+            let Some((order, a, b)) = problem.screen_waviness(base, base_values, &orders, 20.0)?
+            else {
+                return Ok(None);
+            };
+            set.push(Candidate::EdgeWaviness { order });
+            start.extend([a, b]);
+            Ok(Some(problem.fit(&set, start, &[])?))
+        }
+        _ => {
+            set.push(c);
+            start.extend(std::iter::repeat_n(0.0, width(&c)));
+            let scan: Vec<usize> = (first..start.len()).collect();
+            Ok(Some(problem.fit(&set, start, &scan)?))
+        }
+    }
+}
+
+/// The effective number of independent points for comparing models: from the
+/// correlation of the residual the best of them leaves (closest to the noise), the
+/// same for all so that no model is favoured by its own residual's texture.
+fn common_effective_points(
+    fits: &[Fit],
+    problem: &mut Problem,
+    m: &Measurement,
+) -> Result<f64, ForwardError> {
+    let baseline = problem.evaluate(&[], &[])?;
+    let used = baseline.registered.used as f64;
+    let tau = fits
+        .iter()
+        .min_by(|a, b| a.objective.total_cmp(&b.objective))
+        .map_or_else(
+            || zones::correlation_length(m, &baseline.registered.residual_mm),
+            |f| f.correlation_length,
+        );
+    Ok(used / tau)
+}
+
+/// Evidence `fit` adds over a model leaving `rss_before` with `k_before` parameters.
+pub fn evidence(rss_before: f64, k_before: usize, fit: &Fit, n_eff: f64) -> f64 {
+    let used = fit.evaluation.registered.used;
+    bic(rss_before, used, n_eff, k_before) - bic(fit.objective, used, n_eff, fit.values.len())
+}
+
+/// Whether member `member`'s parameters stand 3σ clear of zero together.
+fn significant(fit: &Fit, member: usize) -> bool {
+    let (values, sigmas) = fit.values_of(member);
+    let z2: f64 = values
+        .iter()
+        .zip(sigmas)
+        .map(|(v, s)| (v / s).powi(2))
+        .sum();
+    z2.sqrt() > 3.0
+}
+
+pub fn labels(set: &[Candidate]) -> String {
+    set.iter()
+        .filter(|c| !c.is_registration())
+        .map(Candidate::label)
+        .collect::<Vec<_>>()
+        .join(" + ")
+}
+
+/// Harmonic orders to screen for edge waviness: from half a cycle over the edge angles
+/// the measured region uses to a wavelength of a quarter of one mark's contact, in
+/// steps that shift the phase by at most a quarter cycle across the range (at most 20).
+fn waviness_orders(job: &Job, m: &Measurement) -> Vec<f64> {
+    let Some(turning) = job.process.turning() else {
+        return Vec::new();
+    };
+    let nose = turning.tool.nose_radius_mm;
+    let contact = (turning.path.pass_spacing_mm() / nose).max(0.01);
+    let r_max = m.max_radius_mm().min(job.aperture.outer_radius_mm);
+    let slope_angle = |r: f64| job.surface.slope(r).atan();
+    let (lo, hi) = match turning.path.mode() {
+        TurningMode::Xz => {
+            let samples = (0..=64).map(|i| slope_angle(r_max * i as f64 / 64.0));
+            let (a, b) = samples.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            });
+            // A line through the axis meets both sides: the edge angle changes sign.
+            if m.xy_mm.iter().any(|p| p.x < 0.0) || m.is_line() {
+                (-(a.abs().max(b.abs())), a.abs().max(b.abs()))
+            } else {
+                (a, b)
+            }
+        }
+        TurningMode::Xzb => (0.0, 0.0),
+    };
+    let span = (hi - lo) + contact;
+    let k_min = (std::f64::consts::PI / span).max(1.0);
+    let k_max = (std::f64::consts::TAU / (0.25 * contact)).min(400.0);
+    if k_max <= k_min {
+        return Vec::new();
+    }
+    let step = (0.5 * std::f64::consts::PI / span).max((k_max - k_min) / 20.0);
+    let count = ((k_max - k_min) / step).floor() as usize + 1;
+    (0..count).map(|i| k_min + i as f64 * step).collect()
+}

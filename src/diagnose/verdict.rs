@@ -1,0 +1,176 @@
+//! The verdict: one sentence first, then what to do at the machine. An effect is named
+//! only when it was accepted (it predicts data it was not fitted on); when what is
+//! accepted leaves most of the gap standing, or nothing is accepted while the residual
+//! stands well above the noise, the verdict says the gap is unexplained and where it
+//! lies — an honest "unknown" beats a proxy that makes the next part worse. A
+//! comparison alone (`compare-profile`) says how far the job's prediction is off.
+
+use super::compare::Comparison;
+use super::fit::Fit;
+use super::report::{FitCheck, HeldOut, ResidualInfo, Verdict};
+use super::zones::ZoneStats;
+
+/// Share of the residual's excess over noise (RMS²) the accepted effects must remove for
+/// the gap to count as explained.
+const EXPLAINED: f64 = 0.8;
+
+pub fn verdict(
+    compared_only: Option<&Comparison>,
+    check: &FitCheck,
+    fit: Option<&Fit>,
+    before: &ResidualInfo,
+    after: &ResidualInfo,
+    alternatives: &[String],
+    held: Option<&HeldOut>,
+    refused: &[(String, String)],
+) -> Verdict {
+    if !check.fits {
+        let why: Vec<&str> = check
+            .findings
+            .iter()
+            .filter(|f| f.severity == "severe")
+            .map(|f| f.message.as_str())
+            .collect();
+        return Verdict {
+            status: "does_not_fit".into(),
+            sentence: format!(
+                "The measurement does not fit this job, so no effect is claimed: {}.",
+                why.join("; ")
+            ),
+            advice: vec!["check the units, the part and the job before diagnosing".into()],
+        };
+    }
+    if let Some(c) = compared_only {
+        return Verdict {
+            status: "compared".into(),
+            sentence: format!(
+                "Measured PV {:.0} nm, RMS {:.1} nm; the job predicts PV {:.0} nm ({:+.1} %), RMS {:.1} nm ({:+.1} %){}; no effect was fitted (toolmark diagnose fits them).",
+                c.measured.pv_nm,
+                c.measured.rms_nm,
+                c.simulated.pv_nm,
+                100.0 * (c.simulated.pv_nm / c.measured.pv_nm - 1.0),
+                c.simulated.rms_nm,
+                100.0 * (c.simulated.rms_nm / c.measured.rms_nm - 1.0),
+                c.mark_spacing_ratio.map_or(String::new(), |q| format!(
+                    "; the marks lie {q:.4}× as far apart as the job puts them (median of {} bands)",
+                    c.mark_spacing.len()
+                ))
+            ),
+            advice: Vec::new(),
+        };
+    }
+
+    let noise = after.white_noise_nm.max(1e-3);
+    let excess = |r: &ResidualInfo| (r.rms_nm.powi(2) - noise.powi(2)).max(0.0);
+    let explained = 1.0 - excess(after) / excess(before).max(1e-300);
+    let near_noise = after.rms_nm <= 2.0 * noise || after.correlation_length_points < 3.0;
+    let location = where_it_lies(before);
+    match fit {
+        Some(f) => {
+            let members = f.effect_members();
+            let parts: Vec<String> = members
+                .iter()
+                .map(|&i| {
+                    let (v, s) = f.values_of(i);
+                    f.set[i].describe(v, s)
+                })
+                .collect();
+            let mut sentence = capitalise(&parts.join("; "));
+            let which = if members.len() == 1 {
+                "correcting it"
+            } else {
+                "correcting them"
+            };
+            sentence.push_str(&format!(
+                "; {which} cuts the residual from {:.0} nm to {:.0} nm PV ({:.1} → {:.1} nm RMS).",
+                before.pv_nm, after.pv_nm, before.rms_nm, after.rms_nm
+            ));
+            if !alternatives.is_empty() {
+                sentence.push_str(&format!(
+                    " The data cannot tell this from: {}.",
+                    alternatives.join(", ")
+                ));
+            }
+            if let Some(h) = held {
+                sentence.push_str(&format!(
+                    " On the {} held-out points it cuts the residual from {:.1} to {:.1} nm RMS.",
+                    h.points, h.before_rms_nm, h.after_rms_nm
+                ));
+            }
+            let mut advice: Vec<String> = members
+                .iter()
+                .map(|&i| f.set[i].advice(f.values_of(i).0))
+                .collect();
+            let status = if near_noise || explained >= EXPLAINED {
+                "effects_found"
+            } else {
+                sentence.push_str(&format!(
+                    " It explains {:.0} % of the gap: {:.1} nm RMS remains, well above the noise of {:.1} nm, that no modelled effect explains{location}.",
+                    100.0 * explained.max(0.0),
+                    after.rms_nm,
+                    noise
+                ));
+                advice.push(
+                    "look for a cause outside the model for the rest (material, measurement, machine dynamics)".into(),
+                );
+                "unexplained_residual"
+            };
+            Verdict {
+                status: status.into(),
+                sentence,
+                advice,
+            }
+        }
+        None if near_noise => Verdict {
+            status: "no_effect_beyond_noise".into(),
+            sentence: format!(
+                "No modelled effect explains the residual beyond noise: it is {:.1} nm RMS ({:.0} nm PV) against a noise level of {:.1} nm.",
+                after.rms_nm, after.pv_nm, noise
+            ),
+            advice: vec!["nothing to correct from this measurement".into()],
+        },
+        None => {
+            let mut sentence = format!(
+                "This gap is not explained by any modelled effect: {:.1} nm RMS ({:.0} nm PV) remains, well above the noise level of {:.1} nm{location}.",
+                after.rms_nm, after.pv_nm, noise
+            );
+            if let Some((label, why)) = refused.first() {
+                sentence.push_str(&format!(
+                    " The strongest candidate, {label}, was not accepted: {why}."
+                ));
+            }
+            Verdict {
+                status: "unexplained_residual".into(),
+                sentence,
+                advice: vec![
+                    "correct nothing on the strength of this measurement; look for a cause outside the model (material, measurement, machine dynamics)".into(),
+                ],
+            }
+        }
+    }
+}
+
+/// "; most of it in the centre (60 %) and the tool marks band (70 %)".
+fn where_it_lies(r: &ResidualInfo) -> String {
+    let largest = |parts: &[ZoneStats]| {
+        parts
+            .iter()
+            .max_by(|a, b| a.share.total_cmp(&b.share))
+            .map(|p| (p.name.clone(), 100.0 * p.share))
+    };
+    let zone = largest(&r.zones).map_or(String::new(), |(name, share)| {
+        format!("; most of it in the {name} ({share:.0} %)")
+    });
+    let band = largest(&r.bands).map_or(String::new(), |(name, share)| {
+        format!(" and the {name} band ({share:.0} %)")
+    });
+    format!("{zone}{band}")
+}
+
+fn capitalise(text: &str) -> String {
+    let mut chars = text.chars();
+    match chars.next() {
+        Some(c) => c.to_uppercase().chain(chars).collect(),
+        None => String::new(),
+    }
+}
