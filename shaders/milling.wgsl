@@ -11,7 +11,12 @@
 // offset comes from its cylindrical coordinates as hi + lo pairs: δ = θ − φ and ρ − r
 // are differences of hi + lo pairs, and Δ = ((ρ − r) − 2ρ sin²(δ/2), 2ρ sin(δ/2)cos(δ/2),
 // z − z_s) has no cancellation, so f32 keeps ~0.05 nm where the coordinates are 20 mm.
-// Positions along a pass are a node index plus an f32 fraction relative to it.
+// Unlike the f64 twin, the kernel carries a pose's centre less κ·n (κ the centre's
+// offset along the normal of a tool touching the sample: `centre_offset_mm`): the
+// rings give the point p + κ·n as hi + lo pairs, so that offset keeps ~0.05 nm where κ
+// is 15 mm (a disc's throat), and the ball's and the disc's entries are written in it
+// without cancellation. Positions along a pass are a node index plus an f32 fraction
+// relative to it.
 
 struct MillingParams {
     ring_count: u32,
@@ -49,14 +54,21 @@ struct MillingParams {
     origin_x: f32,
     origin_y: f32,
     origin_z: f32,
-    _padding: f32,
+    // A disc: κ² − C, its throat radius squared less the profile's constant (mm²).
+    disc_gap_mm2: f32,
 }
 
+// A ring of samples: its point (r, z) and the core point (r, z) + κ·(n_r, n_z), as
+// hi + lo pairs, and the normal.
 struct MillingRing {
     r_hi: f32,
     r_lo: f32,
     z_hi: f32,
     z_lo: f32,
+    core_r_hi: f32,
+    core_r_lo: f32,
+    core_z_hi: f32,
+    core_z_lo: f32,
     normal_r: f32,
     normal_z: f32,
     _padding0: f32,
@@ -147,6 +159,7 @@ override STAMP_MODE: u32;
 // ---------------------------------------------------------------- the sample's frame
 
 struct Frame {
+    // The core point p + κ·n: (r, z), or (x, z) on an extruded part.
     r_hi: f32,
     r_lo: f32,
     z_hi: f32,
@@ -163,10 +176,10 @@ struct Frame {
 
 fn make_frame(ring: MillingRing, row: MillingRow) -> Frame {
     var f: Frame;
-    f.r_hi = ring.r_hi;
-    f.r_lo = ring.r_lo;
-    f.z_hi = ring.z_hi;
-    f.z_lo = ring.z_lo;
+    f.r_hi = ring.core_r_hi;
+    f.r_lo = ring.core_r_lo;
+    f.z_hi = ring.core_z_hi;
+    f.z_lo = ring.core_z_lo;
     f.value_hi = row.value_hi;
     f.value_lo = row.value_lo;
     f.cos = row.cos;
@@ -209,14 +222,14 @@ fn node_delta(f: Frame, n: MillingNode) -> f32 {
 }
 
 // The offset of the point ρ from Z (given as ρ − r and ρ), δ past the sample, at
-// height z − z_s.
+// height z − z_s (r, z_s: the core point's).
 fn polar_offset(rho_less_r: f32, rho: f32, delta: f32, z_less: f32) -> vec3<f32> {
     let s = sin(0.5 * delta);
     let c = cos(0.5 * delta);
     return vec3<f32>(rho_less_r - 2.0 * rho * s * s, 2.0 * rho * s * c, z_less);
 }
 
-// A node's centre relative to the sample, in the frame.
+// A node's centre relative to the core point, in the frame.
 fn node_offset(f: Frame, n: MillingNode) -> vec3<f32> {
     let z_less = (n.z_hi - f.z_hi) + (n.z_lo - f.z_lo);
     if params.polar == 1u {
@@ -238,10 +251,17 @@ fn node_world(n: MillingNode) -> vec3<f32> {
     return vec3<f32>(n.x_hi + n.x_lo, n.y_hi + n.y_lo, n.z_hi + n.z_lo);
 }
 
-// A pose in the frame: the centre's offset from the sample and the unit axis.
+// A pose in the frame: its centre less the sample's core point p + κ·n, and the unit
+// axis.
 struct Pose {
-    centre: vec3<f32>,
+    offset: vec3<f32>,
     axis: vec3<f32>,
+}
+
+// The pose's centre relative to the sample (rounded to f32: for the entries that
+// have no form without it).
+fn pose_centre(f: Frame, pose: Pose) -> vec3<f32> {
+    return params.centre_offset_mm * f.normal + pose.offset;
 }
 
 // A position along a pass: node `base` plus `x` node spacings.
@@ -313,13 +333,13 @@ fn pose_at(f: Frame, p: MillingPass, base: u32, x: f32, seg: ptr<function, Segme
         *seg = load_segment(f, p, s.index);
     }
     let g = *seg;
-    var centre: vec3<f32>;
+    var offset: vec3<f32>;
     if is_polar(p) {
-        centre = polar_offset(g.a.x + s.t * g.b.x, g.rho + s.t * g.b.x, g.a.y + s.t * g.b.y, g.a.z + s.t * g.b.z);
+        offset = polar_offset(g.a.x + s.t * g.b.x, g.rho + s.t * g.b.x, g.a.y + s.t * g.b.y, g.a.z + s.t * g.b.z);
     } else {
-        centre = g.a + s.t * (g.b - g.a);
+        offset = g.a + s.t * (g.b - g.a);
     }
-    return Pose(centre, normalize(mix(g.axis_a, g.axis_b, s.t)));
+    return Pose(offset, normalize(mix(g.axis_a, g.axis_b, s.t)));
 }
 
 // The direction of travel at base + x, in the frame (see `feed_direction`).
@@ -397,21 +417,25 @@ struct AxisRay {
     vd: vec3<f32>,
 }
 
-fn axis_ray(pose: Pose, dir: vec3<f32>) -> AxisRay {
-    let o = -pose.centre;
+fn axis_ray(f: Frame, pose: Pose) -> AxisRay {
+    let o = -pose_centre(f, pose);
+    let dir = f.normal;
     let w = pose.axis;
     let a0 = dot(o, w);
     let ad = dot(dir, w);
     return AxisRay(a0, ad, o - a0 * w, dir - ad * w);
 }
 
-// A ball's entry: the sphere where the ray meets its lower half, else the shank.
-fn ball_entry(pose: Pose, dir: vec3<f32>) -> f32 {
+// A ball's entry: the sphere where the ray meets its lower half, else the shank. With
+// the centre at r·n + d: |t n − c|² = r² has b = −(r + d·n), c = 2r d·n + |d|².
+fn ball_entry(f: Frame, pose: Pose) -> f32 {
     let r = params.corner_radius_mm;
-    let o = -pose.centre;
-    let b = dot(o, dir);
-    let len = length(o);
-    let c = (len - r) * (len + r);
+    let dir = f.normal;
+    let d = pose.offset;
+    let dn = dot(d, dir);
+    let b = -(r + dn);
+    let c = 2.0 * r * dn + dot(d, d);
+    let o = -pose_centre(f, pose);
     let discriminant = b * b - c;
     if discriminant >= 0.0 {
         let root = sqrt(discriminant);
@@ -423,7 +447,7 @@ fn ball_entry(pose: Pose, dir: vec3<f32>) -> f32 {
             return t;
         }
     }
-    let ray = axis_ray(pose, dir);
+    let ray = axis_ray(f, pose);
     let aa = dot(ray.vd, ray.vd);
     if aa > 0.0 {
         let bb = dot(ray.v0, ray.vd);
@@ -466,10 +490,10 @@ fn core_distance(ray: AxisRay, t: f32) -> vec2<f32> {
 
 // A bull-nose or flat end's entry: the analytic box, then Newton's steps on the convex
 // distance to the core less r (monotone from outside; a non-falling tangent: a miss).
-fn end_mill_entry(pose: Pose, dir: vec3<f32>) -> f32 {
+fn end_mill_entry(f: Frame, pose: Pose) -> f32 {
     let big = params.major_radius_mm;
     let small = params.corner_radius_mm;
-    let ray = axis_ray(pose, dir);
+    let ray = axis_ray(f, pose);
     let s = slab(ray.a0, ray.ad, -small, params.length_mm);
     let c = cylinder(ray.v0, ray.vd, big + small);
     var t = max(s.x, c.x);
@@ -502,12 +526,30 @@ fn end_mill_entry(pose: Pose, dir: vec3<f32>) -> f32 {
 }
 
 // A disc cutter's entry: the first piece of the ray inside its hyperboloid
-// ρ² ≤ A s² + B s + C between the edge's end planes.
-fn disc_entry(pose: Pose, dir: vec3<f32>) -> f32 {
-    let ray = axis_ray(pose, dir);
-    let qa = dot(ray.vd, ray.vd) - params.disc_quadratic * ray.ad * ray.ad;
-    let qb = dot(ray.v0, ray.vd) - params.disc_quadratic * ray.a0 * ray.ad - 0.5 * params.disc_linear * ray.ad;
-    let qc = dot(ray.v0, ray.v0) - params.disc_quadratic * ray.a0 * ray.a0 - params.disc_linear * ray.a0 - params.disc_constant;
+// ρ² ≤ A s² + B s + C between the edge's end planes. With the centre at κ·n + d (κ the
+// throat radius), n·w = ν, d·w = δ and n⊥, d⊥ across the axis, |t n − c|⊥² − ρ²(s) =
+// qa t² + 2 qb t + qc with qa = 1 − ν²(1 + A), qb = −n⊥·d⊥ + Aνδ − Bν/2 − κ qa and
+// qc = (κ² − C) − κ²ν²(1 + A) + 2κ(n⊥·d⊥ − Aνδ) + κBν + |d⊥|² − Aδ² + Bδ: no term
+// cancels the 15 mm throat against itself (κ² − C comes exact from f64).
+fn disc_entry(f: Frame, pose: Pose) -> f32 {
+    let n = f.normal;
+    let w = pose.axis;
+    let d = pose.offset;
+    let kappa = params.centre_offset_mm;
+    let big_a = params.disc_quadratic;
+    let big_b = params.disc_linear;
+    let nu = dot(n, w);
+    let delta = dot(d, w);
+    let n_across = n - nu * w;
+    let d_across = d - delta * w;
+    let nd = dot(n_across, d_across);
+    let qa = 1.0 - nu * nu * (1.0 + big_a);
+    let qb = -nd + big_a * nu * delta - 0.5 * big_b * nu - kappa * qa;
+    let qc = params.disc_gap_mm2 - kappa * kappa * nu * nu * (1.0 + big_a)
+        + 2.0 * kappa * (nd - big_a * nu * delta) + kappa * big_b * nu
+        + dot(d_across, d_across) - big_a * delta * delta + big_b * delta;
+    // The slab between the end planes: s(t) = (t − κ)ν − δ.
+    let ray = AxisRay(-kappa * nu - delta, nu, vec3<f32>(0.0), vec3<f32>(0.0));
     let s = slab(ray.a0, ray.ad, params.disc_low, params.disc_high);
     if s.x > s.y {
         return MISS;
@@ -557,21 +599,21 @@ fn disc_entry(pose: Pose, dir: vec3<f32>) -> f32 {
     return best;
 }
 
-fn ray_entry(pose: Pose, dir: vec3<f32>) -> f32 {
+fn ray_entry(f: Frame, pose: Pose) -> f32 {
     if TOOL_KIND == 0u {
-        return ball_entry(pose, dir);
+        return ball_entry(f, pose);
     }
     if TOOL_KIND == 3u {
-        return disc_entry(pose, dir);
+        return disc_entry(f, pose);
     }
-    return end_mill_entry(pose, dir);
+    return end_mill_entry(f, pose);
 }
 
 // Signed distance from a point (relative to the sample) to the tool: exact for end
 // mills, a first-order estimate for disc cutters.
-fn signed_distance(pose: Pose, point: vec3<f32>) -> f32 {
+fn signed_distance(f: Frame, pose: Pose, point: vec3<f32>) -> f32 {
     let w = pose.axis;
-    let p = point - pose.centre;
+    let p = point - pose_centre(f, pose);
     let a = dot(p, w);
     let rho = length(p - a * w);
     if TOOL_KIND == 3u {
@@ -606,11 +648,11 @@ fn signed_distance(pose: Pose, point: vec3<f32>) -> f32 {
 // point's distance from the tool.
 fn extended_entry(f: Frame, pose: Pose) -> f32 {
     let top = params.stock_top_mm;
-    let entry = ray_entry(pose, f.normal);
+    let entry = ray_entry(f, pose);
     if entry < top {
         return entry;
     }
-    return top + max(signed_distance(pose, top * f.normal), 0.0);
+    return top + max(signed_distance(f, pose, top * f.normal), 0.0);
 }
 
 fn entry_at(f: Frame, p: MillingPass, base: u32, x: f32, seg: ptr<function, Segment>) -> f32 {
@@ -938,11 +980,19 @@ fn narrow(f: Frame, p: MillingPass, base: u32, bracket_in: Bracket, seg: ptr<fun
     return bracket;
 }
 
-// Brent's method from a bracket (see `refine`): for a smooth tool parabolas through
-// the three best points, golden-section steps where one is not trusted, and a stop
-// once a parabola promises less than the gain; golden-section steps alone at a kink.
+// The minimum from a bracket (see `refine`): Brent's parabolas, or crossing lines at a
+// flat end's kinked rim.
 fn refine(f: Frame, p: MillingPass, base: u32, bracket: Bracket, seg: ptr<function, Segment>) -> Point {
-    let golden = 0.3819660112501051;
+    if TOOL_KIND == 2u {
+        return kink(f, p, base, bracket, seg);
+    }
+    return brent(f, p, base, bracket, seg);
+}
+
+// Brent's method from a bracket (see `brent`): parabolas through the three best points,
+// golden-section steps where one is not trusted, and a stop once a parabola promises
+// less than the gain.
+fn brent(f: Frame, p: MillingPass, base: u32, bracket: Bracket, seg: ptr<function, Segment>) -> Point {
     var a = bracket.low.x;
     var b = bracket.high.x;
     var x = bracket.best.x;
@@ -960,7 +1010,7 @@ fn refine(f: Frame, p: MillingPass, base: u32, bracket: Bracket, seg: ptr<functi
             break;
         }
         var parabolic = false;
-        if TOOL_KIND <= 1u && abs(e) > tol && w != x && v != x && v != w {
+        if abs(e) > tol && w != x && v != x && v != w {
             let r = (x - w) * (fx - fv);
             var q = (x - v) * (fx - fw);
             var pp = (x - v) * q - (x - w) * r;
@@ -990,7 +1040,7 @@ fn refine(f: Frame, p: MillingPass, base: u32, bracket: Bracket, seg: ptr<functi
             } else {
                 e = b - x;
             }
-            d = golden * e;
+            d = GOLDEN * e;
         }
         var u = x + d;
         if abs(d) < tol {
@@ -1029,6 +1079,109 @@ fn refine(f: Frame, p: MillingPass, base: u32, bracket: Bracket, seg: ptr<functi
     return Point(x, fx);
 }
 
+// Where the line through p1, p2 meets the line through p3, p4, when the first falls
+// and the second rises, and the gentler slope (see `crossing`); valid = false otherwise.
+struct Crossing {
+    at: Point,
+    // The gentler of the two lines' slopes.
+    slope: f32,
+    valid: bool,
+}
+
+fn crossing(p1: Point, p2: Point, p3: Point, p4: Point) -> Crossing {
+    let falling = (p2.value - p1.value) / (p2.x - p1.x);
+    let rising = (p4.value - p3.value) / (p4.x - p3.x);
+    if !(falling < 0.0 && rising > 0.0) {
+        return Crossing(Point(0.0, 0.0), 0.0, false);
+    }
+    let u = (p3.value - p2.value + falling * p2.x - rising * p3.x) / (falling - rising);
+    return Crossing(Point(u, p2.value + falling * (u - p2.x)), min(rising, -falling), true);
+}
+
+// The minimum at a kink by crossing secant lines (see `kink`).
+fn kink(f: Frame, p: MillingPass, base: u32, bracket: Bracket, seg: ptr<function, Segment>) -> Point {
+    let tol = params.refine_width;
+    var a = bracket.low;
+    var x = bracket.best;
+    var b = bracket.high;
+    // The next points out on either side.
+    var a2 = Point(0.0, 0.0);
+    var b2 = Point(0.0, 0.0);
+    var has_a2 = false;
+    var has_b2 = false;
+    var span_before_last = MISS;
+    var span_last = MISS;
+    for (var step = 0u; step < params.refine_steps; step = step + 1u) {
+        let span = b.x - a.x;
+        if span <= 2.0 * tol {
+            break;
+        }
+        // Kink right of x: lines (a, x) and (b, b2); left of x: (a2, a) and (x, b).
+        var right = Crossing(Point(0.0, 0.0), 0.0, false);
+        if has_b2 {
+            right = crossing(a, x, b, b2);
+            right.valid = right.valid && right.at.x > x.x - tol && right.at.x < b.x;
+        }
+        var left = Crossing(Point(0.0, 0.0), 0.0, false);
+        if has_a2 {
+            left = crossing(a2, a, x, b);
+            left.valid = left.valid && left.at.x > a.x && left.at.x < x.x + tol;
+        }
+        var guess = left;
+        if right.valid && (!left.valid || right.at.value < left.at.value) {
+            guess = right;
+        }
+        // One case alone meeting at x is the wrong case's signature.
+        if !(left.valid && right.valid) && abs(guess.at.x - x.x) < tol && !(has_a2 && has_b2) {
+            guess.valid = false;
+        }
+        var u: f32;
+        // At least `margin` from x, while under a quarter of the bracket (see `kink`).
+        let margin = max(tol, KINK_NOISE * params.refine_gain_mm / guess.slope);
+        if guess.valid && span < 0.5 * span_before_last && span > 4.0 * margin {
+            var aim = guess.at.x;
+            if abs(guess.at.x - x.x) < margin {
+                if guess.at.x > x.x || (guess.at.x == x.x && b.x - x.x > x.x - a.x) {
+                    aim = x.x + margin;
+                } else {
+                    aim = x.x - margin;
+                }
+            }
+            u = clamp(aim, a.x + tol, b.x - tol);
+        } else {
+            var e = b.x - x.x;
+            if x.x >= 0.5 * (a.x + b.x) {
+                e = a.x - x.x;
+            }
+            u = x.x + GOLDEN * e;
+        }
+        span_before_last = span_last;
+        span_last = span;
+        let point = Point(u, entry_at(f, p, base, u, seg));
+        if point.value <= x.value {
+            if u > x.x {
+                a2 = a;
+                has_a2 = true;
+                a = x;
+            } else {
+                b2 = b;
+                has_b2 = true;
+                b = x;
+            }
+            x = point;
+        } else if u > x.x {
+            b2 = b;
+            has_b2 = true;
+            b = point;
+        } else {
+            a2 = a;
+            has_a2 = true;
+            a = point;
+        }
+    }
+    return x;
+}
+
 // Tooth counts at a node: whole + fraction.
 fn node_teeth(n: MillingNode) -> vec2<f32> {
     return vec2<f32>(f32(n.teeth_whole), n.teeth_fraction);
@@ -1055,7 +1208,7 @@ fn stamp_pose(f: Frame, p: MillingPass, base: u32, x: f32, k: i32, seg: ptr<func
         along = vec3<f32>(1.0 + sgn * w.x * w.x * aa, sgn * bb, -sgn * w.x);
     }
     let across = cross(pose.axis, along);
-    pose.centre = pose.centre + offset.x * along + offset.y * across;
+    pose.offset = pose.offset + offset.x * along + offset.y * across;
     return pose;
 }
 
@@ -1139,7 +1292,10 @@ fn pass_cut(f: Frame, c: Candidate) -> Cut {
     }
     var best = bracket.best;
     if STAMP_MODE != 2u {
-        best = refine(f, p, c.base, narrow(f, p, c.base, bracket, &seg), &seg);
+        if !single_valley {
+            bracket = narrow(f, p, c.base, bracket, &seg);
+        }
+        best = refine(f, p, c.base, bracket, &seg);
     }
     if STAMP_MODE != 0u {
         return stamp_cut(f, p, c, best.x, &seg);

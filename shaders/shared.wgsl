@@ -15,6 +15,11 @@ const MAX_CANDIDATES: u32 = 16u;
 // … and the narrowing of a wide bracket (`milling_search::NARROW_WIDTH`, `NARROW_STEPS`).
 const NARROW_WIDTH: f32 = 4.0;
 const NARROW_STEPS: u32 = 8u;
+// … and a golden-section step's share of a bracket (`milling_search::GOLDEN`).
+const GOLDEN: f32 = 0.3819660112501051;
+// … and how many times the entries' rounding a crossing-lines step keeps clear of
+// (`milling_search::KINK_NOISE`).
+const KINK_NOISE: f32 = 16.0;
 
 const TAU: f32 = 6.283185307179586;
 const PI: f32 = 3.141592653589793;

@@ -30,6 +30,7 @@ examples! {
     milling_asphere_constant_step: "milling_asphere_constant_step.toml",
     milling_ball_feed_marks: "milling_ball_feed_marks.toml",
     milling_ball_plane: "milling_ball_plane.toml",
+    milling_bull_nose_concave_5axis: "milling_bull_nose_concave_5axis.toml",
     milling_cylinder_indexed: "milling_cylinder_indexed.toml",
     milling_disc_oblique: "milling_disc_oblique.toml",
     milling_flat_end_5axis: "milling_flat_end_5axis.toml",

@@ -409,9 +409,9 @@ fn walk_downhill(
 /// valley — the poses whose entry lies below a depth are those whose centre lies in the
 /// convex set the ray segment less the (convex) tool sweeps out, an interval of a
 /// straight pass — so a bracket about the located point is widened until the entry
-/// rises on both sides. Otherwise its nodes are scanned `stride` apart and half a node either side of
-/// the located point. Then the bracket is narrowed and refined; with teeth, the stamps
-/// there.
+/// rises on both sides. Otherwise its nodes are scanned `stride` apart and half a node
+/// either side of the located point, and the best bracket narrowed to one valley. Then
+/// the bracket is refined; with teeth, the stamps there.
 pub fn pass_cut(scene: &MillingScene, frame: &SampleFrame, located: &Located) -> Option<PassCut> {
     let span = &scene.passes[located.pass as usize];
     let mut poses = PassPoses::new(scene, frame, located.pass);
@@ -431,9 +431,18 @@ pub fn pass_cut(scene: &MillingScene, frame: &SampleFrame, located: &Located) ->
     let best = if displaced {
         bracket.best
     } else {
-        let smooth = scene.tool.is_smooth();
-        let bracket = narrow(entry, bracket);
-        refine(entry, bracket, smooth, REFINE_GAIN_MM, REFINE_WIDTH)
+        let bracket = if single_valley {
+            bracket
+        } else {
+            narrow(entry, bracket)
+        };
+        refine(
+            entry,
+            bracket,
+            scene.tool.is_smooth(),
+            REFINE_GAIN_MM,
+            REFINE_WIDTH,
+        )
     };
     if stamps.feed_per_tooth_mm > 0.0 {
         return stamp_cut(scene, &mut poses, located, best.0);

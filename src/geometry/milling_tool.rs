@@ -33,10 +33,11 @@ impl MillingTool {
         }
     }
 
-    /// Whether the tool's surface is smooth where it cuts (ball, bull-nose), so the
-    /// entry varies smoothly along a pass; a flat end's and a disc's rims leave kinks.
+    /// Whether the entry along a pass is smooth at its minimum: a ball's, a bull-nose's
+    /// corner and a disc's hyperboloid cut with their smooth faces (a disc's edge ends
+    /// rarely), a flat end with its sharp rim, which leaves a kink there.
     pub fn is_smooth(&self) -> bool {
-        matches!(self, MillingTool::EndMill(cutter) if cutter.corner_radius_mm > 0.0)
+        !matches!(self, MillingTool::EndMill(cutter) if cutter.corner_radius_mm == 0.0)
     }
 
     /// The largest distance of the cutting solid from its pose centre.

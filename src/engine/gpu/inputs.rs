@@ -245,7 +245,8 @@ pub struct MillingInputs {
 
 /// The f32 kernel's refinement: a bracket of 1e-5 node spacings (f32 positions within
 /// the bracket), a parabola promising under 1e-10 mm or under f32's rounding of the
-/// tool's size (2⁻²⁴ of its reach), below which its entries are noise.
+/// numbers its entries are made of, below which they are noise: 2⁻²⁴ of the tool's
+/// reach beyond κ (the kernel's poses are offsets from the core point p + κ·n).
 pub const GPU_REFINE_WIDTH: f64 = 1e-5;
 pub const GPU_REFINE_GAIN_MM: f64 = 1e-10;
 const F32_ROUNDING: f64 = 1.0 / (1u64 << 24) as f64;
@@ -255,19 +256,33 @@ pub const GPU_ENTRY_TOLERANCE_MM: f64 = 1e-9;
 pub const GPU_TIE_MM: f64 = 1e-9;
 const _: () = assert!(GPU_TIE_MM >= TIE_MM);
 
+/// κ as the kernel reads it (f32): the core points and κ² − C are made with this one,
+/// so the centre κ·n + d the kernel puts together is the node's own.
+fn kernel_centre_offset(scene: &MillingScene) -> f64 {
+    scene.centre_offset_mm as f32 as f64
+}
+
 pub fn milling(scene: &MillingScene) -> MillingInputs {
     let grid = &scene.grid;
+    let kappa = kernel_centre_offset(scene);
     let rings = grid
         .rings
         .iter()
         .map(|ring| {
             let (r_hi, r_lo) = split_f64(ring.radius_mm);
             let (z_hi, z_lo) = split_f64(ring.height_mm);
+            // The core point p + κ·n, in f64 before the split.
+            let (core_r_hi, core_r_lo) = split_f64(ring.radius_mm + kappa * ring.normal.x);
+            let (core_z_hi, core_z_lo) = split_f64(ring.height_mm + kappa * ring.normal.y);
             layout::MillingRing {
                 r_hi,
                 r_lo,
                 z_hi,
                 z_lo,
+                core_r_hi,
+                core_r_lo,
+                core_z_hi,
+                core_z_lo,
                 normal_r: ring.normal.x as f32,
                 normal_z: ring.normal.y as f32,
                 _padding0: 0.0,
@@ -398,6 +413,21 @@ pub fn milling_variant(scene: &MillingScene) -> (u32, u32) {
     (tool, stamp_mode)
 }
 
+/// A disc's κ² − C (mm²) for the kernel's κ: at the throat s*, κ² = A s*² + B s* + C
+/// exactly, so κ² − C = A s*² + B s* plus κ's rounding to f32, without the cancellation
+/// of two 225 mm² numbers in f32.
+fn disc_gap_mm2(scene: &MillingScene) -> f64 {
+    match scene.tool {
+        MillingTool::Disc(disc) => {
+            let (quadratic, linear, _, _, _) = disc.profile();
+            let (throat, along) = disc.throat();
+            let kappa = kernel_centre_offset(scene);
+            quadratic * along * along + linear * along + (kappa - throat) * (kappa + throat)
+        }
+        MillingTool::EndMill(_) => 0.0,
+    }
+}
+
 /// A milling tile's uniform parameters.
 pub fn milling_params(
     scene: &MillingScene,
@@ -445,13 +475,15 @@ pub fn milling_params(
         disc_high: disc.4 as f32,
         cell_mm: bins.cell_mm as f32,
         refine_width: GPU_REFINE_WIDTH as f32,
-        refine_gain_mm: GPU_REFINE_GAIN_MM.max(F32_ROUNDING * scene.tool.reach_mm()) as f32,
+        refine_gain_mm: GPU_REFINE_GAIN_MM
+            .max(F32_ROUNDING * (scene.tool.reach_mm() - scene.centre_offset_mm))
+            as f32,
         tie_mm: GPU_TIE_MM as f32,
         entry_tolerance_mm: GPU_ENTRY_TOLERANCE_MM as f32,
         first_bracket: FIRST_BRACKET as f32,
         origin_x: bins.origin.x as f32,
         origin_y: bins.origin.y as f32,
         origin_z: bins.origin.z as f32,
-        _padding: 0.0,
+        disc_gap_mm2: disc_gap_mm2(scene) as f32,
     }
 }

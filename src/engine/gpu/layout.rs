@@ -175,7 +175,7 @@ pub struct MillingParams {
     pub origin_x: f32,
     pub origin_y: f32,
     pub origin_z: f32,
-    pub _padding: f32,
+    pub disc_gap_mm2: f32,
 }
 
 #[repr(C)]
@@ -185,6 +185,10 @@ pub struct MillingRing {
     pub r_lo: f32,
     pub z_hi: f32,
     pub z_lo: f32,
+    pub core_r_hi: f32,
+    pub core_r_lo: f32,
+    pub core_z_hi: f32,
+    pub core_z_lo: f32,
     pub normal_r: f32,
     pub normal_z: f32,
     pub _padding0: f32,
