@@ -56,6 +56,18 @@ struct MillingParams {
     origin_z: f32,
     // A disc: κ² − C, its throat radius squared less the profile's constant (mm²).
     disc_gap_mm2: f32,
+    // Teeth as edges (STAMP_MODE 3): the count, the edge's lag per mm above the tip
+    // (rad/mm), and the turn (rad) that ends a pass's refinement.
+    teeth: u32,
+    lag_per_mm: f32,
+    edge_tolerance_rad: f32,
+    // … and how far a tooth's solid can reach beyond the nominal tool (mm).
+    edge_reach_mm: f32,
+    // … the feed per tooth (mm) and the bracket (tooth counts) that ends a pass's search.
+    feed_per_tooth_mm: f32,
+    edge_width: f32,
+    _padding0: f32,
+    _padding1: f32,
 }
 
 // A ring of samples: its point (r, z) and the core point (r, z) + κ·(n_r, n_z), as
@@ -143,7 +155,8 @@ struct MillingRun {
 // compiler drops the code of the others (src/engine/gpu/mod.rs sets them).
 // TOOL_KIND: 0 ball, 1 bull-nose, 2 flat end, 3 disc.
 override TOOL_KIND: u32;
-// STAMP_MODE: 0 the body sweeps, 1 stamps about the optimum, 2 every stamp (displaced teeth).
+// STAMP_MODE: 0 the body sweeps, 1 stamps about the optimum, 2 every stamp (displaced
+// teeth), 3 teeth as edges.
 override STAMP_MODE: u32;
 
 @group(0) @binding(0) var<uniform> params: MillingParams;
@@ -153,7 +166,9 @@ override STAMP_MODE: u32;
 @group(0) @binding(4) var<storage, read> passes: array<MillingPass>;
 @group(0) @binding(5) var<storage, read> cell_start: array<u32>;
 @group(0) @binding(6) var<storage, read> runs: array<MillingRun>;
-@group(0) @binding(7) var<storage, read> tooth_offsets: array<vec2<f32>>;
+// Per tooth: its displacement in the spindle's frame (x, y), and as an edge its radial
+// and axial runout (z, w).
+@group(0) @binding(7) var<storage, read> teeth_table: array<vec4<f32>>;
 @group(0) @binding(8) var<storage, read_write> dexels: array<Dexel>;
 
 // ---------------------------------------------------------------- the sample's frame
@@ -474,11 +489,11 @@ fn ball_entry(f: Frame, pose: Pose) -> f32 {
 }
 
 // Distance from the ray point at t to the core {ρ ≤ R, a ≥ 0}, and its derivative.
-fn core_distance(ray: AxisRay, t: f32) -> vec2<f32> {
+fn core_distance(ray: AxisRay, t: f32, big: f32) -> vec2<f32> {
     let a = ray.a0 + t * ray.ad;
     let v = ray.v0 + t * ray.vd;
     let rho = length(v);
-    let er = max(rho - params.major_radius_mm, 0.0);
+    let er = max(rho - big, 0.0);
     let ea = min(a, 0.0);
     let g = sqrt(er * er + ea * ea);
     var drho = 0.0;
@@ -490,8 +505,8 @@ fn core_distance(ray: AxisRay, t: f32) -> vec2<f32> {
 
 // A bull-nose or flat end's entry: the analytic box, then Newton's steps on the convex
 // distance to the core less r (monotone from outside; a non-falling tangent: a miss).
-fn end_mill_entry(f: Frame, pose: Pose) -> f32 {
-    let big = params.major_radius_mm;
+// `big`: the corner arc's centre circle radius R (a tooth's own, with its runout).
+fn end_mill_entry(f: Frame, pose: Pose, big: f32) -> f32 {
     let small = params.corner_radius_mm;
     let ray = axis_ray(f, pose);
     let s = slab(ray.a0, ray.ad, -small, params.length_mm);
@@ -505,7 +520,7 @@ fn end_mill_entry(f: Frame, pose: Pose) -> f32 {
         return t;
     }
     for (var i = 0u; i < params.entry_steps; i = i + 1u) {
-        let g = core_distance(ray, t);
+        let g = core_distance(ray, t, big);
         let h = g.x - small;
         if h <= 0.0 {
             return t;
@@ -599,19 +614,21 @@ fn disc_entry(f: Frame, pose: Pose) -> f32 {
     return best;
 }
 
-fn ray_entry(f: Frame, pose: Pose) -> f32 {
-    if TOOL_KIND == 0u {
+// The entry into the tool whose end mill has corner-circle radius `big` (a ball's
+// tooth with runout is a torus).
+fn ray_entry(f: Frame, pose: Pose, big: f32) -> f32 {
+    if TOOL_KIND == 0u && big == 0.0 {
         return ball_entry(f, pose);
     }
     if TOOL_KIND == 3u {
         return disc_entry(f, pose);
     }
-    return end_mill_entry(f, pose);
+    return end_mill_entry(f, pose, big);
 }
 
 // Signed distance from a point (relative to the sample) to the tool: exact for end
 // mills, a first-order estimate for disc cutters.
-fn signed_distance(f: Frame, pose: Pose, point: vec3<f32>) -> f32 {
+fn signed_distance(f: Frame, pose: Pose, point: vec3<f32>, big: f32) -> f32 {
     let w = pose.axis;
     let p = point - pose_centre(f, pose);
     let a = dot(p, w);
@@ -626,7 +643,6 @@ fn signed_distance(f: Frame, pose: Pose, point: vec3<f32>) -> f32 {
         let radial = (rho - surface) / sqrt(1.0 + slope * slope);
         return max(max(radial, a - params.disc_high), params.disc_low - a);
     }
-    let big = params.major_radius_mm;
     let small = params.corner_radius_mm;
     let above_cap = a - params.length_mm;
     if above_cap > 0.0 {
@@ -647,12 +663,17 @@ fn signed_distance(f: Frame, pose: Pose, point: vec3<f32>) -> f32 {
 // The entry of the ray into the tool, extended above the stock top by the stock-top
 // point's distance from the tool.
 fn extended_entry(f: Frame, pose: Pose) -> f32 {
+    return tooth_entry(f, pose, params.major_radius_mm);
+}
+
+// `extended_entry` for a tooth whose end mill's corner circle has radius `big`.
+fn tooth_entry(f: Frame, pose: Pose, big: f32) -> f32 {
     let top = params.stock_top_mm;
-    let entry = ray_entry(f, pose);
+    let entry = ray_entry(f, pose, big);
     if entry < top {
         return entry;
     }
-    return top + max(signed_distance(f, pose, top * f.normal), 0.0);
+    return top + max(signed_distance(f, pose, top * f.normal, big), 0.0);
 }
 
 fn entry_at(f: Frame, p: MillingPass, base: u32, x: f32, seg: ptr<function, Segment>) -> f32 {
@@ -1187,28 +1208,43 @@ fn node_teeth(n: MillingNode) -> vec2<f32> {
     return vec2<f32>(f32(n.teeth_whole), n.teeth_fraction);
 }
 
-// The pose of stamp k at base + x: displaced by tooth k mod z's offset.
-fn stamp_pose(f: Frame, p: MillingPass, base: u32, x: f32, k: i32, seg: ptr<function, Segment>) -> Pose {
-    var pose = pose_at(f, p, base, x, seg);
-    if params.offset_count == 0u {
-        return pose;
-    }
-    let count = i32(params.offset_count);
-    let offset = tooth_offsets[u32(((k % count) + count) % count)];
+// The spindle's frame at base + x (see `spindle_frame`): the feed direction across the
+// axis, and its right-handed quarter turn.
+struct SpindleFrame {
+    along: vec3<f32>,
+    across: vec3<f32>,
+}
+
+fn spindle_frame(f: Frame, p: MillingPass, base: u32, x: f32, axis: vec3<f32>, seg: ptr<function, Segment>) -> SpindleFrame {
     let feed = feed_at(f, p, base, x, seg);
-    var along = feed - dot(feed, pose.axis) * pose.axis;
+    var along = feed - dot(feed, axis) * axis;
     if dot(along, along) > 0.0 {
         along = normalize(along);
     } else {
         // Any unit vector across the axis (glam's any_orthonormal_vector).
-        let w = pose.axis;
+        let w = axis;
         let sgn = select(-1.0, 1.0, w.z >= 0.0);
         let aa = -1.0 / (sgn + w.z);
         let bb = w.x * w.y * aa;
         along = vec3<f32>(1.0 + sgn * w.x * w.x * aa, sgn * bb, -sgn * w.x);
     }
-    let across = cross(pose.axis, along);
-    pose.offset = pose.offset + offset.x * along + offset.y * across;
+    return SpindleFrame(along, cross(axis, along));
+}
+
+// The pose of stamp k at base + x, its centre moved by tooth k mod z's displacement
+// turned by `turn` (see `stamp_pose`).
+fn stamp_pose(f: Frame, p: MillingPass, base: u32, x: f32, k: i32, turn: f32, seg: ptr<function, Segment>) -> Pose {
+    var pose = pose_at(f, p, base, x, seg);
+    if params.offset_count == 0u {
+        return pose;
+    }
+    let count = i32(params.offset_count);
+    let offset = teeth_table[u32(((k % count) + count) % count)].xy;
+    let c = cos(turn);
+    let s = sin(turn);
+    let turned = vec2<f32>(c * offset.x - s * offset.y, s * offset.x + c * offset.y);
+    let frame = spindle_frame(f, p, base, x, pose.axis, seg);
+    pose.offset = pose.offset + turned.x * frame.along + turned.y * frame.across;
     return pose;
 }
 
@@ -1217,7 +1253,257 @@ struct Cut {
     valid: bool,
 }
 
-// The lowest cut of the stamps around base + x (or, displaced, of all over lo..=hi).
+// The node coordinate (relative to `base`) where a pass's tooth count is k + σ, the
+// segment walked to from `*segment` (see `StampWalker::node_at`).
+fn node_at_teeth(p: MillingPass, base: u32, k: i32, sigma: f32, segment: ptr<function, u32>) -> f32 {
+    let last = p.node_count - 1u;
+    // count(node) − (k + σ), from the whole and fraction parts without rounding k away.
+    loop {
+        if *segment == 0u {
+            break;
+        }
+        let t = node_teeth(nodes[p.first_node + *segment]);
+        if ((t.x - f32(k)) + t.y) - sigma <= 0.0 {
+            break;
+        }
+        *segment = *segment - 1u;
+    }
+    loop {
+        if *segment + 1u >= last {
+            break;
+        }
+        let t = node_teeth(nodes[p.first_node + *segment + 1u]);
+        if ((t.x - f32(k)) + t.y) - sigma >= 0.0 {
+            break;
+        }
+        *segment = *segment + 1u;
+    }
+    let na = node_teeth(nodes[p.first_node + *segment]);
+    let nb = node_teeth(nodes[p.first_node + min(*segment + 1u, last)]);
+    let span = (nb.x - na.x) + (nb.y - na.y);
+    var t = 0.0;
+    if span > 0.0 {
+        t = clamp((((f32(k) - na.x) - na.y) + sigma) / span, 0.0, 1.0);
+    }
+    return f32(*segment) - f32(base) + t;
+}
+
+// Stamp k's tooth at tooth count k + σ (see `ToothEdge::phase`): its cut, the entry's
+// angle ψ about the axis and lag − turn.
+struct Phase {
+    depth_mm: f32,
+    psi: f32,
+    rest: f32,
+}
+
+fn edge_phase(f: Frame, p: MillingPass, base: u32, k: i32, sigma: f32, segment: ptr<function, u32>, seg: ptr<function, Segment>) -> Phase {
+    let count = i32(params.teeth);
+    let tooth = teeth_table[u32(((k % count) + count) % count)];
+    let x = node_at_teeth(p, base, k, sigma, segment);
+    let turn = TAU * sigma / f32(params.teeth);
+    var pose = stamp_pose(f, p, base, x, k, turn, seg);
+    pose.offset = pose.offset - tooth.w * pose.axis;
+    let depth = tooth_entry(f, pose, params.major_radius_mm + tooth.z);
+    let frame = spindle_frame(f, p, base, x, pose.axis, seg);
+    let entry = depth * f.normal - pose_centre(f, pose);
+    var tip = params.corner_radius_mm;
+    if TOOL_KIND == 3u {
+        tip = 0.0;
+    }
+    let lag = params.lag_per_mm * (dot(entry, pose.axis) + tip);
+    return Phase(depth, atan2(dot(entry, frame.across), dot(entry, frame.along)), lag - turn);
+}
+
+// A swing of ψ unwrapped (see `unwrap_step`).
+fn unwrap_step(step_in: f32, side: f32) -> f32 {
+    let a = step_in + PI;
+    let step = a - TAU * floor(a / TAU) - PI;
+    if abs(step) > EDGE_SWING {
+        return abs(step) * side;
+    }
+    return step;
+}
+
+// A phase at σ with ψ unwrapped along a scan (see `Turned`).
+struct Turned {
+    sigma: f32,
+    phase: Phase,
+    turned: f32,
+}
+
+fn turned_next(t: Turned, sigma: f32, ph: Phase, side: f32) -> Turned {
+    return Turned(sigma, ph, t.turned + unwrap_step(ph.psi - t.phase.psi, side));
+}
+
+fn turned_g(t: Turned) -> f32 {
+    return t.turned + t.phase.rest;
+}
+
+// The pass of the edge where G crosses `level` between two scan points (see
+// `ToothEdge::pass_at`).
+fn edge_pass_at(f: Frame, p: MillingPass, base: u32, k: i32, low: Turned, high: Turned, level: f32, side: f32, segment: ptr<function, u32>, seg: ptr<function, Segment>) -> f32 {
+    var a = low;
+    var b = high;
+    var fa = turned_g(a) - level;
+    var fb = turned_g(b) - level;
+    var depth = select(b.phase.depth_mm, a.phase.depth_mm, abs(fa) < abs(fb));
+    var span_before_last = MISS;
+    var span_last = MISS;
+    for (var step = 0u; step < EDGE_BRACKET_STEPS; step = step + 1u) {
+        let span = abs(b.sigma - a.sigma);
+        if min(abs(fa), abs(fb)) <= params.edge_tolerance_rad || span <= params.edge_width || fa == fb {
+            break;
+        }
+        var sigma = 0.5 * (a.sigma + b.sigma);
+        if span < 0.5 * span_before_last {
+            sigma = (a.sigma * fb - b.sigma * fa) / (fb - fa);
+        }
+        span_before_last = span_last;
+        span_last = span;
+        let c = turned_next(a, sigma, edge_phase(f, p, base, k, sigma, segment, seg), side);
+        let fc = turned_g(c) - level;
+        depth = c.phase.depth_mm;
+        if fc * fb < 0.0 {
+            a = b;
+            fa = fb;
+        } else {
+            fa = 0.5 * fa;
+        }
+        b = c;
+        fb = fc;
+    }
+    return depth;
+}
+
+// Where a sample lies from the path (see `Scan`).
+struct Scan {
+    side: f32,
+    on_path: bool,
+    // The tooth count abeam, as whole + fraction.
+    abeam_whole: i32,
+    abeam_fraction: f32,
+}
+
+// The scan's point i (see `edge_cut`): a step apart, off the stamp by a golden fraction.
+fn scan_at(i: u32) -> f32 {
+    let z = f32(params.teeth);
+    return -0.5 * z + (f32(i) - 1.0 + GOLDEN) * z / f32(EDGE_SCAN);
+}
+
+// Stamp k's tooth as its edge: its lowest cut where the edge passes the sample (see
+// `edge_cut`).
+fn edge_cut(f: Frame, p: MillingPass, base: u32, k: i32, scan: Scan, segment: ptr<function, u32>, seg: ptr<function, Segment>) -> f32 {
+    let z = f32(params.teeth);
+    // The scan's extra points (see `edge_cut`), sorted, those in its range.
+    let abeam = f32(scan.abeam_whole - k) + scan.abeam_fraction;
+    var extra = array<f32, 5>(abeam - EDGE_ABEAM, abeam + EDGE_ABEAM, -0.5 * z, 0.0, 0.5 * z);
+    for (var a = 1u; a < 5u; a = a + 1u) {
+        var b = a;
+        loop {
+            if b == 0u || extra[b - 1u] <= extra[b] {
+                break;
+            }
+            let t = extra[b];
+            extra[b] = extra[b - 1u];
+            extra[b - 1u] = t;
+            b = b - 1u;
+        }
+    }
+    var extra_next = 0u;
+    loop {
+        if extra_next >= 5u || extra[extra_next] >= scan_at(0u) {
+            break;
+        }
+        extra_next = extra_next + 1u;
+    }
+    var extra_end = extra_next;
+    loop {
+        if extra_end >= 5u || extra[extra_end] >= scan_at(EDGE_SCAN + 1u) {
+            break;
+        }
+        extra_end = extra_end + 1u;
+    }
+    var regular_next = 0u;
+    // The first point.
+    var first = scan_at(0u);
+    if extra_next < extra_end && extra[extra_next] < first {
+        first = extra[extra_next];
+        extra_next = extra_next + 1u;
+    } else {
+        regular_next = 1u;
+    }
+    var low = Turned(first, edge_phase(f, p, base, k, first, segment, seg), 0.0);
+    low.turned = low.phase.psi;
+    // No pass in the window: no cut.
+    var best = MISS;
+    loop {
+        var sigma: f32;
+        let regular_left = regular_next <= EDGE_SCAN + 1u;
+        let extra_left = extra_next < extra_end;
+        if !regular_left && !extra_left {
+            break;
+        }
+        if extra_left && (!regular_left || extra[extra_next] < scan_at(regular_next)) {
+            sigma = extra[extra_next];
+            extra_next = extra_next + 1u;
+        } else {
+            sigma = scan_at(regular_next);
+            regular_next = regular_next + 1u;
+        }
+        let high = turned_next(low, sigma, edge_phase(f, p, base, k, sigma, segment, seg), scan.side);
+        best = min(best, edge_passes_between(f, p, base, k, low, high, scan.side, segment, seg));
+        // On the path the half-turn swing has no side: the other way round too.
+        if scan.on_path && abs(high.turned - low.turned) > EDGE_SWING {
+            var other = high;
+            other.turned = high.turned - TAU * scan.side;
+            best = min(best, edge_passes_between(f, p, base, k, low, other, -scan.side, segment, seg));
+        }
+        low = high;
+    }
+    return best;
+}
+
+// The lowest of the edge's passes between two scan points (see
+// `ToothEdge::passes_between`); MISS: none.
+fn edge_passes_between(f: Frame, p: MillingPass, base: u32, k: i32, low: Turned, high: Turned, side: f32, segment: ptr<function, u32>, seg: ptr<function, Segment>) -> f32 {
+    let g_low = turned_g(low);
+    let g_high = turned_g(high);
+    var best = MISS;
+    var level = ceil(min(g_low, g_high) / TAU) * TAU;
+    loop {
+        if level > max(g_low, g_high) {
+            break;
+        }
+        best = min(best, edge_pass_at(f, p, base, k, low, high, level, side, segment, seg));
+        level = level + TAU;
+    }
+    return best;
+}
+
+// Where the sample lies from the path at the pass's continuous optimum base + x (see
+// `scan_frame`).
+fn scan_frame(f: Frame, p: MillingPass, base: u32, x: f32, seg: ptr<function, Segment>) -> Scan {
+    let pose = pose_at(f, p, base, x, seg);
+    let depth = extended_entry(f, pose);
+    let entry = depth * f.normal - pose_centre(f, pose);
+    let radial = entry - dot(entry, pose.axis) * pose.axis;
+    let frame = spindle_frame(f, p, base, x, pose.axis, seg);
+    let last = p.node_count - 1u;
+    let s = segment_at(p, base, x);
+    let ta = node_teeth(nodes[p.first_node + s.index]);
+    let tb = node_teeth(nodes[p.first_node + min(s.index + 1u, last)]);
+    // Abeam: the optimum moved by the sample's lead over the axis.
+    let ahead = dot(radial, frame.along) / params.feed_per_tooth_mm;
+    let local = ta.y + s.t * ((tb.x - ta.x) + (tb.y - ta.y)) + ahead;
+    return Scan(
+        select(1.0, -1.0, dot(radial, frame.across) < 0.0),
+        length(radial) < EDGE_ON_PATH_MM,
+        i32(ta.x) + i32(floor(local)),
+        local - floor(local),
+    );
+}
+
+// The lowest cut of the stamps around base + x (see `stamp_cut`).
 fn stamp_cut(f: Frame, p: MillingPass, c: Candidate, x: f32, seg: ptr<function, Segment>) -> Cut {
     let last = p.node_count - 1u;
     let s = segment_at(p, c.base, x);
@@ -1240,36 +1526,41 @@ fn stamp_cut(f: Frame, p: MillingPass, c: Candidate, x: f32, seg: ptr<function, 
     }
     var best = Cut(params.stock_top_mm, false);
     var segment = s.index;
+    if STAMP_MODE == 3u {
+        // Teeth as edges (see `edges_cut`): stamps outward from the optimum, each way
+        // until the body at the nearest position a stamp's window reaches, less the
+        // teeth's reach beyond it, lies no lower than the best cut.
+        let scan = scan_frame(f, p, c.base, x, seg);
+        let half = 0.5 * f32(params.teeth);
+        for (var way = 0; way < 2; way = way + 1) {
+            var step = 1;
+            var k = nearest;
+            if way == 1 {
+                step = -1;
+                k = nearest - 1;
+            }
+            loop {
+                if k < first_stamp || k > last_stamp {
+                    break;
+                }
+                let towards = clamp(f32(nearest - k) + (local - floor(local)), -half, half);
+                let bx = node_at_teeth(p, c.base, k, towards, &segment);
+                let bound = extended_entry(f, pose_at(f, p, c.base, bx, seg)) - params.edge_reach_mm;
+                if bound >= best.depth_mm {
+                    break;
+                }
+                let depth = edge_cut(f, p, c.base, k, scan, &segment, seg);
+                if depth < params.stock_top_mm && (!best.valid || depth < best.depth_mm) {
+                    best = Cut(depth, true);
+                }
+                k = k + step;
+            }
+        }
+        return best;
+    }
     for (var k = max(from_k, first_stamp); k <= min(to_k, last_stamp); k = k + 1) {
-        loop {
-            if segment == 0u {
-                break;
-            }
-            let t = node_teeth(nodes[p.first_node + segment]);
-            if (t.x - f32(k)) + t.y <= 0.0 {
-                break;
-            }
-            segment = segment - 1u;
-        }
-        loop {
-            if segment + 1u >= last {
-                break;
-            }
-            let t = node_teeth(nodes[p.first_node + segment + 1u]);
-            if (t.x - f32(k)) + t.y >= 0.0 {
-                break;
-            }
-            segment = segment + 1u;
-        }
-        let na = node_teeth(nodes[p.first_node + segment]);
-        let nb = node_teeth(nodes[p.first_node + segment + 1u]);
-        let span = (nb.x - na.x) + (nb.y - na.y);
-        var t = 0.0;
-        if span > 0.0 {
-            t = clamp(((f32(k) - na.x) - na.y) / span, 0.0, 1.0);
-        }
-        let sx = f32(segment) - f32(c.base) + t;
-        let depth = extended_entry(f, stamp_pose(f, p, c.base, sx, k, seg));
+        let sx = node_at_teeth(p, c.base, k, 0.0, &segment);
+        let depth = extended_entry(f, stamp_pose(f, p, c.base, sx, k, 0.0, seg));
         if depth < params.stock_top_mm && (!best.valid || depth < best.depth_mm) {
             best = Cut(depth, true);
         }

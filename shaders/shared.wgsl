@@ -20,6 +20,13 @@ const GOLDEN: f32 = 0.3819660112501051;
 // … and how many times the entries' rounding a crossing-lines step keeps clear of
 // (`milling_search::KINK_NOISE`).
 const KINK_NOISE: f32 = 16.0;
+// Teeth as edges (`cpu_milling::EDGE_SCAN`, `EDGE_BRACKET_STEPS`, `EDGE_ABEAM`,
+// `EDGE_SWING`, `EDGE_ON_PATH_MM`).
+const EDGE_SCAN: u32 = 8u;
+const EDGE_BRACKET_STEPS: u32 = 40u;
+const EDGE_ABEAM: f32 = 0.001;
+const EDGE_SWING: f32 = 2.356194490192345;
+const EDGE_ON_PATH_MM: f32 = 0.000001;
 
 const TAU: f32 = 6.283185307179586;
 const PI: f32 = 3.141592653589793;

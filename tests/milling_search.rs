@@ -108,8 +108,12 @@ fn golden(f: &mut dyn FnMut(f64) -> f64, mut a: f64, mut b: f64) -> f64 {
 }
 
 fn check(name: &str, samples: usize) {
+    check_job(name, example(name), samples);
+}
+
+fn check_job(name: &str, job: toolmark::io::job::Job, samples: usize) {
     let samples = std::env::var("SEARCH_SAMPLES").map_or(samples, |s| s.parse().unwrap());
-    let scenes = toolmark::run::prepare_scenes(&example(name));
+    let scenes = toolmark::run::prepare_scenes(&job);
     let Scene::Milling(scene) = &scenes[0] else {
         panic!("{name} is not a milling job")
     };
@@ -163,8 +167,17 @@ fn ball_spirals_on_the_asphere() {
 }
 
 #[test]
-fn ball_with_teeth() {
-    check("milling_ball_feed_marks.toml", 40);
+fn ball_with_teeth_as_bodies() {
+    // The stamps' search (each tooth the tool's body at its stamp); teeth as edges are
+    // checked against closed forms in tests/milling.rs and GPU against CPU.
+    let name = "milling_ball_feed_marks.toml";
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(name);
+    let text = std::fs::read_to_string(path)
+        .expect("example")
+        .replace("teeth = 2", "teeth = 2\nflutes = \"body\"");
+    check_job(name, job(&text), 40);
 }
 
 #[test]

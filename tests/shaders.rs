@@ -236,7 +236,15 @@ fn rust_layouts() -> Vec<RustLayout> {
                 origin_x,
                 origin_y,
                 origin_z,
-                disc_gap_mm2
+                disc_gap_mm2,
+                teeth,
+                lag_per_mm,
+                edge_tolerance_rad,
+                edge_reach_mm,
+                feed_per_tooth_mm,
+                edge_width,
+                _padding0,
+                _padding1
             ),
         ),
         (
@@ -405,7 +413,8 @@ fn constants_shared_with_rust_have_the_same_values() {
     // shared.wgsl on its own: every kernel is compiled after it.
     let source = include_str!("../shaders/shared.wgsl");
     let module = module("shared.wgsl", source);
-    let rust: [(&str, f64); 9] = [
+    use toolmark::engine::cpu_milling;
+    let rust: [(&str, f64); 14] = [
         ("NO_PASS", toolmark::field::NO_PASS as f64),
         ("PASS_ID_STRIDE", scene::PASS_ID_STRIDE as f64),
         ("MAX_CONTACTS", generating_scene::MAX_CONTACTS as f64),
@@ -418,6 +427,14 @@ fn constants_shared_with_rust_have_the_same_values() {
         ("NARROW_STEPS", milling_search::NARROW_STEPS as f64),
         ("GOLDEN", milling_search::GOLDEN as f32 as f64),
         ("KINK_NOISE", milling_search::KINK_NOISE),
+        ("EDGE_SCAN", cpu_milling::EDGE_SCAN as f64),
+        ("EDGE_BRACKET_STEPS", cpu_milling::EDGE_BRACKET_STEPS as f64),
+        ("EDGE_ABEAM", cpu_milling::EDGE_ABEAM as f32 as f64),
+        ("EDGE_SWING", cpu_milling::EDGE_SWING as f32 as f64),
+        (
+            "EDGE_ON_PATH_MM",
+            cpu_milling::EDGE_ON_PATH_MM as f32 as f64,
+        ),
     ];
     for (name, value) in rust {
         assert_eq!(wgsl_constant(&module, name), value, "{name}: WGSL vs Rust");
@@ -435,7 +452,7 @@ fn constants_shared_with_rust_have_the_same_values() {
 }
 
 /// The milling kernel as each pipeline compiles it (`gpu::inputs::milling_variant`:
-/// TOOL_KIND 0–3 × STAMP_MODE 0–2): override constants substituted and validated again,
+/// TOOL_KIND 0–3 × STAMP_MODE 0–3): override constants substituted and validated again,
 /// as pipeline creation does (a constant-folded index out of range, say, fails only here).
 #[test]
 fn every_milling_pipeline_variant_validates() {
@@ -447,7 +464,7 @@ fn every_milling_pipeline_variant_validates() {
     .validate(&module)
     .expect("milling.wgsl validates");
     for tool in 0..4 {
-        for stamps in 0..3 {
+        for stamps in 0..4 {
             let constants = naga::back::PipelineConstants::from([
                 ("TOOL_KIND".to_string(), tool as f64),
                 ("STAMP_MODE".to_string(), stamps as f64),

@@ -26,9 +26,9 @@
 //! once that, less the slack between nodes, cannot beat the best.
 
 use super::milling_scene::{
-    Candidate, CandidateList, MAX_CANDIDATES, MillingScene, Node, PassSpan,
+    Candidate, CandidateList, Edges, MAX_CANDIDATES, MillingScene, Node, PassSpan,
 };
-use super::milling_search::{REFINE_GAIN_MM, REFINE_WIDTH, narrow, refine, scan, widen};
+use super::milling_search::{GOLDEN, REFINE_GAIN_MM, REFINE_WIDTH, narrow, refine, scan, widen};
 use crate::field::{Layout, NO_PASS};
 use crate::geometry::cutter::CutterPose;
 use crate::geometry::milling_tool::MillingTool;
@@ -270,16 +270,15 @@ impl<'a> PassPoses<'a> {
 /// The entry of the ray t·n into the tool at `pose`, extended above the stock top by
 /// the stock-top point's distance from the tool.
 pub fn extended_entry(scene: &MillingScene, frame: &SampleFrame, pose: &LocalPose) -> f64 {
-    let top = scene.stock_top_mm;
+    tool_entry(&scene.tool, scene.stock_top_mm, frame, pose)
+}
+
+/// `extended_entry` for a given tool (a tooth's own solid) below the stock top `top`.
+fn tool_entry(tool: &MillingTool, top: f64, frame: &SampleFrame, pose: &LocalPose) -> f64 {
     let cutter = pose.cutter();
-    match scene.tool.ray_entry(&cutter, DVec3::ZERO, frame.normal) {
+    match tool.ray_entry(&cutter, DVec3::ZERO, frame.normal) {
         Some(entry) if entry < top => entry,
-        _ => {
-            top + scene
-                .tool
-                .signed_distance(&cutter, top * frame.normal)
-                .max(0.0)
-        }
+        _ => top + tool.signed_distance(&cutter, top * frame.normal).max(0.0),
     }
 }
 
@@ -427,8 +426,10 @@ pub fn pass_cut(scene: &MillingScene, frame: &SampleFrame, located: &Located) ->
         scan(entry, located.lo, located.hi, span.stride, near, start.1)
     };
     let stamps = &scene.stamps;
-    let displaced = stamps.feed_per_tooth_mm > 0.0 && !stamps.offsets_mm.is_empty();
-    let best = if displaced {
+    // Displaced teeth as bodies: every stamp over the span is tried, no optimum needed.
+    let every_stamp =
+        stamps.feed_per_tooth_mm > 0.0 && stamps.edges.is_none() && !stamps.offsets_mm.is_empty();
+    let best = if every_stamp {
         bracket.best
     } else {
         let bracket = if single_valley {
@@ -455,8 +456,8 @@ pub fn pass_cut(scene: &MillingScene, frame: &SampleFrame, located: &Located) ->
 }
 
 /// With teeth: the lowest cut of the stamps (tooth positions) around the pass's
-/// continuous optimum at node coordinate `node` — or, with displaced teeth, of every
-/// stamp over the located span.
+/// continuous optimum at node coordinate `node`: as bodies, the nearest ones, or with
+/// displaced teeth every stamp over the located span; as edges, `edges_cut`.
 fn stamp_cut(
     scene: &MillingScene,
     poses: &mut PassPoses,
@@ -465,65 +466,418 @@ fn stamp_cut(
 ) -> Option<PassCut> {
     let nodes = poses.nodes;
     let last = nodes.len() - 1;
-    let teeth_at = |u: f64| {
-        let i = (u.floor().max(0.0) as usize).min(last.saturating_sub(1));
-        let t = (u - i as f64).clamp(0.0, 1.0);
-        nodes[i].teeth + t * (nodes[(i + 1).min(last)].teeth - nodes[i].teeth)
-    };
-    let (first_stamp, last_stamp) = (nodes[0].teeth.ceil(), nodes[last].teeth.floor());
-    let offsets = &scene.stamps.offsets_mm;
-    let (from, to) = if offsets.is_empty() {
-        let nearest = teeth_at(node).floor();
+    let stamps = &scene.stamps;
+    let mut walker = StampWalker::new(nodes, node);
+    if let Some(edges) = &stamps.edges {
+        return edges_cut(scene, poses, &mut walker, node, edges);
+    }
+    let nearest = walker.teeth_at(node).floor();
+    let (from, to) = if stamps.offsets_mm.is_empty() {
         (nearest - 1.0, nearest + 2.0)
     } else {
         let (lo, hi) = (located.lo as usize, located.hi as usize);
         (nodes[lo].teeth.ceil(), nodes[hi].teeth.floor())
     };
     let mut best: Option<PassCut> = None;
-    let mut segment = (node.floor().max(0.0) as usize).min(last.saturating_sub(1));
-    let mut k = from.max(first_stamp);
-    while k <= to.min(last_stamp) {
-        // The segment holding stamp k, walked to from the last one.
-        while segment > 0 && nodes[segment].teeth > k {
-            segment -= 1;
-        }
-        while segment + 1 < last && nodes[segment + 1].teeth < k {
-            segment += 1;
-        }
-        let (a, b) = (nodes[segment].teeth, nodes[segment + 1].teeth);
-        let t = if b > a {
-            ((k - a) / (b - a)).clamp(0.0, 1.0)
-        } else {
-            0.0
+    let mut k = from.max(nodes[0].teeth.ceil());
+    while k <= to.min(nodes[last].teeth.floor()) {
+        let u = walker.node_at(k);
+        let pose = stamp_pose(poses, &stamps.offsets_mm, k, u, 0.0);
+        let cut = PassCut {
+            depth_mm: extended_entry(scene, poses.frame, &pose),
+            node: u,
+            pose,
         };
-        let u = segment as f64 + t;
-        let pose = stamp_pose(poses, offsets, k, u);
-        let depth = extended_entry(scene, poses.frame, &pose);
-        if depth < scene.stock_top_mm && best.is_none_or(|b| depth < b.depth_mm) {
-            best = Some(PassCut {
-                depth_mm: depth,
-                node: u,
-                pose,
-            });
-        }
+        keep_lower(&mut best, cut, scene.stock_top_mm);
         k += 1.0;
     }
     best
 }
 
+/// Keeps `cut` if it lies below the stock top and below the best so far.
+fn keep_lower(best: &mut Option<PassCut>, cut: PassCut, stock_top_mm: f64) {
+    if cut.depth_mm < stock_top_mm && best.is_none_or(|b| cut.depth_mm < b.depth_mm) {
+        *best = Some(cut);
+    }
+}
+
+/// Teeth as edges: the lowest of the stamps' edge cuts (`edge_cut`), taken outward
+/// from the pass's continuous optimum (node coordinate `node`) each way until the
+/// tool body, at the position nearest the optimum that the stamp's window reaches,
+/// less the teeth's reach beyond the nominal tool, lies no lower than the best cut: no
+/// edge cuts deeper than its tooth's solid, and the body rises away from the optimum.
+/// (A fixed ±(z/2 + 1) stamps missed deeper passes of a leaned flat end's edges.)
+fn edges_cut(
+    scene: &MillingScene,
+    poses: &mut PassPoses,
+    walker: &mut StampWalker,
+    node: f64,
+    edges: &Edges,
+) -> Option<PassCut> {
+    let nodes = poses.nodes;
+    let (first, last) = (nodes[0].teeth.ceil(), nodes[nodes.len() - 1].teeth.floor());
+    let optimum = walker.teeth_at(node);
+    let half = 0.5 * edges.teeth as f64;
+    let slack = scene.stamps.reach_beyond_mm();
+    let scan = scan_frame(scene, poses, walker, node);
+    let mut best: Option<PassCut> = None;
+    for (mut k, step) in [(optimum.floor(), 1.0), (optimum.floor() - 1.0, -1.0)] {
+        while (first..=last).contains(&k) {
+            let nearest = optimum.clamp(k - half, k + half);
+            let body = poses.pose(walker.node_at(nearest));
+            let bound = extended_entry(scene, poses.frame, &body) - slack;
+            if bound >= best.map_or(scene.stock_top_mm, |b| b.depth_mm) {
+                break;
+            }
+            let mut tooth = ToothEdge::new(scene, poses, walker, edges, k);
+            keep_lower(&mut best, edge_cut(&mut tooth, k, scan), scene.stock_top_mm);
+            k += step;
+        }
+    }
+    best
+}
+
+/// Where the sample lies from the tool's path at the pass's continuous optimum (node
+/// coordinate `node`): the side (+1: to the left of the feed about the axis), and the
+/// tooth count where the tool's axis runs abeam of it — the optimum moved by the
+/// sample's lead over the axis, one feed per tooth per tooth count (the optimum found
+/// to the search's gain can lie some way off it).
+fn scan_frame(
+    scene: &MillingScene,
+    poses: &mut PassPoses,
+    walker: &StampWalker,
+    node: f64,
+) -> Scan {
+    let pose = poses.pose(node);
+    let depth = extended_entry(scene, poses.frame, &pose);
+    let entry = depth * poses.frame.normal - pose.centre;
+    let radial = entry - entry.dot(pose.axis) * pose.axis;
+    let (along, across) = spindle_frame(poses, node, pose.axis);
+    Scan {
+        side: if radial.dot(across) < 0.0 { -1.0 } else { 1.0 },
+        on_path: radial.length() < EDGE_ON_PATH_MM,
+        abeam: walker.teeth_at(node) + radial.dot(along) / scene.stamps.feed_per_tooth_mm,
+    }
+}
+
+/// Node coordinates of tooth counts along a pass (`Node::teeth`, linear between
+/// nodes), walking from the segment last used.
+struct StampWalker<'a> {
+    nodes: &'a [Node],
+    segment: usize,
+}
+
+impl<'a> StampWalker<'a> {
+    fn new(nodes: &'a [Node], node: f64) -> Self {
+        let segment = (node.floor().max(0.0) as usize).min(nodes.len().saturating_sub(2));
+        Self { nodes, segment }
+    }
+
+    /// The tooth count at node coordinate `u`.
+    fn teeth_at(&self, u: f64) -> f64 {
+        let last = self.nodes.len() - 1;
+        let i = (u.floor().max(0.0) as usize).min(last.saturating_sub(1));
+        let t = (u - i as f64).clamp(0.0, 1.0);
+        self.nodes[i].teeth + t * (self.nodes[(i + 1).min(last)].teeth - self.nodes[i].teeth)
+    }
+
+    /// The node coordinate where the tooth count is `teeth` (clamped to the pass).
+    fn node_at(&mut self, teeth: f64) -> f64 {
+        let (nodes, last) = (self.nodes, self.nodes.len() - 1);
+        while self.segment > 0 && nodes[self.segment].teeth > teeth {
+            self.segment -= 1;
+        }
+        while self.segment + 1 < last && nodes[self.segment + 1].teeth < teeth {
+            self.segment += 1;
+        }
+        let (a, b) = (
+            nodes[self.segment].teeth,
+            nodes[(self.segment + 1).min(last)].teeth,
+        );
+        let t = if b > a {
+            ((teeth - a) / (b - a)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        self.segment as f64 + t
+    }
+}
+
+/// Stamp k's tooth as its edge: its lowest cut where the edge passes the sample. At
+/// tooth count k + σ the tooth has turned 2πσ/z past pointing along the feed; there
+/// its solid (the tool with the edge's runout, displaced as the tooth is) meets the ray
+/// at a point at angle ψ about the axis and height h above the tip, which the edge
+/// reaches once the tooth has turned to ψ + lag(h). The edge passes the sample where
+/// G(σ) = ψ + lag − turn is a whole number of turns, σ in [−z/2, z/2) (each pass of
+/// the tooth belongs to one stamp). As the tool goes by, ψ swings through up to half
+/// a turn, so a window can hold none, one, two or three passes (near the path, where
+/// the edges' trochoids loop, ψ even outruns the turn): G is scanned (a swing of about
+/// half a turn unwrapped round the side the sample lies on) and each whole turn it
+/// crosses (ends included) refined by Illinois steps. (Secant steps from the stamp
+/// that assume one pass per window missed the deeper of two passes, cuts ~800 nm
+/// shallow, within 1.5 loop radii z·f_z/2π of the path.)
+fn edge_cut(tooth: &mut ToothEdge, k: f64, scan: Scan) -> PassCut {
+    let z = tooth.teeth;
+    // The scan: points a step apart, off the stamp by a golden fraction of a step,
+    // covering the window and a step more; `EDGE_ABEAM` either side of where the
+    // tool's axis runs abeam of the sample, which split ψ's swing there (on the path,
+    // a jump by half a turn) from the passes before and after it; and where the tooth
+    // points along the feed or back (on the path, those passes), so that no two
+    // crossings share an interval.
+    let step = z / EDGE_SCAN as f64;
+    let at = |i: u32| -0.5 * z + (i as f64 - 1.0 + GOLDEN) * step;
+    let abeam = scan.abeam - k;
+    let mut extras = [
+        abeam - EDGE_ABEAM,
+        abeam + EDGE_ABEAM,
+        -0.5 * z,
+        0.0,
+        0.5 * z,
+    ];
+    extras.sort_by(f64::total_cmp);
+    let mut extra = extras
+        .into_iter()
+        .filter(|&p| (at(0)..at(EDGE_SCAN + 1)).contains(&p))
+        .peekable();
+    let mut regular = (0..=EDGE_SCAN + 1).map(at).peekable();
+    let mut next = || match (regular.peek(), extra.peek()) {
+        (Some(&r), Some(&e)) if e < r => extra.next(),
+        (Some(_), _) => regular.next(),
+        (None, _) => extra.next(),
+    };
+    let first = next().expect("the scan has points");
+    let mut low = Turned::first(first, tooth.phase(k, first));
+    // No pass in the window: no cut.
+    let mut best = PassCut {
+        depth_mm: f64::INFINITY,
+        ..low.phase.cut
+    };
+    while let Some(sigma) = next() {
+        let high = low.next(sigma, tooth.phase(k, sigma), scan.side);
+        tooth.passes_between(k, low, high, scan.side, &mut best);
+        // On the path ψ's half-turn swing as the axis runs over the sample has no side:
+        // every tooth's tip passes there, so the other way round is searched too.
+        if scan.on_path && (high.turned - low.turned).abs() > EDGE_SWING {
+            let other = Turned {
+                turned: high.turned - TAU * scan.side,
+                ..high
+            };
+            tooth.passes_between(k, low, other, -scan.side, &mut best);
+        }
+        low = high;
+    }
+    best
+}
+
+/// Where a sample lies from the path: the side (+1: left of the feed about the axis),
+/// whether on it (within `EDGE_ON_PATH_MM` of the tool's axis), and the tooth count
+/// where the tool's axis runs abeam of it.
+#[derive(Debug, Clone, Copy)]
+struct Scan {
+    side: f64,
+    on_path: bool,
+    abeam: f64,
+}
+
+/// The turn (rad) below which an edge's pass is found; the points a scan takes, the
+/// steps and the bracket (tooth counts) that end a pass's refinement, how far either
+/// side of abeam it looks (tooth counts), and the swing between two scan points taken
+/// for half a turn round the sample's side; how near the tool's axis a sample is on
+/// the path (mm: f32 rounding of a few-mm pose stays well below it).
+pub const EDGE_TOLERANCE_RAD: f64 = 1e-10;
+pub const EDGE_SCAN: u32 = 8;
+pub const EDGE_BRACKET_STEPS: u32 = 40;
+pub const EDGE_WIDTH: f64 = 1e-9;
+pub const EDGE_ABEAM: f64 = 1e-3;
+pub const EDGE_SWING: f64 = 0.75 * PI;
+pub const EDGE_ON_PATH_MM: f64 = 1e-6;
+
+/// A swing of ψ from one point to the next, unwrapped: the nearest turn, but about half
+/// a turn goes round `side` (+1: through +π/2).
+fn unwrap_step(step: f64, side: f64) -> f64 {
+    let step = (step + PI).rem_euclid(TAU) - PI;
+    if step.abs() > EDGE_SWING {
+        step.abs().copysign(side)
+    } else {
+        step
+    }
+}
+
+/// A tooth's state at one tooth count: its cut there, the entry's angle ψ about the
+/// axis (−π, π], and lag − turn (rad).
+#[derive(Debug, Clone, Copy)]
+struct Phase {
+    cut: PassCut,
+    psi: f64,
+    rest: f64,
+}
+
+/// A phase at σ with ψ unwrapped along a scan (`turned`).
+#[derive(Debug, Clone, Copy)]
+struct Turned {
+    sigma: f64,
+    phase: Phase,
+    turned: f64,
+}
+
+impl Turned {
+    fn first(sigma: f64, phase: Phase) -> Self {
+        Self {
+            sigma,
+            phase,
+            turned: phase.psi,
+        }
+    }
+
+    /// The phase at σ, ψ unwrapped from this one.
+    fn next(&self, sigma: f64, phase: Phase, side: f64) -> Self {
+        Self {
+            sigma,
+            phase,
+            turned: self.turned + unwrap_step(phase.psi - self.phase.psi, side),
+        }
+    }
+
+    /// G = ψ (unwrapped) + lag − turn.
+    fn g(&self) -> f64 {
+        self.turned + self.phase.rest
+    }
+}
+
+/// One stamp's tooth as an edge at a sample: its solid, its axial runout, and what it
+/// moves with.
+struct ToothEdge<'p, 's, 'a, 'w> {
+    scene: &'s MillingScene,
+    poses: &'p mut PassPoses<'a>,
+    walker: &'p mut StampWalker<'w>,
+    tool: MillingTool,
+    axial_mm: f64,
+    teeth: f64,
+    lag_per_mm: f64,
+}
+
+impl<'p, 's, 'a, 'w> ToothEdge<'p, 's, 'a, 'w> {
+    fn new(
+        scene: &'s MillingScene,
+        poses: &'p mut PassPoses<'a>,
+        walker: &'p mut StampWalker<'w>,
+        edges: &Edges,
+        k: f64,
+    ) -> Self {
+        let tooth = (k as i64).rem_euclid(edges.teeth as i64) as usize;
+        let runout = |v: &Vec<f64>| v.get(tooth).copied().unwrap_or(0.0);
+        Self {
+            scene,
+            poses,
+            walker,
+            tool: scene.tool.with_radial_runout(runout(&edges.radial_mm)),
+            axial_mm: runout(&edges.axial_mm),
+            teeth: edges.teeth as f64,
+            lag_per_mm: edges.lag_per_mm,
+        }
+    }
+
+    /// Stamp k's tooth at tooth count k + σ.
+    fn phase(&mut self, k: f64, sigma: f64) -> Phase {
+        let u = self.walker.node_at(k + sigma);
+        let turn = TAU * sigma / self.teeth;
+        let offsets = &self.scene.stamps.offsets_mm;
+        let mut pose = stamp_pose(self.poses, offsets, k, u, turn);
+        pose.centre -= self.axial_mm * pose.axis;
+        let frame = self.poses.frame;
+        let depth = tool_entry(&self.tool, self.scene.stock_top_mm, frame, &pose);
+        let (along, across) = spindle_frame(self.poses, u, pose.axis);
+        let entry = depth * frame.normal - pose.centre;
+        let lag = self.lag_per_mm * (entry.dot(pose.axis) + self.tool.tip_depth_mm());
+        Phase {
+            cut: PassCut {
+                depth_mm: depth,
+                node: u,
+                pose,
+            },
+            psi: entry.dot(across).atan2(entry.dot(along)),
+            rest: lag - turn,
+        }
+    }
+
+    /// The lowest of the edge's passes between two scan points (each whole turn G
+    /// crosses, ends included), kept in `best` if lower.
+    fn passes_between(&mut self, k: f64, low: Turned, high: Turned, side: f64, best: &mut PassCut) {
+        let (g_low, g_high) = (low.g(), high.g());
+        let mut level = (g_low.min(g_high) / TAU).ceil() * TAU;
+        while level <= g_low.max(g_high) {
+            let cut = self.pass_at(k, low, high, level, side);
+            if cut.depth_mm < best.depth_mm {
+                *best = cut;
+            }
+            level += TAU;
+        }
+    }
+
+    /// The pass of the edge where G crosses `level` between two scan points: Illinois
+    /// steps (regula falsi halving a stuck end's value), a bisection where the bracket
+    /// has not halved in two steps (G jumps where the tool's axis runs over the
+    /// sample), to `EDGE_BRACKET_STEPS` steps or a bracket of `EDGE_WIDTH` tooth counts.
+    fn pass_at(&mut self, k: f64, low: Turned, high: Turned, level: f64, side: f64) -> PassCut {
+        let (mut a, mut b) = (low, high);
+        let (mut fa, mut fb) = (a.g() - level, b.g() - level);
+        let mut cut = if fa.abs() < fb.abs() {
+            a.phase.cut
+        } else {
+            b.phase.cut
+        };
+        let mut spans = [f64::INFINITY; 2];
+        for _ in 0..EDGE_BRACKET_STEPS {
+            let span = (b.sigma - a.sigma).abs();
+            if fa.abs().min(fb.abs()) <= EDGE_TOLERANCE_RAD || span <= EDGE_WIDTH || fa == fb {
+                break;
+            }
+            let sigma = if span < 0.5 * spans[0] {
+                (a.sigma * fb - b.sigma * fa) / (fb - fa)
+            } else {
+                0.5 * (a.sigma + b.sigma)
+            };
+            spans = [spans[1], span];
+            let c = a.next(sigma, self.phase(k, sigma), side);
+            let fc = c.g() - level;
+            cut = c.phase.cut;
+            if fc * fb < 0.0 {
+                (a, fa) = (b, fb);
+            } else {
+                fa *= 0.5;
+            }
+            (b, fb) = (c, fc);
+        }
+        cut
+    }
+}
+
+/// The directions the spindle's turn is measured in at node coordinate `u`: the feed
+/// direction across the axis (any direction across it where the feed runs along it),
+/// and its right-handed quarter turn about the axis.
+fn spindle_frame(poses: &mut PassPoses, u: f64, axis: DVec3) -> (DVec3, DVec3) {
+    let feed = poses.feed(u);
+    let along = (feed - feed.dot(axis) * axis).normalize_or(axis.any_orthonormal_vector());
+    (along, axis.cross(along))
+}
+
 /// The pose of stamp `k` (at node coordinate `u`): the tool there, its centre moved by
-/// tooth k mod z's displacement in the frame (feed direction across the axis, its
-/// right-handed quarter turn about the axis).
-fn stamp_pose(poses: &mut PassPoses, offsets: &[glam::DVec2], k: f64, u: f64) -> LocalPose {
+/// tooth k mod z's displacement in the spindle's frame turned by `turn` (the tooth's
+/// turn past pointing along the feed).
+fn stamp_pose(
+    poses: &mut PassPoses,
+    offsets: &[glam::DVec2],
+    k: f64,
+    u: f64,
+    turn: f64,
+) -> LocalPose {
     let pose = poses.pose(u);
     if offsets.is_empty() {
         return pose;
     }
     let offset = offsets[(k as i64).rem_euclid(offsets.len() as i64) as usize];
-    let feed = poses.feed(u);
-    let along =
-        (feed - feed.dot(pose.axis) * pose.axis).normalize_or(pose.axis.any_orthonormal_vector());
-    let across = pose.axis.cross(along);
+    let offset = glam::DVec2::from_angle(turn).rotate(offset);
+    let (along, across) = spindle_frame(poses, u, pose.axis);
     LocalPose {
         centre: pose.centre + offset.x * along + offset.y * across,
         axis: pose.axis,

@@ -23,14 +23,43 @@ use std::sync::OnceLock;
 pub const MAX_CANDIDATES: usize = 16;
 
 /// Where the teeth cut along the path: stamp k at arc length k·`feed_per_tooth_mm` from
-/// the path's start (0: the tool body sweeps continuously), cut by tooth k mod z whose
-/// sweep is displaced from the tool axis by `offsets_mm[k mod z]` in the frame (feed
-/// direction, its right-handed quarter turn about the axis); no offsets: every tooth
-/// on the axis.
+/// the path's start (0: the tool body sweeps continuously), when tooth k mod z points
+/// along the feed, its sweep displaced from the tool axis by `offsets_mm[k mod z]` in
+/// the frame (feed direction, its right-handed quarter turn about the axis); no
+/// offsets: every tooth on the axis. With `edges`, each tooth cuts as its edge.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ToothStamps {
     pub feed_per_tooth_mm: f64,
     pub offsets_mm: Vec<DVec2>,
+    pub edges: Option<Box<Edges>>,
+}
+
+/// Teeth as edges. Stamp k's tooth turns with the spindle, 2π/z per feed per tooth, and
+/// cuts a sample where its edge passes it: at the turn where the edge, at the height of
+/// the sample's entry into that tooth's solid of revolution, points at the entry. The
+/// tooth's displacement turns with it; its solid is the tool's profile with the edge
+/// `radial_mm` further out and `axial_mm` lower.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Edges {
+    pub teeth: u32,
+    /// How far the edge lags behind its tip's turn per mm of height above the tip (rad/mm):
+    /// tan β / R for a constant-lead helix of angle β on a tool of outer radius R.
+    pub lag_per_mm: f64,
+    /// Per tooth (empty: none), mm.
+    pub radial_mm: Vec<f64>,
+    pub axial_mm: Vec<f64>,
+}
+
+impl ToothStamps {
+    /// How far a tooth's cut can lie beyond the nominal tool's (mm): its displacement
+    /// and its runout.
+    pub fn reach_beyond_mm(&self) -> f64 {
+        let largest = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);
+        let edges = self.edges.as_deref();
+        largest(&mut self.offsets_mm.iter().map(|o| o.length()))
+            + edges.map_or(0.0, |e| largest(&mut e.radial_mm.iter().copied()))
+            + edges.map_or(0.0, |e| largest(&mut e.axial_mm.iter().map(|a| a.abs())))
+    }
 }
 
 /// A path node as the engines read it.
@@ -299,6 +328,7 @@ impl MillingScene {
         let (centre_offset_mm, lateral) = tool.centre_offset_and_lateral_reach();
         let passes = pass_spans(&path, 0.0);
         let spacing = passes.iter().map(|p| p.spacing_mm).fold(0.0, f64::max);
+        let extra_reach_mm = extra_reach_mm + stamps.reach_beyond_mm();
         let dip = (stock_top_mm.abs() + lift_mm.abs() + extra_reach_mm).max(0.0);
         // Along a profile of radius r_p the tool dips within √(2 r_p dip); no centre
         // farther than the tool's own size from a cutting one can cut (a face that may
@@ -314,11 +344,7 @@ impl MillingScene {
         let bins = NodeBins::new(&path, search_radius_mm + lateral);
         let is_ball = matches!(tool, MillingTool::EndMill(c) if c.major_radius_mm == 0.0);
         // A displaced tooth can cut up to its displacement below the undisplaced sweep.
-        let displacement = stamps
-            .offsets_mm
-            .iter()
-            .map(|o| o.length())
-            .fold(0.0, f64::max);
+        let displacement = stamps.reach_beyond_mm();
         let ball_slack = is_ball.then(|| BallSlack {
             per_spacing_squared: 2.0 * 0.25 / (2.0 * profile_radius_mm.max(1e-3)),
             displacement_mm: displacement + 1e-9,

@@ -40,6 +40,36 @@ impl MillingTool {
         !matches!(self, MillingTool::EndMill(cutter) if cutter.corner_radius_mm == 0.0)
     }
 
+    /// The tool's outer radius about its axis.
+    pub fn outer_radius_mm(&self) -> f64 {
+        match self {
+            MillingTool::EndMill(cutter) => cutter.radius_mm(),
+            MillingTool::Disc(disc) => disc.outer_radius_mm(),
+        }
+    }
+
+    /// The solid one tooth sweeps whose edge stands `radial_mm` (≥ 0) beyond the
+    /// nominal radius: an end mill's profile moved out (a ball's becomes a torus); a disc
+    /// as it is.
+    pub fn with_radial_runout(&self, radial_mm: f64) -> MillingTool {
+        match self {
+            MillingTool::EndMill(cutter) if radial_mm > 0.0 => MillingTool::EndMill(Cutter {
+                major_radius_mm: cutter.major_radius_mm + radial_mm,
+                ..*cutter
+            }),
+            _ => *self,
+        }
+    }
+
+    /// The tip's axial coordinate below the pose centre (an end mill's corner radius;
+    /// a disc has no tip: 0).
+    pub fn tip_depth_mm(&self) -> f64 {
+        match self {
+            MillingTool::EndMill(cutter) => cutter.corner_radius_mm,
+            MillingTool::Disc(_) => 0.0,
+        }
+    }
+
     /// The largest distance of the cutting solid from its pose centre.
     pub fn reach_mm(&self) -> f64 {
         match self {

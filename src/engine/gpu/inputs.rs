@@ -8,7 +8,7 @@ use crate::engine::cpu::RAY_REFINEMENTS;
 use crate::engine::cpu_generating::MAX_NEWTON_STEPS;
 use crate::engine::cpu_milling::TIE_MM;
 use crate::engine::generating_scene::{GeneratingScene, MAX_CONTACTS};
-use crate::engine::milling_scene::MillingScene;
+use crate::engine::milling_scene::{MillingScene, ToothStamps};
 use crate::engine::milling_search::{FIRST_BRACKET, REFINE_STEPS};
 use crate::engine::scene::TurningScene;
 use crate::field::Layout;
@@ -240,7 +240,8 @@ pub struct MillingInputs {
     pub passes: Vec<layout::MillingPass>,
     pub cell_start: Vec<u32>,
     pub runs: Vec<layout::MillingRun>,
-    pub tooth_offsets: Vec<[f32; 2]>,
+    /// Per tooth: displacement (x, y), radial and axial runout.
+    pub teeth: Vec<[f32; 4]>,
 }
 
 /// The f32 kernel's refinement: a bracket of 1e-5 node spacings (f32 positions within
@@ -252,6 +253,10 @@ pub const GPU_REFINE_GAIN_MM: f64 = 1e-10;
 const F32_ROUNDING: f64 = 1.0 / (1u64 << 24) as f64;
 /// A bull-nose entry's Newton step below this ends it in f32 (mm).
 pub const GPU_ENTRY_TOLERANCE_MM: f64 = 1e-9;
+/// An edge's pass is found in f32 when G is within this of a whole turn (rad), or its
+/// bracket below this (tooth counts).
+pub const GPU_EDGE_TOLERANCE_RAD: f64 = 1e-6;
+pub const GPU_EDGE_WIDTH: f64 = 1e-6;
 /// Depths closer than this tie in f32 (mm).
 pub const GPU_TIE_MM: f64 = 1e-9;
 const _: () = assert!(GPU_TIE_MM >= TIE_MM);
@@ -354,13 +359,29 @@ pub fn milling(scene: &MillingScene) -> MillingInputs {
         passes,
         cell_start: scene.bins.cell_start.clone(),
         runs,
-        tooth_offsets: scene
-            .stamps
-            .offsets_mm
-            .iter()
-            .map(|o| [o.x as f32, o.y as f32])
-            .collect(),
+        teeth: teeth_table(&scene.stamps),
     }
+}
+
+/// Per tooth: its displacement, and as an edge its radial and axial runout.
+fn teeth_table(stamps: &ToothStamps) -> Vec<[f32; 4]> {
+    let edges = stamps.edges.as_deref();
+    let count = stamps
+        .offsets_mm
+        .len()
+        .max(edges.map_or(0, |e| e.teeth as usize));
+    let at = |v: Option<&Vec<f64>>, i: usize| v.and_then(|v| v.get(i)).copied().unwrap_or(0.0);
+    (0..count)
+        .map(|i| {
+            let offset = stamps.offsets_mm.get(i).copied().unwrap_or_default();
+            [
+                offset.x as f32,
+                offset.y as f32,
+                at(edges.map(|e| &e.radial_mm), i) as f32,
+                at(edges.map(|e| &e.axial_mm), i) as f32,
+            ]
+        })
+        .collect()
 }
 
 fn milling_node(node: &crate::engine::milling_scene::Node) -> layout::MillingNode {
@@ -396,7 +417,7 @@ fn milling_node(node: &crate::engine::milling_scene::Node) -> layout::MillingNod
 
 /// The pipeline constants a milling scene's kernel is compiled with: `TOOL_KIND` (0
 /// ball, 1 bull-nose, 2 flat end, 3 disc) and `STAMP_MODE` (0 the body sweeps, 1 the
-/// stamps about the optimum, 2 every stamp: displaced teeth).
+/// stamps about the optimum, 2 every stamp: displaced teeth, 3 teeth as edges).
 pub fn milling_variant(scene: &MillingScene) -> (u32, u32) {
     let tool = match scene.tool {
         MillingTool::EndMill(c) if c.major_radius_mm == 0.0 => 0,
@@ -407,6 +428,7 @@ pub fn milling_variant(scene: &MillingScene) -> (u32, u32) {
     let stamps = &scene.stamps;
     let stamp_mode = match (stamps.feed_per_tooth_mm > 0.0, stamps.offsets_mm.is_empty()) {
         (false, _) => 0,
+        _ if stamps.edges.is_some() => 3,
         (true, true) => 1,
         (true, false) => 2,
     };
@@ -485,5 +507,13 @@ pub fn milling_params(
         origin_y: bins.origin.y as f32,
         origin_z: bins.origin.z as f32,
         disc_gap_mm2: disc_gap_mm2(scene) as f32,
+        teeth: stamps.edges.as_ref().map_or(0, |e| e.teeth),
+        lag_per_mm: stamps.edges.as_ref().map_or(0.0, |e| e.lag_per_mm) as f32,
+        edge_tolerance_rad: GPU_EDGE_TOLERANCE_RAD as f32,
+        edge_reach_mm: stamps.reach_beyond_mm() as f32,
+        feed_per_tooth_mm: stamps.feed_per_tooth_mm as f32,
+        edge_width: GPU_EDGE_WIDTH as f32,
+        _padding0: 0.0,
+        _padding1: 0.0,
     }
 }

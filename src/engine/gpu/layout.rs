@@ -176,6 +176,14 @@ pub struct MillingParams {
     pub origin_y: f32,
     pub origin_z: f32,
     pub disc_gap_mm2: f32,
+    pub teeth: u32,
+    pub lag_per_mm: f32,
+    pub edge_tolerance_rad: f32,
+    pub edge_reach_mm: f32,
+    pub feed_per_tooth_mm: f32,
+    pub edge_width: f32,
+    pub _padding0: f32,
+    pub _padding1: f32,
 }
 
 #[repr(C)]

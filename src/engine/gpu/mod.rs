@@ -355,7 +355,7 @@ impl GpuEngine {
             self.upload("passes", &m.passes)?,
             self.upload("bin cells", &m.cell_start)?,
             self.upload("node runs", &m.runs)?,
-            self.upload("tooth offsets", &m.tooth_offsets)?,
+            self.upload("teeth", &m.teeth)?,
         ];
         self.dispatch(
             &self.milling[&variant],
