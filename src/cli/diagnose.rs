@@ -233,7 +233,9 @@ fn run_diagnosis(
         };
         PathBuf::from("toolmark-out").join(format!("{}-{what}", slug(&job.name)))
     });
-    let log = |s: &str| eprintln!("{s}");
+    // Progress: each step as it starts, with the time so far.
+    let started = std::time::Instant::now();
+    let log = |s: &str| eprintln!("[{:6.1} s] {s}", started.elapsed().as_secs_f64());
     let mut outcome = match diagnose(&job, &measurement, engine.as_mut(), &options, &log) {
         Ok(outcome) => outcome,
         Err(DiagnoseError::DoesNotFit(why)) => {

@@ -52,12 +52,12 @@ pub fn fit_check(
             comparison.mark_spacing.len()
         )));
     }
-    if let Some(amplitude) = mark_amplitude_ratio(m, model, period) {
-        if !(1.0 / 30.0..=30.0).contains(&amplitude) {
-            findings.push(Finding::severe(format!(
-                "the measured tool marks are {amplitude:.3}× as high as the simulated: the height unit is wrong, or this is another process"
-            )));
-        }
+    if let Some(amplitude) = mark_amplitude_ratio(m, model, period)
+        && !(1.0 / 30.0..=30.0).contains(&amplitude)
+    {
+        findings.push(Finding::severe(format!(
+            "the measured tool marks are {amplitude:.3}× as high as the simulated: the height unit is wrong, or this is another process"
+        )));
     }
     let noise = white_noise_mm(m, &nominal.residual_mm);
     let hint = if terms.power {

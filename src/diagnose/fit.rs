@@ -374,6 +374,22 @@ impl<'a, 'e> Problem<'a, 'e> {
         self.finish(set, parameters, values, &jacobian, &unseen)
     }
 
+    /// Fits `set` from `start` by Levenberg–Marquardt with the parameters `held` kept
+    /// at their start values (a fold's fit keeps the registration the whole data fixed).
+    pub fn fit_holding(
+        &mut self,
+        set: &[Candidate],
+        start: Vec<f64>,
+        held: &[usize],
+    ) -> Result<Fit, ForwardError> {
+        let parameters: Vec<Parameter> = set
+            .iter()
+            .flat_map(|c| c.parameters(self.model.base_job()))
+            .collect();
+        let (values, jacobian) = self.levenberg_marquardt(set, &parameters, start, held)?;
+        self.finish(set, parameters, values, &jacobian, held)
+    }
+
     /// The best value of parameter `j` along its axis, searched globally: the current
     /// value, then both signs at magnitudes from a third of the parameter's scale to its
     /// bound in steps of about 3 (a cone and a cylinder, a larger and a smaller radius, are

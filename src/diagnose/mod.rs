@@ -130,6 +130,17 @@ pub fn diagnose(
 ) -> Result<Outcome, DiagnoseError> {
     let started = Instant::now();
     require_points(measurement)?;
+    let bin_mm = 0.5 * job.pitch_mm;
+    let binned = measurement.binned(bin_mm);
+    if let Some(b) = &binned {
+        log(&format!(
+            "averaging {} points in {} bins of {:.3} µm (half the job's pitch)",
+            measurement.len(),
+            b.len(),
+            bin_mm * 1e3
+        ));
+    }
+    let measurement = binned.as_ref().unwrap_or(measurement);
     let located = locate::locate(
         job,
         measurement,
@@ -280,8 +291,7 @@ pub fn diagnose(
         options.compare_only.then_some(&comparison),
         &check,
         accepted,
-        &before_info,
-        &after_info,
+        (&before_info, &after_info),
         &indistinguishable,
         held.as_ref(),
         &found.refused,
@@ -310,6 +320,7 @@ pub fn diagnose(
             &fitted,
             measurement,
             calibration.as_deref().map(Vec::as_slice),
+            binned.is_some().then_some(bin_mm * 1e3),
         ),
         registration,
         comparison,

@@ -73,6 +73,9 @@ pub struct MeasurementInfo {
     pub points_on_part: usize,
     pub points_fitted: usize,
     pub points_held_out: usize,
+    /// A profile sampled finer than half the job's pitch is averaged in bins this wide
+    /// (µm) before it is diagnosed; the point counts above are then bins.
+    pub binned_um: Option<f64>,
     pub extent_mm: f64,
     pub max_radius_mm: f64,
     pub spacing_um: f64,
@@ -83,7 +86,12 @@ pub struct MeasurementInfo {
 
 impl MeasurementInfo {
     /// `calibration`: the points fitted when some were held out.
-    pub fn of(on_part: &Measurement, all: &Measurement, calibration: Option<&[bool]>) -> Self {
+    pub fn of(
+        on_part: &Measurement,
+        all: &Measurement,
+        calibration: Option<&[bool]>,
+        binned_um: Option<f64>,
+    ) -> Self {
         let fitted = calibration.map_or(on_part.len(), |c| c.iter().filter(|k| **k).count());
         Self {
             shape: if all.is_line() { "profile" } else { "map" }.into(),
@@ -92,6 +100,7 @@ impl MeasurementInfo {
             points_on_part: on_part.len(),
             points_fitted: fitted,
             points_held_out: on_part.len() - fitted,
+            binned_um,
             extent_mm: on_part.extent_mm(),
             max_radius_mm: on_part.max_radius_mm(),
             spacing_um: on_part.spacing_mm() * 1e3,

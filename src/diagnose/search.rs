@@ -63,8 +63,13 @@ pub fn search<'a>(
     let fitted = problem.measurement;
     let nominal_frame = problem.shift;
     let mut fits = Vec::new();
-    for c in candidates {
-        log(&format!("fitting {}", c.label()));
+    for (i, c) in candidates.iter().enumerate() {
+        log(&format!(
+            "fitting {} (candidate {} of {})",
+            c.label(),
+            i + 1,
+            candidates.len()
+        ));
         if let Some(fit) = fit_new(problem, &base.set, &base.values, *c, job, fitted)? {
             fits.push(refit_if_axis_moves(
                 problem,

@@ -139,27 +139,16 @@ pub fn cross_validate(
     axis_mm: DVec2,
 ) -> Result<Validation, ForwardError> {
     let member = set.len() - 1;
-    let start: usize = set[..member].iter().map(width).sum();
     let base_set = &set[..member];
     let saved = (problem.terms, problem.shift);
     problem.terms.shift = false;
     problem.shift.start = axis_mm;
     problem.clear_cache();
-    let mut checks = Vec::new();
-    let mut result = Ok(());
-    for fold in folds {
-        match judge_fold(problem, fold, set, values, base_set, start) {
-            Ok(check) => checks.push(check),
-            Err(e) => {
-                result = Err(e);
-                break;
-            }
-        }
-    }
+    let outcome = judge_folds(problem, folds, (set, values), base_set);
     problem.judge_on(None);
     (problem.terms, problem.shift) = saved;
     problem.clear_cache();
-    result?;
+    let checks = outcome?;
     let judged: Vec<&FoldCheck> = checks.iter().filter(|c| c.judged).collect();
     let failed: Vec<&&FoldCheck> = judged
         .iter()
@@ -218,25 +207,65 @@ pub fn cross_validate(
     })
 }
 
+/// Judges every fold. Registration is where the data lies, found on all of it: a
+/// fold's fits keep the registration members (a profile's place on the spiral) at the
+/// whole data's values — the model with the effect at the set's, the model without it
+/// at its own fit to all the data.
+fn judge_folds(
+    problem: &mut Problem,
+    folds: &[Fold],
+    (set, values): (&[Candidate], &[f64]),
+    base_set: &[Candidate],
+) -> Result<Vec<FoldCheck>, ForwardError> {
+    let start = values.len() - width(&set[set.len() - 1]);
+    let base_values = if base_set.is_empty() {
+        Vec::new()
+    } else {
+        problem.fit(base_set, values[..start].to_vec(), &[])?.values
+    };
+    folds
+        .iter()
+        .map(|fold| judge_fold(problem, fold, (set, values), (base_set, &base_values)))
+        .collect()
+}
+
+/// The indices of the parameters of `set`'s registration members.
+fn registration_parameters(set: &[Candidate]) -> Vec<usize> {
+    let mut at = 0;
+    let mut held = Vec::new();
+    for c in set {
+        if c.is_registration() {
+            held.extend(at..at + width(c));
+        }
+        at += width(c);
+    }
+    held
+}
+
 fn judge_fold(
     problem: &mut Problem,
     fold: &Fold,
-    set: &[Candidate],
-    values: &[f64],
-    base_set: &[Candidate],
-    start: usize,
+    (set, values): (&[Candidate], &[f64]),
+    (base_set, base_values): (&[Candidate], &[f64]),
 ) -> Result<FoldCheck, ForwardError> {
     let n = width(&set[set.len() - 1]);
+    let start = base_values.len();
     let held = Rc::new(fold.held.clone());
     // The rest of the fitted points (the problem keeps any calibration's held-out part
     // out of every fit by itself).
     let rest = Rc::new(fold.held.iter().map(|h| !h).collect::<Vec<bool>>());
     problem.judge_on(Some(rest));
-    let fitted = problem.fit(set, values.to_vec(), &[])?;
+    let fitted = problem.fit_holding(set, values.to_vec(), &registration_parameters(set))?;
     let base_values = if base_set.is_empty() {
         Vec::new()
     } else {
-        problem.fit(base_set, values[..start].to_vec(), &[])?.values
+        problem
+            .fit_holding(
+                base_set,
+                base_values.to_vec(),
+                &registration_parameters(base_set),
+            )?
+            .values
     };
     let (own, sigmas) = (
         &fitted.values[start..start + n],

@@ -145,8 +145,8 @@ impl MeasurementModel {
             finite(
                 &format!("decentre_um[{i}]"),
                 *d,
-                -100.0 * outer,
-                100.0 * outer,
+                -1000.0 * outer,
+                1000.0 * outer,
             )?;
         }
         if let Some(tip) = self.stylus_tip_um {
