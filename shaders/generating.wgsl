@@ -70,16 +70,6 @@ struct AzimuthPhase {
     whole: i32,
 }
 
-struct Dexel {
-    depth_mm: f32,
-    pass_id: u32,
-}
-
-const NO_PASS: u32 = 0xffffffffu;
-const MAX_CONTACTS: u32 = 2u;
-const PASSES_PER_CONTACT: i32 = 4;
-const TAU: f32 = 6.283185307179586;
-const PI: f32 = 3.141592653589793;
 
 @group(0) @binding(0) var<uniform> params: GeneratingParams;
 @group(0) @binding(1) var<storage, read> rings: array<GeneratingRing>;

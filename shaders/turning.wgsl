@@ -65,16 +65,6 @@ struct Pose {
     _padding: f32,
 }
 
-struct Dexel {
-    depth_mm: f32,
-    pass_id: u32,
-}
-
-const NO_PASS: u32 = 0xffffffffu;
-const PASS_ID_STRIDE: u32 = 4u;
-const MISS: f32 = 3.0e38;
-const TAU: f32 = 6.283185307179586;
-const PI: f32 = 3.141592653589793;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> rings: array<Ring>;

@@ -5,7 +5,7 @@ use crate::analysis::{
     default_zone_radius_mm,
 };
 use crate::engine::generating_scene::ToothMotion;
-use crate::engine::milling_scene::ToothStamps;
+use crate::engine::milling_scene::{Edges, ToothStamps};
 use crate::engine::{
     EngineError, EngineInfo, GeneratingScene, MillingScene, Progress, RemovalEngine, Scene,
     TurningScene,
@@ -143,6 +143,7 @@ fn milling_scene(job: &Job, milling: &MillingProcess, grid: PolarGrid) -> Millin
     let (setup, effects) = (&milling.setup, &milling.effects);
     let mut path = setup.plan(&job.surface);
     effects.apply_to_path(&mut path);
+    let flutes = &setup.flutes;
     let stamps = ToothStamps {
         feed_per_tooth_mm: if setup.teeth > 0 {
             setup.feed_per_tooth_mm
@@ -150,6 +151,14 @@ fn milling_scene(job: &Job, milling: &MillingProcess, grid: PolarGrid) -> Millin
             0.0
         },
         offsets_mm: effects.tooth_offsets_mm(setup.teeth),
+        edges: flutes.edges.then(|| {
+            Box::new(Edges {
+                teeth: setup.teeth,
+                lag_per_mm: flutes.helix_rad.tan() / setup.tool.outer_radius_mm(),
+                radial_mm: flutes.radial_runout_mm.clone(),
+                axial_mm: flutes.axial_runout_mm.clone(),
+            })
+        }),
     };
     MillingScene::new(
         grid,

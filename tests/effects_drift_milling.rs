@@ -668,7 +668,7 @@ fn tram_across_a_flat_end_leaned_along_the_feed_tilts_its_elliptic_scallop() {
 
 #[test]
 fn radial_runout_alternates_the_feed_mark_spacing_by_two_epsilon_cos_phi() {
-    // Ball r 1, two teeth, 0.05 mm per tooth, runout ε = 5 µm at phase φ. Stamp k (at
+    // Ball r 1, two teeth as bodies, 0.05 mm per tooth, runout ε = 5 µm at phase φ. Stamp k (at
     // arc k·f from the path's start) is cut by tooth k mod 2, displaced by ε along
     // (cos(φ + πk), sin(φ + πk)) in the (feed, across) frame: along the pass through the
     // axis the ball bottoms sit at x_k + ε·cos(φ + πk), so the spacing from an
@@ -679,7 +679,7 @@ fn radial_runout_alternates_the_feed_mark_spacing_by_two_epsilon_cos_phi() {
         let job = with_effects(
             &milling(
                 "kind = \"plane\"\naperture_diameter_mm = 4.0",
-                "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2",
+                "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2\nflutes = \"body\"",
                 "path = \"raster\"\nstepover_mm = 0.1\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.005",
                 "pitch_um = 0.1\nazimuths = 4",
             ),

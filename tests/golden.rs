@@ -1,5 +1,6 @@
 //! Golden results (golden/README.md): each case's field from both engines against
-//! the stored CPU field. `TOOLMARK_BLESS=1` rewrites the stored files from the CPU.
+//! the stored CPU field, one test per case. `TOOLMARK_BLESS=1` rewrites the stored
+//! files from the CPU.
 
 mod common;
 use common::*;
@@ -11,7 +12,6 @@ use toolmark::io::job::Job;
 use toolmark::io::png_out::{FalseColourPlot, write_false_colour_png};
 use toolmark::run::RunResult;
 
-const CASES: [&str; 3] = ["flat_facing", "concave_sphere_xzb", "asphere_xz"];
 /// CPU against its own stored result: only f32 storage and libm differences.
 const CPU_TOLERANCE_NM: f64 = 1e-3;
 
@@ -116,31 +116,48 @@ fn compare(
     );
 }
 
-#[test]
-fn golden_cases_match_on_both_engines() {
-    let bless = std::env::var("TOOLMARK_BLESS").is_ok_and(|v| v == "1");
-    for case in CASES {
-        let job = Job::load(&golden_dir().join(format!("{case}.toml"))).expect("golden job");
-        let cpu = run_cpu(job.clone());
-        let cpu_image = field_image(&cpu);
-        let path = golden_dir().join(format!("{case}.exr"));
-        if bless {
-            write_exr(&path, &cpu_image).expect("write golden");
-            println!("blessed {}", path.display());
-            continue;
-        }
-        let golden = read_exr(&path)
-            .unwrap_or_else(|err| panic!("{err}: bless with TOOLMARK_BLESS=1 if the case is new"));
-        compare(case, "cpu", &cpu_image, &golden, CPU_TOLERANCE_NM, true);
+macro_rules! golden_cases {
+    ($($test:ident,)*) => {
+        $(
+            #[test]
+            fn $test() {
+                golden_case(stringify!($test));
+            }
+        )*
+    };
+}
 
-        let gpu_image = field_image(&run_gpu(job));
-        let golden_values = golden.channel("deviation_nm").unwrap();
-        let (lo, hi) = golden_values
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), v| {
-                (l.min(*v), h.max(*v))
-            });
-        let gpu_tolerance = (0.001 * (hi - lo) as f64).max(0.5);
-        compare(case, "gpu", &gpu_image, &golden, gpu_tolerance, false);
+golden_cases! {
+    flat_facing,
+    concave_sphere_xzb,
+    asphere_xz,
+    generating_teeth,
+    milling_ball_edges,
+    milling_bull_nose_5axis,
+}
+
+fn golden_case(case: &str) {
+    let bless = std::env::var("TOOLMARK_BLESS").is_ok_and(|v| v == "1");
+    let job = Job::load(&golden_dir().join(format!("{case}.toml"))).expect("golden job");
+    let cpu = run_cpu(job.clone());
+    let cpu_image = field_image(&cpu);
+    let path = golden_dir().join(format!("{case}.exr"));
+    if bless {
+        write_exr(&path, &cpu_image).expect("write golden");
+        println!("blessed {}", path.display());
+        return;
     }
+    let golden = read_exr(&path)
+        .unwrap_or_else(|err| panic!("{err}: bless with TOOLMARK_BLESS=1 if the case is new"));
+    compare(case, "cpu", &cpu_image, &golden, CPU_TOLERANCE_NM, true);
+
+    let gpu_image = field_image(&run_gpu(job));
+    let golden_values = golden.channel("deviation_nm").unwrap();
+    let (lo, hi) = golden_values
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), v| {
+            (l.min(*v), h.max(*v))
+        });
+    let gpu_tolerance = (0.001 * (hi - lo) as f64).max(0.5);
+    compare(case, "gpu", &gpu_image, &golden, gpu_tolerance, false);
 }

@@ -1,87 +1,12 @@
 //! The GPU engine (f32, local frames) against the CPU reference (f64) on whole jobs.
 //! Bound (DESIGN §5 / issue 2): max |Δ deviation| ≤ max(0.5 nm, 0.1 % of the map's PV).
+//! The example jobs as they stand: tests/examples_on_both_engines.rs; here, effects.
 
 mod common;
 use common::*;
-use toolmark::field::NO_PASS;
 
 fn compare(name: &str, job: toolmark::io::job::Job) {
-    let cpu = run_cpu(job.clone());
-    let gpu = run_gpu(job);
-    let (mut worst, mut at) = (0.0f64, 0);
-    for (i, (a, b)) in cpu
-        .field
-        .depth_mm
-        .iter()
-        .zip(&gpu.field.depth_mm)
-        .enumerate()
-    {
-        let difference = (a - b).abs();
-        if difference > worst {
-            (worst, at) = (difference, i);
-        }
-    }
-    let worst_nm = worst * 1e6;
-    let bound_nm = (0.001 * cpu.deviation.pv_nm).max(0.5);
-    let rings = cpu.grid().ring_count();
-    let same_pass = cpu
-        .field
-        .pass
-        .iter()
-        .zip(&gpu.field.pass)
-        .filter(|(a, b)| a == b)
-        .count();
-    println!(
-        "{name}: {} samples, PV {:.3} nm; max |GPU − CPU| = {worst_nm:.4} nm at ring {} azimuth {} (bound {bound_nm:.3} nm); same winning pass at {:.3} % of samples",
-        cpu.field.depth_mm.len(),
-        cpu.deviation.pv_nm,
-        at % rings,
-        at / rings,
-        100.0 * same_pass as f64 / cpu.field.pass.len() as f64
-    );
-    assert!(
-        worst_nm <= bound_nm,
-        "{name}: GPU differs from CPU by {worst_nm} nm > {bound_nm} nm"
-    );
-    // Where only one engine counts a sample as cut, its entry sat within f32 rounding of
-    // the stock top; the depth bound above already holds there.
-    let cut_differs = cpu
-        .field
-        .pass
-        .iter()
-        .zip(&gpu.field.pass)
-        .filter(|(a, b)| (**a == NO_PASS) != (**b == NO_PASS))
-        .count();
-    println!("{name}: {cut_differs} samples cut by one engine only");
-    assert!(
-        cut_differs * 1000 <= cpu.field.pass.len(),
-        "{name}: {cut_differs} samples differ in being cut"
-    );
-}
-
-#[test]
-fn flat_facing_gpu_matches_cpu() {
-    compare("flat facing", example("flat_facing.toml"));
-}
-
-#[test]
-fn convex_sphere_radial_feed_gpu_matches_cpu() {
-    compare("convex sphere", example("convex_sphere.toml"));
-}
-
-#[test]
-fn concave_sphere_xzb_gpu_matches_cpu() {
-    compare("concave sphere XZB", example("concave_sphere.toml"));
-}
-
-#[test]
-fn seed_002_asphere_xz_gpu_matches_cpu() {
-    compare("seed-002 asphere XZ", example("asphere_xz.toml"));
-}
-
-#[test]
-fn seed_002_asphere_xzb_gpu_matches_cpu() {
-    compare("seed-002 asphere XZB", example("asphere_xzb.toml"));
+    assert_engines_agree(name, job);
 }
 
 /// An example job with extra effect tables appended.
@@ -134,14 +59,6 @@ fn axial_drift_on_the_asphere_gpu_matches_cpu() {
             "asphere_xz.toml",
             "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = -0.002",
         ),
-    );
-}
-
-#[test]
-fn nc_program_with_a_measured_edge_gpu_matches_cpu() {
-    compare(
-        "UPM cut 1021 with measured edge D906-3",
-        example("upm_1021_measured_edge.toml"),
     );
 }
 
@@ -204,6 +121,101 @@ fn generating_teeth_gpu_matches_cpu() {
             "[[effects]]\nkind = \"cutter_displacement\"\noffset_mm = -0.01\n[[effects]]\nkind = \"inclination_error\"\nerror_deg = 0.01",
             3.0,
             4096,
+        ),
+    );
+}
+
+/// A milling job with a feed per tooth: flutes as edges (the default), each tooth's edge
+/// sweeping its trochoid with the given helix and per-tooth runout.
+fn edges_job(surface: &str, tool: &str, process: &str, grid: &str) -> toolmark::io::job::Job {
+    job(&format!(
+        "version = 1\n[surface]\n{surface}\n[tool]\n{tool}\n[process]\nkind = \"milling\"\npath = \"raster\"\n{process}\n[grid]\n{grid}\n"
+    ))
+}
+
+/// Flutes as edges on every milling tool, GPU against CPU: besides the field bound, the
+/// f32 kernel stays within 0.5 nm of its f64 twin (the issue's floor; the maps' PV is
+/// µm-scale, so 0.1 % of it would allow more).
+fn compare_edges(name: &str, job: toolmark::io::job::Job) {
+    let (worst_nm, _) = assert_engines_agree(name, job);
+    assert!(worst_nm <= 0.5, "{name}: {worst_nm} nm > 0.5 nm");
+}
+
+#[test]
+fn milling_ball_edges_with_helix_and_runout_gpu_matches_cpu() {
+    compare_edges(
+        "ball Ø2, 2 edges, helix 30°, runout radial 10 µm / axial 2 µm",
+        edges_job(
+            "kind = \"plane\"\naperture_diameter_mm = 0.6",
+            "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2\nhelix_deg = 30.0\ntooth_radial_runout_mm = [0.0, 0.01]\ntooth_axial_runout_mm = [0.002, 0.0]",
+            "stepover_mm = 0.1\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.005",
+            "pitch_um = 10.0\nazimuths = 256",
+        ),
+    );
+}
+
+#[test]
+fn milling_bull_nose_5axis_edges_with_runout_gpu_matches_cpu() {
+    compare_edges(
+        "bull-nose Ø8 r1, 5-axis lead 10°, 3 edges, radial runout 5 µm",
+        edges_job(
+            "kind = \"sphere\"\nform = \"concave\"\nradius_mm = 60.0\naperture_diameter_mm = 2.0",
+            "kind = \"bull_nose\"\ndiameter_mm = 8.0\ncorner_radius_mm = 1.0\nteeth = 3\ntooth_radial_runout_mm = [0.0, 0.005, 0.0]",
+            "axes = 5\nlead_deg = 10.0\nstepover_mm = 0.5\nfeed_per_tooth_mm = 0.1\nstock_allowance_mm = 0.02",
+            "pitch_um = 20.0\nazimuths = 128",
+        ),
+    );
+}
+
+#[test]
+fn milling_flat_end_5axis_edges_gpu_against_cpu_known_gap() {
+    // A known gap, not the target: a flat end leaned 10° cuts edge marks with walls up
+    // to slope ~4 (the CPU field moves 3.2 nm for a 0.78 nm shift of the sample), and
+    // there the f32 kernel's edge passes differ from the f64 twin's by more than the
+    // issue's bound, max(0.5 nm, 0.1 % of PV) = 16.9 nm: measured (lavapipe, this job)
+    // 47.6 nm at worst, 43 of 13 056 samples over the bound, 169 over 5 nm (the body
+    // model on the same job: ≤ 3.9 nm). Asserted as measured, so that it cannot grow
+    // unseen: the bound at ≥ 99.5 % of the samples, and no sample beyond 0.5 % of PV.
+    let job = edges_job(
+        "kind = \"sphere\"\nform = \"convex\"\nradius_mm = 40.0\naperture_diameter_mm = 2.0",
+        "kind = \"flat_end\"\ndiameter_mm = 6.0\nteeth = 4\ntooth_axial_runout_mm = [0.0, 0.001, 0.0, 0.0]",
+        "axes = 5\nlead_deg = 10.0\nstepover_mm = 0.4\nfeed_per_tooth_mm = 0.1\nstock_allowance_mm = 0.02",
+        "pitch_um = 20.0\nazimuths = 256",
+    );
+    let cpu = run_cpu(job.clone());
+    let gpu = run_gpu(job);
+    let depths = &cpu.field.depth_mm;
+    let pv_nm = 1e6
+        * (depths.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+            - depths.iter().cloned().fold(f64::INFINITY, f64::min));
+    let bound_nm = (0.001 * pv_nm).max(0.5);
+    let differences: Vec<f64> = depths
+        .iter()
+        .zip(&gpu.field.depth_mm)
+        .map(|(a, b)| (a - b).abs() * 1e6)
+        .collect();
+    let worst = differences.iter().cloned().fold(0.0, f64::max);
+    let over = differences.iter().filter(|d| **d > bound_nm).count();
+    println!(
+        "flat end Ø6, 5-axis lead 10°, 4 edges: PV {pv_nm:.1} nm, max |GPU − CPU| {worst:.2} nm, {over} of {} samples over {bound_nm:.2} nm",
+        differences.len()
+    );
+    assert!(
+        over * 200 <= differences.len(),
+        "{over} samples over {bound_nm} nm"
+    );
+    assert!(worst <= 0.005 * pv_nm, "{worst} nm");
+}
+
+#[test]
+fn milling_disc_edges_gpu_matches_cpu() {
+    compare_edges(
+        "disc Ø30, λ 19°, oblique 10°, 8 edges",
+        edges_job(
+            "kind = \"sphere\"\nform = \"convex\"\nradius_mm = 100.0\naperture_diameter_mm = 4.0",
+            "kind = \"disc\"\ndiameter_mm = 30.0\ninsert_length_mm = 10.0\nside_rake_deg = 19.0\nteeth = 8",
+            "stepover_mm = 3.0\nturn_deg = 10.0\nfeed_per_tooth_mm = 0.2\nstock_allowance_mm = 0.01",
+            "pitch_um = 40.0\nazimuths = 128",
         ),
     );
 }

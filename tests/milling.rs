@@ -305,12 +305,13 @@ fn constant_scallop_holds_h_on_the_seed_002_asphere_where_constant_step_does_not
 }
 
 #[test]
-fn teeth_leave_feed_marks_of_the_per_tooth_advance() {
-    // A ball r 1 mm with 2 teeth at 0.05 mm per tooth: stamps 0.05 mm apart along the
-    // feed leave marks r − √(r² − (f/2)²) = 312.7 nm high along a pass.
+fn teeth_as_bodies_leave_feed_marks_of_the_per_tooth_advance() {
+    // A ball r 1 mm with 2 teeth at 0.05 mm per tooth, each tooth the whole ball at its
+    // stamp: stamps 0.05 mm apart along the feed leave marks r − √(r² − (f/2)²) =
+    // 312.7 nm high along a pass, on its centre line too.
     let result = run_cpu(milling(
         "kind = \"plane\"\naperture_diameter_mm = 4.0",
-        "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2",
+        "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2\nflutes = \"body\"",
         "path = \"raster\"\nstepover_mm = 0.1\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.005",
         "pitch_um = 0.1\nazimuths = 4",
     ));
@@ -441,4 +442,287 @@ fn a_lead_varying_along_the_path_varies_the_effective_radius_with_it() {
         largest * 1e6
     );
     assert!(checked >= 20 && largest / smallest > 3.0);
+}
+
+/// Flutes as edges: a cylinder of R 1000 mm (its section flat to 0.1 µm under the tool),
+/// milled along its axis by a Ø2 mm ball with two teeth in passes 1.2 mm apart (one on
+/// the axis; the next cuts 0.32 mm above it at x = 0.4), rings 0.4 mm apart across it
+/// (x = −0.4, 0, 0.4), `rows` rows along 0.6 mm.
+fn flute_job(tool: &str, feed_per_tooth_mm: f64, rows: u32) -> Job {
+    milling(
+        "kind = \"cylinder\"\nform = \"convex\"\nradius_mm = 1000.0\naperture_diameter_mm = 0.8\nlength_mm = 0.6",
+        &format!("kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2\n{tool}"),
+        &format!(
+            "path = \"raster\"\nstepover_mm = 1.2\nfeed_per_tooth_mm = {feed_per_tooth_mm}\nstock_allowance_mm = 0.3"
+        ),
+        &format!("pitch_um = 400.0\nazimuths = {rows}"),
+    )
+}
+
+/// The feed marks along the pass at arc length `arc_mm` across it, over the middle two
+/// thirds of the rows: their height (max − min, mm), the mean spacing of their tops
+/// (mm), and the ring's x (mm).
+fn marks_at(result: &RunResult, arc_mm: f64) -> (f64, f64, f64) {
+    let grid = result.grid();
+    let ring = (0..grid.ring_count())
+        .find(|&i| (grid.rings[i].arc_length_mm - arc_mm).abs() < 1e-9)
+        .expect("a ring at that arc length");
+    let rows = grid.azimuths;
+    let profile: Vec<f64> = (rows / 6..rows - rows / 6)
+        .map(|row| result.field.depth_mm[grid.sample_index(ring, row)])
+        .collect();
+    let (lo, hi) = profile
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &d| {
+            (a.min(d), b.max(d))
+        });
+    let tops: Vec<usize> = (1..profile.len() - 1)
+        .filter(|&i| {
+            profile[i] > profile[i - 1]
+                && profile[i] >= profile[i + 1]
+                && profile[i] > 0.5 * (lo + hi)
+        })
+        .collect();
+    let row_mm = grid.row_y_mm(1) - grid.row_y_mm(0);
+    let spacing = match tops.len() {
+        0 | 1 => f64::NAN,
+        n => (tops[n - 1] - tops[0]) as f64 / (n - 1) as f64 * row_mm,
+    };
+    (hi - lo, spacing, grid.rings[ring].radius_mm)
+}
+
+/// The height of marks `spacing` apart left by a ball's section of radius r' =
+/// √(r² − x²) at lateral offset x: r' − √(r'² − spacing²/4) (≈ spacing²/8r').
+fn section_marks(x: f64, spacing: f64) -> f64 {
+    let section = (1.0 - x * x).sqrt();
+    section - (section * section - 0.25 * spacing * spacing).sqrt()
+}
+
+#[test]
+fn edges_leave_feed_marks_of_f_z_squared_over_8r() {
+    // f_z = 10 µm: the edges' trochoids loop within z·f_z/2π = 3.2 µm of the axis, and
+    // 0.4 mm off the path the marks are the ball's section at the per-tooth advance,
+    // f_z²/8r' = 13.6 nm (r' = 0.917 mm), f_z apart: on the two sides of the path within
+    // the trochoid's ±1.6 % (see below), whose mean cancels it to 0.03 %. Rows every
+    // 0.025 µm miss a mark's top by < 0.07 nm.
+    let result = run_cpu(flute_job("", 0.01, 24000));
+    let sides = [marks_at(&result, -0.4), marks_at(&result, 0.4)];
+    for (height, spacing, x) in sides {
+        println!(
+            "edges, f_z 10 µm, x {x:+.3} mm: marks {:.3} nm every {spacing:.5} mm; f_z²/8r' {:.3} nm",
+            height * 1e6,
+            section_marks(x, 0.01) * 1e6
+        );
+        assert!((spacing / 0.01 - 1.0).abs() < 0.01, "{spacing}");
+        assert!(
+            (height / section_marks(x, 0.01) - 1.0).abs() < 0.03,
+            "{height}"
+        );
+    }
+    let mean = 0.5 * (sides[0].0 + sides[1].0);
+    let expected = section_marks(0.4, 0.01);
+    assert!((mean / expected - 1.0).abs() < 0.02, "{mean} vs {expected}");
+}
+
+#[test]
+fn edges_sweep_trochoids_that_bodies_do_not() {
+    // f_z = 50 µm, 0.4 mm off the path: a tooth meets a point where it points at it, and
+    // the point's direction from the axis turns by 1/x per mm of advance, with the teeth
+    // on one side of the path and against them on the other. Consecutive passes of the
+    // edges over a point then come f_z / (1 ∓ z f_z/2πx) of advance apart (4 % more on
+    // one side, less on the other), and the marks — still f_z apart, as the tool comes
+    // back to the same place every tooth — have the section's height at that advance.
+    // As bodies the teeth cut f_z apart on both sides. On the path itself every edge's
+    // tip runs along it: no marks (bodies: f_z²/8r).
+    let q = |x: f64| 2.0 * 0.05 / (std::f64::consts::TAU * x.abs());
+    for (flutes, trochoid) in [("flutes = \"edges\"", true), ("flutes = \"body\"", false)] {
+        let result = run_cpu(flute_job(flutes, 0.05, 12000));
+        let mut sides = [marks_at(&result, -0.4), marks_at(&result, 0.4)];
+        sides.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for ((height, spacing, x), sign) in sides.into_iter().zip([1.0, -1.0]) {
+            let advance = if trochoid {
+                0.05 / (1.0 + sign * q(x))
+            } else {
+                0.05
+            };
+            let expected = section_marks(x, advance);
+            println!(
+                "{flutes}, f_z 50 µm, x {x:+.3} mm: marks {:.2} nm every {spacing:.5} mm; closed form {:.2} nm (passes {advance:.5} mm apart)",
+                height * 1e6,
+                expected * 1e6
+            );
+            assert!(
+                (height / expected - 1.0).abs() < 0.02,
+                "{height} vs {expected}"
+            );
+            assert!((spacing / 0.05 - 1.0).abs() < 0.01, "{spacing}");
+        }
+        let (centre, _, _) = marks_at(&result, 0.0);
+        println!("{flutes}: marks on the path {:.3} nm", centre * 1e6);
+        if trochoid {
+            assert!(centre < 0.5e-6, "{centre}");
+        } else {
+            assert!(
+                (centre / section_marks(0.0, 0.05) - 1.0).abs() < 0.02,
+                "{centre}"
+            );
+        }
+    }
+}
+
+#[test]
+fn one_tooth_cuts_alone_when_its_runout_exceeds_its_marks() {
+    // Tooth 1 reaching 5 µm lower (axial runout) than tooth 0, far more than tooth 1's
+    // own marks at twice the advance (≈ 1.4 µm): tooth 0 never reaches the finished
+    // surface, and the marks are one tooth's, a revolution (2f_z) apart, with the
+    // section's height at twice the advance between passes, 2f_z / (1 ∓ z f_z/2πx).
+    // Radial runout of 60 µm (more than f_z) does the same through the flanks: marks a
+    // revolution apart, over three times the height of two even teeth.
+    let q = |x: f64| 2.0 * 0.05 / (std::f64::consts::TAU * x.abs());
+    let even = run_cpu(flute_job("", 0.05, 12000));
+    let axial = run_cpu(flute_job(
+        "tooth_axial_runout_mm = [0.0, 0.005]",
+        0.05,
+        12000,
+    ));
+    let radial = run_cpu(flute_job(
+        "tooth_radial_runout_mm = [0.0, 0.06]",
+        0.05,
+        12000,
+    ));
+    let mut sides = [marks_at(&axial, -0.4), marks_at(&axial, 0.4)];
+    sides.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for ((height, spacing, x), sign) in sides.into_iter().zip([1.0, -1.0]) {
+        let advance = 0.05 / (1.0 + sign * q(x));
+        let expected = section_marks(x, 2.0 * advance);
+        println!(
+            "axial runout 5 µm, x {x:+.3}: marks {:.1} nm every {spacing:.5} mm; one tooth: {:.1} nm every 0.1 mm",
+            height * 1e6,
+            expected * 1e6
+        );
+        assert!(
+            (height / expected - 1.0).abs() < 0.02,
+            "{height} vs {expected}"
+        );
+        assert!((spacing / 0.1 - 1.0).abs() < 0.01, "{spacing}");
+    }
+    for arc in [-0.4, 0.4] {
+        let (height, spacing, x) = marks_at(&radial, arc);
+        let (two, two_spacing, _) = marks_at(&even, arc);
+        println!(
+            "radial runout 60 µm, x {x:+.3}: marks {:.1} nm every {spacing:.5} mm (two even teeth: {:.1} nm every {two_spacing:.5} mm)",
+            height * 1e6,
+            two * 1e6
+        );
+        assert!(
+            (spacing / (2.0 * two_spacing) - 1.0).abs() < 0.01,
+            "{spacing} vs {two_spacing}"
+        );
+        assert!(height > 3.0 * two, "{height} vs {two}");
+    }
+}
+
+/// An independent reference for teeth as edges: a ball of radius `r` with `z` equal,
+/// straight teeth moving along +y at `fz` per tooth count over a flat, turning one
+/// tooth pitch per tooth count. A point at lateral offset `d` and `y` along the feed is
+/// left at the lowest of the ball's profile r − √(r² − ρ²) over the instants an edge's
+/// half-plane holds it (ρ its distance from the axis then; ρ ≤ 0.08 mm, where the
+/// profile is already 3.2 µm up): time stepped by 2e-4 tooth counts, each crossing
+/// bisected. Written apart from the engine's scan of stamps.
+fn edges_brute_force(r: f64, z: u32, fz: f64, d: f64, y: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let wrap = |a: f64| (a + PI).rem_euclid(TAU) - PI;
+    // The angle of the point about the axis, from the feed toward −x (axis × feed),
+    // less tooth j's turn.
+    let gap = |tau: f64, j: u32| {
+        let psi = (-d).atan2(y - fz * tau);
+        wrap(psi - TAU * (tau - j as f64) / z as f64)
+    };
+    let depth = |tau: f64| {
+        let rho2 = d * d + (y - fz * tau).powi(2);
+        r - (r * r - rho2).max(0.0).sqrt()
+    };
+    let (centre, reach, step) = (y / fz, 0.08 / fz, 2e-4);
+    let mut best = f64::INFINITY;
+    for j in 0..z {
+        let mut a = centre - reach;
+        let mut ga = gap(a, j);
+        while a < centre + reach {
+            let b = a + step;
+            let gb = gap(b, j);
+            if ga.signum() != gb.signum() && (ga - gb).abs() < PI {
+                let (mut lo, mut hi) = (a, b);
+                for _ in 0..50 {
+                    let mid = 0.5 * (lo + hi);
+                    if gap(mid, j).signum() == ga.signum() {
+                        lo = mid
+                    } else {
+                        hi = mid
+                    }
+                }
+                best = best.min(depth(0.5 * (lo + hi)));
+            }
+            (a, ga) = (b, gb);
+        }
+    }
+    best
+}
+
+#[test]
+fn edges_match_a_brute_force_sweep_near_the_path() {
+    // Ø2 ball, 2 teeth, f_z 50 µm: the edges' trochoids loop within z·f_z/2π = 15.9 µm
+    // of the path. At 10, 20 and 30 µm off it (inside the loops, and 1.3 and 1.9 loop
+    // radii out, where a search that assumed one pass of a tooth per revolution lost
+    // the deeper of two) the marks along the feed — their top, bottom and height — are
+    // those of the brute-force sweep above, within 2 % of the height (rows 0.1 µm apart
+    // miss a sharp top by up to ~2 nm). The cylinder (R 1000 mm) lies d²/2R below the
+    // tangent plane the reference cuts in (≤ 0.45 nm); both sides of the path, sorted by
+    // height as up- and down-milling differ and the sense of turning does not matter.
+    let result = run_cpu(milling(
+        "kind = \"cylinder\"\nform = \"convex\"\nradius_mm = 1000.0\naperture_diameter_mm = 0.06\nlength_mm = 0.6",
+        "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2",
+        "path = \"raster\"\nstepover_mm = 1.2\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.3",
+        "pitch_um = 10.0\nazimuths = 6000",
+    ));
+    let grid = result.grid();
+    let profile_at = |arc: f64| -> (f64, f64) {
+        let ring = (0..grid.ring_count())
+            .find(|&i| (grid.rings[i].arc_length_mm - arc).abs() < 1e-9)
+            .expect("a ring at that arc length");
+        let rows = grid.azimuths;
+        (rows / 6..rows - rows / 6)
+            .map(|row| result.field.depth_mm[grid.sample_index(ring, row)])
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            })
+    };
+    for d in [0.01, 0.02, 0.03] {
+        let mut engine = [profile_at(-d), profile_at(d)];
+        let mut reference = [1.0, -1.0].map(|side| {
+            (0..500)
+                .map(|i| {
+                    edges_brute_force(1.0, 2, 0.05, side * d, i as f64 * 1e-4) + d * d / 2000.0
+                })
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(v), b.max(v))
+                })
+        });
+        engine.sort_by(|a, b| (a.1 - a.0).total_cmp(&(b.1 - b.0)));
+        reference.sort_by(|a, b| (a.1 - a.0).total_cmp(&(b.1 - b.0)));
+        for (e, r) in engine.iter().zip(&reference) {
+            let height = r.1 - r.0;
+            println!(
+                "d {:.0} µm: engine {:.2}–{:.2} nm (marks {:.2} nm), brute force {:.2}–{:.2} nm (marks {:.2} nm)",
+                d * 1e3,
+                e.0 * 1e6,
+                e.1 * 1e6,
+                (e.1 - e.0) * 1e6,
+                r.0 * 1e6,
+                r.1 * 1e6,
+                height * 1e6
+            );
+            assert!((e.0 - r.0).abs() < 0.02 * height, "bottom {e:?} vs {r:?}");
+            assert!((e.1 - r.1).abs() < 0.02 * height, "top {e:?} vs {r:?}");
+        }
+    }
 }

@@ -55,16 +55,18 @@ fn toml_job(text: &str) -> PyResult<JobFile> {
     toml::from_str(text).map_err(|e| job_error("job", e))
 }
 
-fn open_engine(name: &str, job: &Job) -> PyResult<Box<dyn RemovalEngine>> {
+fn open_engine(name: &str, _job: &Job) -> PyResult<Box<dyn RemovalEngine>> {
     match name {
         "cpu" => Ok(Box::new(CpuEngine)),
         "gpu" => GpuEngine::new()
             .map(|e| Box::new(e) as Box<dyn RemovalEngine>)
             .map_err(|e| PyRuntimeError::new_err(format!("engine=\"gpu\": {e}"))),
-        "auto" if !GpuEngine::runs(&job.process) => Ok(Box::new(CpuEngine)),
-        "auto" => Ok(GpuEngine::new()
-            .map(|e| Box::new(e) as Box<dyn RemovalEngine>)
-            .unwrap_or_else(|_| Box::new(CpuEngine))),
+        // As the CLI's `--engine auto`: a hardware adapter, else the CPU engine (a
+        // software rasteriser runs the kernels on the same cores, slower).
+        "auto" => Ok(match GpuEngine::new() {
+            Ok(e) if !e.is_software() => Box::new(e) as Box<dyn RemovalEngine>,
+            _ => Box::new(CpuEngine),
+        }),
         other => Err(job_error(
             "engine",
             format!("\"{other}\"; allowed: \"cpu\", \"gpu\" or \"auto\""),

@@ -35,7 +35,7 @@ impl Unit {
 
 #[derive(Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
 pub enum EngineChoice {
-    /// The GPU when an adapter is found, else the CPU (and say so).
+    /// The GPU on a hardware adapter; else the CPU (and say so).
     #[default]
     Auto,
     Cpu,
@@ -77,17 +77,25 @@ pub fn load_job_with_effects(
     })
 }
 
-pub fn open_engine(choice: EngineChoice, job: &Job) -> Result<Box<dyn RemovalEngine>, Failure> {
-    if choice == EngineChoice::Auto && !GpuEngine::runs(&job.process) {
-        eprintln!("the GPU engine does not run this process yet: using the CPU engine");
-        return Ok(Box::new(CpuEngine));
-    }
+/// The engine a command runs on. `auto`: the GPU engine on a hardware adapter; the CPU
+/// engine where the only adapter is a software rasteriser (Mesa lavapipe runs the
+/// kernels on the same cores, slower than the native f64 engine) or there is none,
+/// saying so. Every process has a GPU kernel, so the choice no longer depends on the
+/// job.
+pub fn open_engine(choice: EngineChoice, _job: &Job) -> Result<Box<dyn RemovalEngine>, Failure> {
     match choice {
         EngineChoice::Cpu => Ok(Box::new(CpuEngine)),
         EngineChoice::Gpu => GpuEngine::new()
             .map(|engine| Box::new(engine) as Box<dyn RemovalEngine>)
             .map_err(|err| Failure::Runtime(format!("--engine gpu: {err}"))),
         EngineChoice::Auto => match GpuEngine::new() {
+            Ok(engine) if engine.is_software() => {
+                eprintln!(
+                    "{} is a software rasteriser, slower here than the CPU engine: using the CPU engine (--engine gpu uses it anyway)",
+                    engine.info().adapter
+                );
+                Ok(Box::new(CpuEngine))
+            }
             Ok(engine) => Ok(Box::new(engine)),
             Err(err) => {
                 eprintln!("{err}\nusing the CPU engine instead");

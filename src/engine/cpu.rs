@@ -2,8 +2,8 @@
 //! absolute coordinates in f64 (no local-frame tricks needed), parallel over samples.
 
 use super::cpu_generating::generating_dexel;
+use super::cpu_milling::milling_dexel;
 use super::cpu_turning::{LANES, TurningKernel};
-use super::milling_scene::milling_dexel;
 use super::scene::{Branch, PASS_ID_STRIDE, TurningScene};
 use super::{EngineError, EngineInfo, Progress, RemovalEngine, Scene};
 use crate::field::{DexelField, NO_PASS, Ring};

@@ -1,99 +1,168 @@
-//! Everything a removal engine needs for a milling job, and the f64 search it runs per
-//! sample (the CPU engine's body).
+//! Everything a removal engine needs for a milling job, prepared once in f64: the path's
+//! nodes as the engines read them, the passes, and the nodes binned in 3-D so that a
+//! sample looks only at the passes that can cut it. The search each sample runs on this
+//! is `cpu_milling.rs` (f64) and its twin `shaders/milling.wgsl` (f32).
 //!
-//! A sample's dexel ray meets the tool swept along a pass at the lowest entry over the
-//! pass's arc length. Only poses whose centre lies near where a cutting pose's centre
-//! must be can cut the sample below the stock top: a tool touching the sample's point p
-//! has its centre at p + r·n plus at most its flat radius R across n, and one that dips
-//! below the stock top t there lies within √(2 r_p (t + lift)) more (r_p the profile
-//! radius across the pass). So the path's nodes are binned in 3-D by their centre, and a
-//! sample looks only at the nodes within that radius (plus one node spacing) of p + r·n,
-//! over the span of each pass's nodes found there. Along the span the entry, extended
-//! past the stock top by the distance of the stock-top point from the tool (continuous
-//! where the entry reaches the stock top, growing away from the tool), is minimised by
-//! golden-section search, after a coarse scan when the span is long. With teeth, the
-//! tool cuts only where a tooth passes (every `feed_per_tooth` of travel): the stamps
-//! around the continuous optimum are evaluated instead. When the teeth's sweeps are
-//! displaced from the axis (each by up to half a tooth's advance), a stamp farther
-//! along than its neighbours can still cut deepest where the displacement has a part
-//! across the feed, so then every stamp over the pass's span is evaluated.
+//! Which passes can cut a sample. A tool touching the sample's point p has its centre
+//! at p + κ·n (κ the corner or ball radius, a disc's throat radius) plus at most its
+//! flat radius R across n, and one that dips below the stock top t there lies within
+//! √(2 r_p (t + lift)) more (r_p the profile radius across the pass). So the path's nodes
+//! are binned in 3-D by their centre as runs of consecutive nodes of one pass in one
+//! cell, and a sample takes the runs within that search radius (plus one node spacing)
+//! of p + κ·n, merged per pass into the span of its nodes found there: its *candidates*.
 
-use super::generating_scene::golden_section_min_steps;
-use crate::field::{NO_PASS, PolarGrid};
-use crate::geometry::cutter::CutterPose;
+use crate::field::{Layout, PolarGrid};
 use crate::geometry::milling_tool::MillingTool;
-use crate::process::milling::{Interpolation, MillingPass, MillingPath};
+use crate::process::milling::{Interpolation, MillingPath};
 use glam::{DVec2, DVec3};
-use std::f64::consts::FRAC_PI_4;
+use std::f64::consts::{FRAC_PI_4, TAU};
+use std::sync::OnceLock;
+
+/// Candidate passes a sample keeps for ranking; further ones are searched at once
+/// (the same result, without the early stop). Shared with the kernel.
+pub const MAX_CANDIDATES: usize = 16;
 
 /// Where the teeth cut along the path: stamp k at arc length k·`feed_per_tooth_mm` from
-/// the path's start (0: the tool body sweeps continuously), cut by tooth k mod z whose
-/// sweep is displaced from the tool axis by `offsets_mm[k mod z]` in the frame (feed
-/// direction, its right-handed quarter turn about the axis); no offsets: every tooth
-/// on the axis.
+/// the path's start (0: the tool body sweeps continuously), when tooth k mod z points
+/// along the feed, its sweep displaced from the tool axis by `offsets_mm[k mod z]` in
+/// the frame (feed direction, its right-handed quarter turn about the axis); no
+/// offsets: every tooth on the axis. With `edges`, each tooth cuts as its edge.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ToothStamps {
     pub feed_per_tooth_mm: f64,
     pub offsets_mm: Vec<DVec2>,
+    pub edges: Option<Box<Edges>>,
 }
 
-#[derive(Debug, Clone)]
-pub struct MillingScene {
-    pub grid: PolarGrid,
-    pub tool: MillingTool,
-    pub path: MillingPath,
-    /// Normal distance of the stock's top above nominal: the value of uncut samples.
-    pub stock_top_mm: f64,
-    /// Where a cutting pose's centre sits from the sample point, along its normal (an
-    /// end mill's corner radius, a disc's throat radius).
-    pub centre_offset_mm: f64,
-    /// How far across the normal it can sit besides (an end mill's flat radius R, which
-    /// the axis of each run of nodes pins down; half a disc's edge span).
-    pub lateral_mm: f64,
-    /// How far from the expected centre a node's centre can be and its tool still cut
-    /// the sample: the dip below the stock top a profile of radius r_p allows across
-    /// the pass, plus one node spacing.
-    pub search_radius_mm: f64,
-    /// Where the teeth cut (no feed per tooth: the tool body sweeps continuously).
-    pub stamps: ToothStamps,
-    /// For a ball, how far a pass's cut can lie below its value at the node nearest the
-    /// expected centre (half a node spacing of travel under the ball); `None` for other
-    /// tools, whose cut need not be near that node (every candidate pass is searched).
-    pub node_slack_mm: Option<f64>,
-    bins: NodeBins,
-    /// Dexel–pass pairs the engine evaluates (samples × candidate passes).
-    pairs: u64,
+/// Teeth as edges. Stamp k's tooth turns with the spindle, 2π/z per feed per tooth, and
+/// cuts a sample where its edge passes it: at the turn where the edge, at the height of
+/// the sample's entry into that tooth's solid of revolution, points at the entry. The
+/// tooth's displacement turns with it; its solid is the tool's profile with the edge
+/// `radial_mm` further out and `axial_mm` lower.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Edges {
+    pub teeth: u32,
+    /// How far the edge lags behind its tip's turn per mm of height above the tip (rad/mm):
+    /// tan β / R for a constant-lead helix of angle β on a tool of outer radius R.
+    pub lag_per_mm: f64,
+    /// Per tooth (empty: none), mm.
+    pub radial_mm: Vec<f64>,
+    pub axial_mm: Vec<f64>,
+}
+
+impl ToothStamps {
+    /// How far a tooth's cut can lie beyond the nominal tool's (mm): its displacement
+    /// and its runout.
+    pub fn reach_beyond_mm(&self) -> f64 {
+        let largest = |v: &mut dyn Iterator<Item = f64>| v.fold(0.0, f64::max);
+        let edges = self.edges.as_deref();
+        largest(&mut self.offsets_mm.iter().map(|o| o.length()))
+            + edges.map_or(0.0, |e| largest(&mut e.radial_mm.iter().copied()))
+            + edges.map_or(0.0, |e| largest(&mut e.axial_mm.iter().map(|a| a.abs())))
+    }
+}
+
+/// A path node as the engines read it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Node {
+    pub centre: DVec3,
+    pub axis: DVec3,
+    /// The centre's distance from Z and its azimuth in [0, 2π).
+    pub radius_mm: f64,
+    pub angle_rad: f64,
+    /// (radius, angle, height) of the next node of the pass less this one's: the steps
+    /// of the polar interpolation (zero at a pass's last node).
+    pub polar_step: DVec3,
+    /// Path arc length in feeds per tooth: stamp k sits at k (0 without teeth).
+    pub teeth: f64,
+}
+
+/// One pass's nodes in `MillingScene::nodes`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PassSpan {
+    pub first_node: u32,
+    pub node_count: u32,
+    pub polar: bool,
+    /// Nodes between the points of the coarse scan along the pass.
+    pub stride: u32,
+    /// The longest step between two of its nodes (mm).
+    pub spacing_mm: f64,
+    /// Where the pass's geometry puts node coordinates: a spiral turn's first node's
+    /// unwrapped azimuth and the azimuth step per node; a raster pass's first node and
+    /// its step per node in XY (its nodes lie evenly along a line in XY).
+    pub origin: DVec3,
+    pub step: DVec3,
+}
+
+impl PassSpan {
+    /// Node coordinates near a point by the pass's geometry: a spiral turn's nodes at
+    /// the point's azimuth (the first two from the turn's start: a turn may come round
+    /// to it twice), a raster pass's projection onto its line in XY (twice). `azimuth`
+    /// is the point's.
+    pub fn nearest_guesses(&self, point: DVec3, azimuth: f64) -> [f64; 2] {
+        if self.polar {
+            if self.step.y == 0.0 {
+                return [0.0; 2];
+            }
+            // Node coordinates where the azimuth comes round: u₀ + k·(2π/|step|).
+            let per_turn = TAU / self.step.y.abs();
+            let u0 = ((azimuth - self.origin.y) / self.step.y).rem_euclid(per_turn);
+            [u0, u0 + per_turn]
+        } else {
+            let along = DVec2::new(self.step.x, self.step.y);
+            let length = along.length_squared();
+            let u = if length > 0.0 {
+                (point - self.origin).truncate().dot(along) / length
+            } else {
+                0.0
+            };
+            [u, u]
+        }
+    }
+}
+
+/// A pass that can cut a sample, and the span of its nodes (pass-local) found near it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Candidate {
+    pub pass: u32,
+    pub first: u32,
+    pub last: u32,
 }
 
 /// Path nodes binned in 3-D by their pose centre, as runs of consecutive nodes of one
-/// pass lying in one cell (with the run's bounding box and the axis at its start).
+/// pass lying in one cell (with the run's bounding box and the axis at its start); the
+/// runs of cell c are `runs[cell_start[c]..cell_start[c + 1]]`.
 #[derive(Debug, Clone)]
-struct NodeBins {
-    origin: DVec3,
-    cell_mm: f64,
-    size: [usize; 3],
-    cells: Vec<Vec<Run>>,
+pub struct NodeBins {
+    pub origin: DVec3,
+    pub cell_mm: f64,
+    pub size: [u32; 3],
+    pub cell_start: Vec<u32>,
+    pub runs: Vec<Run>,
 }
 
-#[derive(Debug, Clone, Copy)]
-struct Run {
-    pass: u32,
-    first: u32,
-    last: u32,
-    low: DVec3,
-    high: DVec3,
-    axis: DVec3,
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Run {
+    pub pass: u32,
+    pub first: u32,
+    pub last: u32,
+    pub low: DVec3,
+    pub high: DVec3,
+    pub axis: DVec3,
 }
 
 impl Run {
     /// Distance from a point to the run's bounding box.
-    fn distance(&self, point: DVec3) -> f64 {
+    pub fn distance(&self, point: DVec3) -> f64 {
         (self.low - point)
             .max(point - self.high)
             .max(DVec3::ZERO)
             .length()
     }
 }
+
+/// Cells a bin grid may have; a larger part gets larger cells.
+const MAX_CELLS: f64 = 4.0e6;
 
 impl NodeBins {
     fn new(path: &MillingPath, cell_mm: f64) -> Self {
@@ -102,17 +171,33 @@ impl NodeBins {
             low = low.min(node.pose.centre);
             high = high.max(node.pose.centre);
         }
-        let count = |span: f64| ((span / cell_mm).floor() as usize + 1).max(1);
+        let extent = (high - low).max(DVec3::ZERO);
+        let count = |span: f64, cell: f64| ((span / cell).floor() as u32 + 1).max(1);
+        let mut cell_mm = cell_mm;
+        while [extent.x, extent.y, extent.z]
+            .iter()
+            .map(|&s| count(s, cell_mm) as f64)
+            .product::<f64>()
+            > MAX_CELLS
+        {
+            cell_mm *= 1.5;
+        }
         let size = [
-            count(high.x - low.x),
-            count(high.y - low.y),
-            count(high.z - low.z),
+            count(extent.x, cell_mm),
+            count(extent.y, cell_mm),
+            count(extent.z, cell_mm),
         ];
-        let mut cells: Vec<Vec<Run>> = vec![Vec::new(); size[0] * size[1] * size[2]];
         let cell_of = |centre: DVec3| {
             let c = ((centre - low) / cell_mm).floor();
-            (c.z as usize * size[1] + c.y as usize) * size[0] + c.x as usize
+            let clamp = |v: f64, n: u32| (v.max(0.0) as u32).min(n - 1) as usize;
+            let (x, y, z) = (
+                clamp(c.x, size[0]),
+                clamp(c.y, size[1]),
+                clamp(c.z, size[2]),
+            );
+            (z * size[1] as usize + y) * size[0] as usize + x
         };
+        let mut cells: Vec<Vec<Run>> = vec![Vec::new(); (size[0] * size[1] * size[2]) as usize];
         for (p, pass) in path.passes.iter().enumerate() {
             let mut current: Option<(usize, Run)> = None;
             for (n, node) in pass.nodes.iter().enumerate() {
@@ -144,43 +229,84 @@ impl NodeBins {
                 cells[c].push(run);
             }
         }
+        let mut cell_start = Vec::with_capacity(cells.len() + 1);
+        let mut runs = Vec::new();
+        for cell in cells {
+            cell_start.push(runs.len() as u32);
+            runs.extend(cell);
+        }
+        cell_start.push(runs.len() as u32);
         Self {
             origin: low,
             cell_mm,
             size,
-            cells,
+            cell_start,
+            runs,
         }
     }
 
-    /// The runs in the cells around `point`.
-    fn runs_near(&self, point: DVec3) -> impl Iterator<Item = &Run> {
+    /// Calls `visit` with every run in the 3 × 3 × 3 cells around `point`.
+    pub fn for_each_run_near(&self, point: DVec3, mut visit: impl FnMut(&Run)) {
         let c = ((point - self.origin) / self.cell_mm).floor();
-        let range = |centre: f64, size: usize| {
-            let low = (centre as i64 - 1).max(0);
-            let high = (centre as i64 + 1).min(size as i64 - 1);
-            low..=high
+        let range = |centre: f64, size: u32| {
+            let low = (centre - 1.0).max(0.0);
+            let high = (centre + 1.0).min(size as f64 - 1.0);
+            (low as i64)..=(high as i64)
         };
-        let mut indices = Vec::with_capacity(27);
         for z in range(c.z, self.size[2]) {
             for y in range(c.y, self.size[1]) {
                 for x in range(c.x, self.size[0]) {
-                    let index =
-                        (z as usize * self.size[1] + y as usize) * self.size[0] + x as usize;
-                    indices.push(index);
+                    let cell = ((z * self.size[1] as i64 + y) * self.size[0] as i64 + x) as usize;
+                    let (from, to) = (self.cell_start[cell], self.cell_start[cell + 1]);
+                    for run in &self.runs[from as usize..to as usize] {
+                        visit(run);
+                    }
                 }
             }
         }
-        indices.into_iter().flat_map(move |i| self.cells[i].iter())
     }
 }
 
-/// One pass's cut at a sample: depth along the ray, the path arc length of the pose
-/// that made it, and the pose.
+#[derive(Debug, Clone)]
+pub struct MillingScene {
+    pub grid: PolarGrid,
+    pub tool: MillingTool,
+    pub path: MillingPath,
+    /// Normal distance of the stock's top above nominal: the value of uncut samples.
+    pub stock_top_mm: f64,
+    /// Where a cutting pose's centre sits from the sample point, along its normal (an
+    /// end mill's corner radius, a disc's throat radius).
+    pub centre_offset_mm: f64,
+    /// How far across the normal it can sit besides (an end mill's flat radius R, which
+    /// the axis of each run of nodes pins down; half a disc's edge span).
+    pub lateral_mm: f64,
+    /// How far from the expected centre a node's centre can be and its tool still cut
+    /// the sample: the dip below the stock top a profile of radius r_p allows across
+    /// the pass, plus one node spacing.
+    pub search_radius_mm: f64,
+    /// The tool's profile radius across the passes (sizes the search).
+    pub profile_radius_mm: f64,
+    /// Where the teeth cut (no feed per tooth: the tool body sweeps continuously).
+    pub stamps: ToothStamps,
+    /// For a ball, how far a pass's cut can lie below its cut at the nodes around the
+    /// one nearest the expected centre, per squared node spacing: the ball's curvature
+    /// (twice the flat-bottom value, for contacts up to 50° off the ray), plus the teeth's
+    /// displacement; `None` for other tools, whose every candidate pass is searched.
+    pub ball_slack: Option<BallSlack>,
+    pub nodes: Vec<Node>,
+    pub passes: Vec<PassSpan>,
+    pub bins: NodeBins,
+    /// Dexel–pass pairs (samples × candidate passes), counted when first asked for.
+    pairs: OnceLock<u64>,
+}
+
+/// The early stop of a ball's pass ranking: a pass whose nodes around the expected
+/// centre cut no deeper than the best so far plus `per_spacing_squared · h²` (h its
+/// node spacing) plus `displacement_mm` cannot win.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PassCut {
-    pub depth_mm: f64,
-    pub arc_mm: f64,
-    pub pose: CutterPose,
+pub struct BallSlack {
+    pub per_spacing_squared: f64,
+    pub displacement_mm: f64,
 }
 
 impl MillingScene {
@@ -200,16 +326,9 @@ impl MillingScene {
         extra_reach_mm: f64,
     ) -> Self {
         let (centre_offset_mm, lateral) = tool.centre_offset_and_lateral_reach();
-        // Node spacing: a cutting pose may lie between two nodes.
-        let spacing = path
-            .passes
-            .iter()
-            .flat_map(|p| {
-                p.nodes
-                    .windows(2)
-                    .map(|w| (w[1].pose.centre - w[0].pose.centre).length())
-            })
-            .fold(0.0, f64::max);
+        let passes = pass_spans(&path, 0.0);
+        let spacing = passes.iter().map(|p| p.spacing_mm).fold(0.0, f64::max);
+        let extra_reach_mm = extra_reach_mm + stamps.reach_beyond_mm();
         let dip = (stock_top_mm.abs() + lift_mm.abs() + extra_reach_mm).max(0.0);
         // Along a profile of radius r_p the tool dips within √(2 r_p dip); no centre
         // farther than the tool's own size from a cutting one can cut (a face that may
@@ -218,18 +337,20 @@ impl MillingScene {
             .sqrt()
             .min(2.0 * tool.reach_mm());
         let search_radius_mm = across + dip + spacing + 1e-6;
+        // Scan spans longer than the search radius in steps of half of it (and, on a
+        // spiral's turn, of at most 45°), then refine the best bracket.
+        let scan_mm = 0.5 * (search_radius_mm + lateral);
+        let passes = pass_spans(&path, scan_mm);
         let bins = NodeBins::new(&path, search_radius_mm + lateral);
         let is_ball = matches!(tool, MillingTool::EndMill(c) if c.major_radius_mm == 0.0);
         // A displaced tooth can cut up to its displacement below the undisplaced sweep.
-        let displacement = stamps
-            .offsets_mm
-            .iter()
-            .map(|o| o.length())
-            .fold(0.0, f64::max);
-        let node_slack_mm = is_ball.then(|| {
-            (0.5 * spacing).powi(2) / (2.0 * profile_radius_mm.max(1e-3)) + 1e-9 + displacement
+        let displacement = stamps.reach_beyond_mm();
+        let ball_slack = is_ball.then(|| BallSlack {
+            per_spacing_squared: 2.0 * 0.25 / (2.0 * profile_radius_mm.max(1e-3)),
+            displacement_mm: displacement + 1e-9,
         });
-        let mut scene = Self {
+        let nodes = engine_nodes(&path, stamps.feed_per_tooth_mm);
+        Self {
             grid,
             tool,
             path,
@@ -237,380 +358,207 @@ impl MillingScene {
             centre_offset_mm,
             lateral_mm: lateral,
             search_radius_mm,
+            profile_radius_mm,
             stamps,
-            node_slack_mm,
+            ball_slack,
+            nodes,
+            passes,
             bins,
-            pairs: 0,
-        };
-        scene.pairs = scene.count_pairs();
-        scene
+            pairs: OnceLock::new(),
+        }
     }
 
-    /// A sample's nominal point and outward normal in 3-D.
-    pub fn sample_ray(&self, ring: usize, azimuth: u32) -> (DVec3, DVec3) {
-        (
-            self.grid.sample_point(ring, azimuth),
-            self.grid.sample_normal(ring, azimuth),
-        )
+    /// The nodes of pass `pass`.
+    pub fn pass_nodes(&self, pass: u32) -> &[Node] {
+        let span = &self.passes[pass as usize];
+        let first = span.first_node as usize;
+        &self.nodes[first..first + span.node_count as usize]
     }
 
-    /// Passes with nodes within the search radius of where a pose cutting the sample
-    /// would sit: (pass, first node, last node) over their runs near it. For an end mill
-    /// with a flat radius, each run's axis fixes the centre's offset across the normal
-    /// (toward n's part across the axis); a flat tip square to the normal may cut from
-    /// anywhere within R.
-    pub fn candidate_passes(&self, origin: DVec3, normal: DVec3) -> Vec<(u32, u32, u32)> {
-        let core = origin + self.centre_offset_mm * normal;
-        let mut found: Vec<(u32, u32, u32)> = Vec::new();
-        for run in self.bins.runs_near(core) {
-            let (expected, radius) = match self.tool {
-                MillingTool::EndMill(cutter) if cutter.major_radius_mm > 0.0 => {
-                    let across = normal - normal.dot(run.axis) * run.axis;
-                    if across.length() > 1e-6 {
-                        // The axis turns a little along a run (five-axis): allow for it.
-                        let centre = core + cutter.major_radius_mm * across.normalize();
-                        (centre, 2.0 * self.search_radius_mm)
-                    } else {
-                        (core, cutter.major_radius_mm + self.search_radius_mm)
-                    }
+    /// The centre a pose cutting a sample at `point` (outward normal `normal`) would
+    /// have, for the runs with axis `axis`, and how far from it the run's nodes may lie.
+    /// For an end mill with a flat radius the axis fixes the centre's offset across the
+    /// normal (toward n's part across the axis); a flat tip square to the normal may
+    /// cut from anywhere within R.
+    pub fn expected_centre(&self, point: DVec3, normal: DVec3, axis: DVec3) -> (DVec3, f64) {
+        let core = point + self.centre_offset_mm * normal;
+        match self.tool {
+            MillingTool::EndMill(cutter) if cutter.major_radius_mm > 0.0 => {
+                let across = normal - normal.dot(axis) * axis;
+                if across.length() > 1e-6 {
+                    // The axis turns a little along a run (five-axis): allow for it.
+                    let centre = core + cutter.major_radius_mm * across.normalize();
+                    (centre, 2.0 * self.search_radius_mm)
+                } else {
+                    (core, cutter.major_radius_mm + self.search_radius_mm)
                 }
-                _ => (core, self.lateral_mm + self.search_radius_mm),
-            };
+            }
+            _ => (core, self.lateral_mm + self.search_radius_mm),
+        }
+    }
+
+    /// Calls `visit` with each pass that can cut the sample at `point` (world) with
+    /// outward normal `normal`, merged over its runs near it, in the order the kernel
+    /// sees them; passes beyond `MAX_CANDIDATES` distinct ones are handed over run by
+    /// run as they come (`overflow`).
+    pub fn candidates(
+        &self,
+        point: DVec3,
+        normal: DVec3,
+        list: &mut CandidateList,
+        mut overflow: impl FnMut(Candidate),
+    ) {
+        list.len = 0;
+        let core = point + self.centre_offset_mm * normal;
+        self.bins.for_each_run_near(core, |run| {
+            let (expected, radius) = self.expected_centre(point, normal, run.axis);
             if run.distance(expected) > radius {
-                continue;
+                return;
             }
-            match found.iter_mut().find(|f| f.0 == run.pass) {
-                Some(f) => {
-                    f.1 = f.1.min(run.first);
-                    f.2 = f.2.max(run.last);
-                }
-                None => found.push((run.pass, run.first, run.last)),
-            }
-        }
-        found.sort_unstable();
-        found
-    }
-
-    /// Dexel–pass pairs the engine evaluates (samples × candidate passes).
-    pub fn pair_count(&self) -> u64 {
-        self.pairs
-    }
-
-    fn count_pairs(&self) -> u64 {
-        use rayon::prelude::*;
-        let rings = self.grid.ring_count();
-        (0..self.grid.sample_count())
-            .into_par_iter()
-            .map(|s| {
-                let (origin, normal) = self.sample_ray(s % rings, (s / rings) as u32);
-                self.candidate_passes(origin, normal).len() as u64
-            })
-            .sum()
-    }
-
-    /// The entry of the ray into the tool at `pose`, extended above the stock top by
-    /// the stock-top point's distance from the tool.
-    fn extended_entry(&self, pose: &CutterPose, origin: DVec3, normal: DVec3) -> f64 {
-        let top = self.stock_top_mm;
-        match self.tool.ray_entry(pose, origin, normal) {
-            Some(entry) if entry < top => entry,
-            _ => {
-                top + self
-                    .tool
-                    .signed_distance(pose, origin + top * normal)
-                    .max(0.0)
-            }
-        }
-    }
-
-    /// A pass's cut at its node nearest the expected pose centre and that node's
-    /// neighbours: an upper bound of its lowest cut, which for a ball lies at most
-    /// `node_slack_mm` lower.
-    fn node_estimate(&self, pass: u32, first: u32, last: u32, origin: DVec3, normal: DVec3) -> f64 {
-        let nodes = &self.path.passes[pass as usize].nodes;
-        let expected = origin + self.centre_offset_mm * normal;
-        let nearest = (first as usize..=last as usize)
-            .min_by(|&a, &b| {
-                let da = (nodes[a].pose.centre - expected).length_squared();
-                let db = (nodes[b].pose.centre - expected).length_squared();
-                da.total_cmp(&db)
-            })
-            .unwrap_or(first as usize);
-        (nearest.saturating_sub(1)..=(nearest + 1).min(nodes.len() - 1))
-            .map(|i| self.extended_entry(&nodes[i].pose, origin, normal))
-            .fold(f64::INFINITY, f64::min)
-    }
-
-    /// The lowest cut of pass `pass` (nodes first..=last near the sample) on the ray.
-    pub fn pass_cut(
-        &self,
-        pass: u32,
-        first: u32,
-        last: u32,
-        origin: DVec3,
-        normal: DVec3,
-    ) -> Option<PassCut> {
-        let pass = &self.path.passes[pass as usize];
-        let nodes = &pass.nodes;
-        let (start, end) = (
-            &nodes[(first as usize).saturating_sub(1)],
-            &nodes[(last as usize + 1).min(nodes.len() - 1)],
-        );
-        let (from, to) = (start.arc_mm, end.arc_mm);
-        let pitch = self.stamps.feed_per_tooth_mm;
-        if pitch > 0.0 && !self.stamps.offsets_mm.is_empty() {
-            // Displaced teeth: every stamp over the span.
-            let stamps = (from / pitch).ceil() as i64..=(to / pitch).floor() as i64;
-            return self.best_stamp(pass, stamps, origin, normal);
-        }
-        let entry_at = |arc: f64| self.extended_entry(&pass.pose_at(arc), origin, normal);
-        // Scan spans longer than the search radius (tight spiral turns), then refine the
-        // best bracket.
-        let scan = 0.5 * (self.search_radius_mm + self.lateral_mm);
-        let mut steps = (((to - from) / scan).ceil() as usize).max(2);
-        if pass.interpolation == Interpolation::Polar {
-            // On a tight turn at most 45° of it between scan points, so the best
-            // bracket (two steps) spans less than the half turn over which the entry
-            // can only fall and then rise.
-            let turned = (end.polar.y - start.polar.y).abs();
-            steps = steps.max((turned / FRAC_PI_4).ceil() as usize);
-        }
-        let at = |i: usize| from + (to - from) * i as f64 / steps as f64;
-        let best = (0..=steps)
-            .map(|i| (i, entry_at(at(i))))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map_or(0, |b| b.0);
-        let (lo, hi) = (at(best.saturating_sub(1)), at((best + 1).min(steps)));
-        // 40 steps shrink the bracket (a few node spacings) to 4e-9 of it.
-        let arc = golden_section_min_steps(&entry_at, lo, hi, 40);
-        if pitch > 0.0 {
-            // Only the tooth positions cut: the stamps around the optimum.
-            let nearest = (arc / pitch).floor() as i64;
-            return self.best_stamp(pass, nearest - 1..=nearest + 2, origin, normal);
-        }
-        let depth = entry_at(arc);
-        (depth < self.stock_top_mm).then(|| PassCut {
-            depth_mm: depth,
-            arc_mm: arc,
-            pose: pass.pose_at(arc),
-        })
-    }
-
-    /// The lowest cut on the ray of the stamps `stamps` that lie on the pass.
-    fn best_stamp(
-        &self,
-        pass: &MillingPass,
-        stamps: std::ops::RangeInclusive<i64>,
-        origin: DVec3,
-        normal: DVec3,
-    ) -> Option<PassCut> {
-        let pitch = self.stamps.feed_per_tooth_mm;
-        stamps
-            .filter(|&k| (pass.start_arc()..=pass.end_arc()).contains(&(k as f64 * pitch)))
-            .map(|k| {
-                let arc = k as f64 * pitch;
-                let pose = self.stamp_pose(pass, k, arc);
-                (arc, pose, self.extended_entry(&pose, origin, normal))
-            })
-            .min_by(|a, b| a.2.total_cmp(&b.2))
-            .filter(|cut| cut.2 < self.stock_top_mm)
-            .map(|(arc, pose, depth)| PassCut {
-                depth_mm: depth,
-                arc_mm: arc,
-                pose,
-            })
-    }
-
-    /// The pose of stamp `k` (at path arc length `arc`): the tool at that point of the
-    /// pass, its centre moved by tooth k mod z's displacement.
-    fn stamp_pose(&self, pass: &MillingPass, k: i64, arc: f64) -> CutterPose {
-        let pose = pass.pose_at(arc);
-        let offsets = &self.stamps.offsets_mm;
-        if offsets.is_empty() {
-            return pose;
-        }
-        let offset = offsets[k.rem_euclid(offsets.len() as i64) as usize];
-        let feed = pass.feed_direction_at(arc);
-        let along = (feed - feed.dot(pose.axis) * pose.axis)
-            .normalize_or(pose.axis.any_orthonormal_vector());
-        let across = pose.axis.cross(along);
-        CutterPose::new(
-            pose.centre + offset.x * along + offset.y * across,
-            pose.axis,
-        )
-    }
-}
-
-impl MillingScene {
-    /// Per sample, the diameter of the circle about the tool axis on which the edge cut
-    /// the finished surface there (NaN where no pass cut): the effective cutting diameter
-    /// at the generating contact (seed 004's De at the point K).
-    pub fn cutting_diameters(&self, field: &crate::field::DexelField) -> Vec<f64> {
-        use rayon::prelude::*;
-        let rings = self.grid.ring_count();
-        (0..self.grid.sample_count())
-            .into_par_iter()
-            .map(|s| {
-                let pass = field.pass[s];
-                if pass == NO_PASS {
-                    return f64::NAN;
-                }
-                let (origin, normal) = self.sample_ray(s % rings, (s / rings) as u32);
-                self.candidate_passes(origin, normal)
-                    .into_iter()
-                    .find(|c| c.0 == pass)
-                    .and_then(|(p, first, last)| self.pass_cut(p, first, last, origin, normal))
-                    .map_or(f64::NAN, |cut| {
-                        let contact = origin + cut.depth_mm * normal;
-                        2.0 * MillingTool::radius_at(&cut.pose, contact)
-                    })
-            })
-            .collect()
-    }
-}
-
-/// Depths closer than this count as a tie (1e-13 mm, far below any resolved feature).
-const TIE_MM: f64 = 1e-13;
-
-/// The machined surface at one sample and the pass that left it (the pass index).
-/// For a ball, candidate passes are ranked by their cut at the nearest nodes and one is
-/// searched in full only while that estimate, less the slack between nodes, can still
-/// beat the best; other tools search every candidate.
-pub fn milling_dexel(scene: &MillingScene, ring: usize, azimuth: u32) -> (f64, u32) {
-    let (origin, normal) = scene.sample_ray(ring, azimuth);
-    let mut ranked: Vec<(f64, u32, u32, u32)> = scene
-        .candidate_passes(origin, normal)
-        .into_iter()
-        .map(|(pass, first, last)| {
-            let estimate = match scene.node_slack_mm {
-                Some(_) => scene.node_estimate(pass, first, last, origin, normal),
-                None => f64::NEG_INFINITY,
+            let found = Candidate {
+                pass: run.pass,
+                first: run.first,
+                last: run.last,
             };
-            (estimate, pass, first, last)
-        })
-        .collect();
-    ranked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    let mut best = (scene.stock_top_mm, NO_PASS);
-    for (estimate, pass, first, last) in ranked {
-        if scene
-            .node_slack_mm
-            .is_some_and(|slack| estimate - slack >= best.0)
-        {
-            break;
-        }
-        // A pass must cut measurably deeper to win: on a cusp line two passes tie, and
-        // rounding must not make the winner flicker from sample to sample.
-        if let Some(cut) = scene.pass_cut(pass, first, last, origin, normal)
-            && (cut.depth_mm < best.0 - TIE_MM || (cut.depth_mm < best.0 + TIE_MM && pass < best.1))
-        {
-            best = (cut.depth_mm, pass);
-        }
+            if let Some(c) = list.items[..list.len]
+                .iter_mut()
+                .find(|c| c.pass == run.pass)
+            {
+                c.first = c.first.min(run.first);
+                c.last = c.last.max(run.last);
+            } else if list.len < MAX_CANDIDATES {
+                list.items[list.len] = found;
+                list.len += 1;
+            } else {
+                overflow(found);
+            }
+        });
     }
-    best
+
+    /// Dexel–pass pairs the engines evaluate (samples × candidate passes): the work
+    /// measure for throughput, counted on the CPU the first time it is asked for.
+    pub fn pair_count(&self) -> u64 {
+        *self.pairs.get_or_init(|| {
+            use rayon::prelude::*;
+            let rings = self.grid.ring_count();
+            (0..self.grid.sample_count())
+                .into_par_iter()
+                .map(|s| {
+                    let (ring, row) = (s % rings, (s / rings) as u32);
+                    let (point, normal) = (
+                        self.grid.sample_point(ring, row),
+                        self.grid.sample_normal(ring, row),
+                    );
+                    let mut list = CandidateList::default();
+                    let mut extra = 0u64;
+                    self.candidates(point, normal, &mut list, |_| extra += 1);
+                    list.len as u64 + extra
+                })
+                .sum()
+        })
+    }
+
+    /// Whether the grid is revolved about Z (polar sample frames) or extruded.
+    pub fn polar_grid(&self) -> bool {
+        self.grid.layout == Layout::Polar
+    }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::engine::Scene;
-    use crate::io::job::Job;
+/// A sample's candidate passes (at most `MAX_CANDIDATES`).
+#[derive(Debug, Clone, Copy)]
+pub struct CandidateList {
+    pub items: [Candidate; MAX_CANDIDATES],
+    pub len: usize,
+}
 
-    /// A ball raster over a plane, passes 0.5 mm apart, with a runout (ε, φ).
-    fn runout_scene(teeth: u32, feed_mm: f64, offset_mm: f64, phase_deg: f64) -> MillingScene {
-        let job = Job::from_toml_str(
-            &format!(
-                r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 1.0
-[tool]
-kind = "ball_end"
-diameter_mm = 1.0
-teeth = {teeth}
-[process]
-kind = "milling"
-path = "raster"
-stepover_mm = 0.5
-feed_per_tooth_mm = {feed_mm}
-stock_allowance_mm = 0.01
-[grid]
-pitch_um = 5.0
-azimuths = 12
-[[effects]]
-kind = "radial_runout"
-offset_mm = {offset_mm}
-phase_deg = {phase_deg}
-"#
-            ),
-            "runout",
-        )
-        .expect("valid job");
-        match crate::run::prepare_scenes(&job).remove(0) {
-            Scene::Milling(scene) => scene,
-            _ => panic!("a milling scene"),
+impl Default for CandidateList {
+    fn default() -> Self {
+        Self {
+            items: [Candidate::default(); MAX_CANDIDATES],
+            len: 0,
         }
     }
+}
 
-    #[test]
-    fn tooth_zero_at_a_quarter_turn_sits_to_the_left_of_the_feed() {
-        // Right-handed about the (vertical) axis, a quarter turn from +X is +Y.
-        let scene = runout_scene(2, 0.05, 0.01, 90.0);
-        let pass = scene
-            .path
-            .passes
-            .iter()
-            .find(|p| p.nodes[1].pose.centre.x > p.nodes[0].pose.centre.x)
-            .expect("a pass feeding along +X");
-        let k = (pass.start_arc() / 0.05).ceil() as i64 + 2;
-        let arc = k as f64 * 0.05;
-        let nominal = pass.pose_at(arc).centre;
-        let even = 2 * k.div_euclid(2);
-        let shift = scene.stamp_pose(pass, even, arc).centre - nominal;
-        assert!(
-            (shift - DVec3::new(0.0, 0.01, 0.0)).length() < 1e-12,
-            "{shift}"
-        );
-        let shift = scene.stamp_pose(pass, even + 1, arc).centre - nominal;
-        assert!(
-            (shift - DVec3::new(0.0, -0.01, 0.0)).length() < 1e-12,
-            "{shift}"
-        );
-    }
+/// The passes as spans of the engines' node array, with their scan strides: about
+/// `scan_mm` of travel and at most 45° of a spiral's turn between scan points.
+fn pass_spans(path: &MillingPath, scan_mm: f64) -> Vec<PassSpan> {
+    let mut first = 0u32;
+    path.passes
+        .iter()
+        .map(|pass| {
+            let spacing = pass
+                .nodes
+                .windows(2)
+                .map(|w| (w[1].pose.centre - w[0].pose.centre).length())
+                .fold(0.0, f64::max);
+            let polar = pass.interpolation == Interpolation::Polar;
+            let mut stride = if spacing > 0.0 {
+                (scan_mm / spacing).floor().max(1.0)
+            } else {
+                1.0
+            };
+            if polar {
+                let turn = pass
+                    .nodes
+                    .windows(2)
+                    .map(|w| (w[1].polar.y - w[0].polar.y).abs())
+                    .fold(0.0, f64::max);
+                if turn > 0.0 {
+                    stride = stride.min((FRAC_PI_4 / turn).floor().max(1.0));
+                }
+            }
+            let (origin, step) = if polar {
+                let turned = pass.nodes[pass.nodes.len() - 1].polar.y - pass.nodes[0].polar.y;
+                (
+                    DVec3::new(0.0, pass.nodes[0].polar.y, 0.0),
+                    DVec3::new(0.0, turned / (pass.nodes.len() as f64 - 1.0), 0.0),
+                )
+            } else {
+                let (a, b) = (
+                    pass.nodes[0].pose.centre,
+                    pass.nodes[pass.nodes.len() - 1].pose.centre,
+                );
+                (a, (b - a) / (pass.nodes.len() as f64 - 1.0))
+            };
+            let span = PassSpan {
+                first_node: first,
+                node_count: pass.nodes.len() as u32,
+                polar,
+                stride: stride.min((pass.nodes.len() as f64 - 1.0).max(1.0)) as u32,
+                spacing_mm: spacing,
+                origin,
+                step,
+            };
+            first += pass.nodes.len() as u32;
+            span
+        })
+        .collect()
+}
 
-    #[test]
-    fn displaced_teeth_cut_as_deep_as_every_stamp_of_every_pass_allows() {
-        // The largest runout allowed (f/2), across the feed, on 6 teeth: near the cusps
-        // between passes (0.25 mm off them) the tooth displaced toward a sample cuts it
-        // deepest even three stamps from the nearest (2bε > 9f² + ε²), beyond the 4
-        // stamps around the continuous optimum. The engine's candidate passes and stamps
-        // against all stamps of all passes, at every sample.
-        let scene = runout_scene(6, 0.01, 0.005, 90.0);
-        let pitch = scene.stamps.feed_per_tooth_mm;
-        let rings = scene.grid.ring_count();
-        let mut worst = 0.0f64;
-        for s in 0..scene.grid.sample_count() {
-            let (ring, azimuth) = (s % rings, (s / rings) as u32);
-            let (origin, normal) = scene.sample_ray(ring, azimuth);
-            let brute = scene
-                .path
-                .passes
-                .iter()
-                .flat_map(|pass| {
-                    let first = (pass.start_arc() / pitch).ceil() as i64;
-                    let last = (pass.end_arc() / pitch).floor() as i64;
-                    (first..=last).map(move |k| (pass, k))
-                })
-                .map(|(pass, k)| {
-                    let pose = scene.stamp_pose(pass, k, k as f64 * pitch);
-                    scene
-                        .tool
-                        .ray_entry(&pose, origin, normal)
-                        .unwrap_or(f64::INFINITY)
-                })
-                .fold(scene.stock_top_mm, f64::min);
-            let (depth, _) = milling_dexel(&scene, ring, azimuth);
-            worst = worst.max((depth - brute).abs());
+/// The path's nodes in the engines' form.
+fn engine_nodes(path: &MillingPath, feed_per_tooth_mm: f64) -> Vec<Node> {
+    let mut nodes = Vec::with_capacity(path.node_count());
+    for pass in &path.passes {
+        for (i, node) in pass.nodes.iter().enumerate() {
+            let centre = node.pose.centre;
+            let polar_step = pass
+                .nodes
+                .get(i + 1)
+                .map_or(DVec3::ZERO, |next| next.polar - node.polar);
+            nodes.push(Node {
+                centre,
+                axis: node.pose.axis,
+                radius_mm: centre.truncate().length(),
+                angle_rad: centre.y.atan2(centre.x).rem_euclid(TAU),
+                polar_step,
+                teeth: if feed_per_tooth_mm > 0.0 {
+                    node.arc_mm / feed_per_tooth_mm
+                } else {
+                    0.0
+                },
+            });
         }
-        assert!(worst < 1e-12, "{worst}");
     }
+    nodes
 }

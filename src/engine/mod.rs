@@ -3,10 +3,12 @@
 
 pub mod cpu;
 pub mod cpu_generating;
+pub mod cpu_milling;
 pub mod cpu_turning;
 pub mod generating_scene;
 pub mod gpu;
 pub mod milling_scene;
+pub mod milling_search;
 pub mod scene;
 
 pub use generating_scene::GeneratingScene;

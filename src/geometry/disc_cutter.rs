@@ -28,7 +28,7 @@ pub struct DiscCutter {
 
 impl DiscCutter {
     /// (A, B, C, s_lo, s_hi): ρ² = A s² + B s + C over s ∈ [s_lo, s_hi].
-    fn profile(&self) -> (f64, f64, f64, f64, f64) {
+    pub fn profile(&self) -> (f64, f64, f64, f64, f64) {
         let a = 0.5 * self.diameter_mm;
         let (sin_phi, cos_phi) = self.lead_rad.sin_cos();
         let (sin_l, cos_l) = self.side_rake_rad.sin_cos();

@@ -18,7 +18,7 @@ impl MillingTool {
             MillingTool::EndMill(cutter) if cutter.major_radius_mm == 0.0 => {
                 ball_entry(cutter, pose, origin, dir)
             }
-            MillingTool::EndMill(cutter) => cutter.ray_interval(pose, origin, dir).map(|i| i.0),
+            MillingTool::EndMill(cutter) => cutter.ray_entry(pose, origin, dir),
             MillingTool::Disc(disc) => disc.ray_interval(pose, origin, dir).map(|i| i.0),
         }
     }
@@ -30,6 +30,43 @@ impl MillingTool {
         match self {
             MillingTool::EndMill(cutter) => cutter.signed_distance(pose, point),
             MillingTool::Disc(disc) => disc.signed_distance_estimate(pose, point),
+        }
+    }
+
+    /// Whether the entry along a pass is smooth at its minimum: a ball's, a bull-nose's
+    /// corner and a disc's hyperboloid cut with their smooth faces (a disc's edge ends
+    /// rarely), a flat end with its sharp rim, which leaves a kink there.
+    pub fn is_smooth(&self) -> bool {
+        !matches!(self, MillingTool::EndMill(cutter) if cutter.corner_radius_mm == 0.0)
+    }
+
+    /// The tool's outer radius about its axis.
+    pub fn outer_radius_mm(&self) -> f64 {
+        match self {
+            MillingTool::EndMill(cutter) => cutter.radius_mm(),
+            MillingTool::Disc(disc) => disc.outer_radius_mm(),
+        }
+    }
+
+    /// The solid one tooth sweeps whose edge stands `radial_mm` (≥ 0) beyond the
+    /// nominal radius: an end mill's profile moved out (a ball's becomes a torus); a disc
+    /// as it is.
+    pub fn with_radial_runout(&self, radial_mm: f64) -> MillingTool {
+        match self {
+            MillingTool::EndMill(cutter) if radial_mm > 0.0 => MillingTool::EndMill(Cutter {
+                major_radius_mm: cutter.major_radius_mm + radial_mm,
+                ..*cutter
+            }),
+            _ => *self,
+        }
+    }
+
+    /// The tip's axial coordinate below the pose centre (an end mill's corner radius;
+    /// a disc has no tip: 0).
+    pub fn tip_depth_mm(&self) -> f64 {
+        match self {
+            MillingTool::EndMill(cutter) => cutter.corner_radius_mm,
+            MillingTool::Disc(_) => 0.0,
         }
     }
 
@@ -87,31 +124,33 @@ impl MillingTool {
     }
 }
 
-/// A ball-end mill's first entry in closed form: the ball (a quadratic) or its shank
-/// (the cylinder of the same radius from the centre up to the cap, a quadratic), the
-/// lower of the two. Equal to `Cutter::ray_interval`'s entry (tested), much cheaper.
+/// A ball-end mill's first entry in closed form: the ball (a quadratic) where the ray
+/// meets its lower half, else its shank (the cylinder of the same radius from the
+/// centre up to the cap, a quadratic). Equal to `Cutter::ray_interval`'s entry (tested), much cheaper.
 fn ball_entry(cutter: &Cutter, pose: &CutterPose, origin: DVec3, dir: DVec3) -> Option<f64> {
     let r = cutter.corner_radius_mm;
     let w = pose.axis;
     let o = origin - pose.centre;
     // |o + t d|² = r² (unit d): t = −b ∓ √(b² − c); the entry is the smaller root.
     let b = o.dot(dir);
-    let c = (o.length() - r) * (o.length() + r);
+    let length = o.length();
+    let c = (length - r) * (length + r);
     let discriminant = b * b - c;
-    let sphere = (discriminant >= 0.0).then(|| {
+    if discriminant >= 0.0 {
         let root = discriminant.sqrt();
         // −b − root without cancellation when b < 0.
-        if b < 0.0 { c / (root - b) } else { -b - root }
-    });
-    let sphere = sphere.filter(|t| {
-        // The lower half of the ball only; its upper half is inside the shank.
-        (o + t * dir).dot(w) <= 1e-12
-    });
+        let t = if b < 0.0 { c / (root - b) } else { -b - root };
+        // On the lower half of the ball it is the solid's entry (the solid is convex);
+        // the upper half lies inside the shank.
+        if (o + t * dir).dot(w) <= 1e-12 {
+            return Some(t);
+        }
+    }
     // Shank: radial |v0 + t vd| ≤ r with 0 ≤ a ≤ L.
     let (a0, ad) = (o.dot(w), dir.dot(w));
     let (v0, vd) = (o - a0 * w, dir - ad * w);
     let aa = vd.length_squared();
-    let shank = if aa > 0.0 {
+    if aa > 0.0 {
         let bb = v0.dot(vd);
         let perp = (v0 - (bb / aa) * vd).length();
         (perp <= r)
@@ -138,10 +177,6 @@ fn ball_entry(cutter: &Cutter, pose: &CutterPose, origin: DVec3, dir: DVec3) -> 
             let (x, y) = ((0.0 - a0) / ad, (cutter.length_mm - a0) / ad);
             x.min(y)
         })
-    };
-    match (sphere, shank) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
     }
 }
 

@@ -57,6 +57,8 @@ pub struct MillingSetup {
     pub turn_rad: f64,
     /// Advance per tooth (0 = no feed marks: the tool body sweeps continuously).
     pub feed_per_tooth_mm: f64,
+    /// How the teeth cut, with a feed per tooth.
+    pub flutes: Flutes,
     pub spindle_rpm: Option<f64>,
     pub stock_allowance_mm: f64,
     pub depth_of_cut_mm: f64,
@@ -66,6 +68,21 @@ pub struct MillingSetup {
     /// A cylinder's length along Y (its profile extruded along Y); `None` for parts of
     /// revolution.
     pub part_length_mm: Option<f64>,
+}
+
+/// How a milling tool's teeth cut (with a feed per tooth): each as its edge — the cut at
+/// a point is made where the edge passes it, sweeping its trochoid — or as the tool
+/// body at the tooth's position; the edges with a helix and per-tooth runout.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Flutes {
+    pub edges: bool,
+    /// Helix angle β of a constant-lead flute: the edge lags tan β / R radians per mm of
+    /// height above the tip (R the tool's outer radius).
+    pub helix_rad: f64,
+    /// Per tooth: its edge beyond the nominal radius (mm, ≥ 0); empty: none.
+    pub radial_runout_mm: Vec<f64>,
+    /// Per tooth: its tip below the nominal tip along the axis (mm); empty: none.
+    pub axial_runout_mm: Vec<f64>,
 }
 
 /// How poses between two nodes are interpolated.

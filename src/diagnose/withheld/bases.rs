@@ -189,6 +189,7 @@ aperture_diameter_mm = 1.0
 kind = "ball_end"
 diameter_mm = 2.0
 teeth = 2
+flutes = "body"
 [process]
 kind = "milling"
 path = "raster"
@@ -228,6 +229,7 @@ aperture_diameter_mm = 1.0
 kind = "ball_end"
 diameter_mm = 1.0
 teeth = 2
+flutes = "body"
 [process]
 kind = "milling"
 path = "raster"

@@ -4,12 +4,14 @@
 use super::effects::milling_effects;
 use super::surface::{self, usable_at};
 use super::{
-    Aperture, JobError, JobFile, ToolKind, ToolSpec, check, error, reject_unused, required,
+    Aperture, FluteModel, JobError, JobFile, ToolKind, ToolSpec, check, error, reject_unused,
+    required,
 };
 use crate::geometry::SurfaceOfRevolution;
 use crate::geometry::cutter::Cutter;
 use crate::geometry::disc_cutter::DiscCutter;
 use crate::geometry::milling_tool::MillingTool;
+use crate::process::milling::Flutes;
 use crate::process::milling::{SPIRAL_NODES_PER_TURN, stepover_for_scallop};
 use crate::process::{MillingPathKind, MillingProcess, MillingSetup, Process};
 
@@ -180,6 +182,7 @@ pub fn validate_milling(
         tilt_rad: [tilt, tilt_end],
         turn_rad: turn,
         feed_per_tooth_mm: feed_per_tooth,
+        flutes: validate_flutes(&file.tool, &tool, teeth, feed_per_tooth)?,
         spindle_rpm,
         stock_allowance_mm: stock,
         depth_of_cut_mm: depth,
@@ -307,6 +310,13 @@ pub fn validate_milling(
     resolved.process.lead_end_deg = Some(lead_end.to_degrees());
     resolved.process.tilt_end_deg = Some(tilt_end.to_degrees());
     resolved.process.feed_per_tooth_mm = Some(feed_per_tooth);
+    if feed_per_tooth > 0.0 {
+        resolved.tool.flutes = Some(if setup.flutes.edges {
+            FluteModel::Edges
+        } else {
+            FluteModel::Body
+        });
+    }
     resolved.process.stock_allowance_mm = Some(stock);
     resolved.process.depth_of_cut_mm = Some(depth);
     if matches!(tool, MillingTool::Disc(_)) {
@@ -431,6 +441,98 @@ fn validate_tool(spec: &ToolSpec) -> Result<(MillingTool, u32), JobError> {
         }
     };
     Ok((tool, teeth))
+}
+
+/// How the teeth cut: `flutes` (edges by default), and for an end mill's edges the helix
+/// and per-tooth runout — all of which act only at each tooth's cut, so they need a feed
+/// per tooth.
+fn validate_flutes(
+    spec: &ToolSpec,
+    tool: &MillingTool,
+    teeth: u32,
+    feed_per_tooth: f64,
+) -> Result<Flutes, JobError> {
+    let given = [
+        ("tool.flutes", spec.flutes.is_some()),
+        ("tool.helix_deg", spec.helix_deg.is_some()),
+        (
+            "tool.tooth_radial_runout_mm",
+            spec.tooth_radial_runout_mm.is_some(),
+        ),
+        (
+            "tool.tooth_axial_runout_mm",
+            spec.tooth_axial_runout_mm.is_some(),
+        ),
+    ];
+    if feed_per_tooth == 0.0 {
+        if let Some((field, _)) = given.iter().find(|(_, set)| *set) {
+            return Err(error(
+                field,
+                "acts at each tooth's cut: it needs process.feed_per_tooth_mm > 0 (the job sweeps the tool body continuously)",
+            ));
+        }
+        return Ok(Flutes::default());
+    }
+    let edges = spec.flutes != Some(FluteModel::Body);
+    let edge_fields = &given[1..];
+    let end_mill = match tool {
+        MillingTool::EndMill(cutter) => Some(cutter),
+        MillingTool::Disc(_) => None,
+    };
+    if let Some((field, _)) = edge_fields.iter().find(|(_, set)| *set) {
+        if !edges {
+            return Err(error(
+                field,
+                "shapes a tooth's edge: it needs flutes = \"edges\"",
+            ));
+        }
+        if end_mill.is_none() {
+            return Err(error(
+                field,
+                "is for end mills; a disc cutter's inserts are straight",
+            ));
+        }
+    }
+    let bound = end_mill.map_or(0.0, |c| 0.2 * c.radius_mm());
+    let per_tooth = |field: &str, values: &Option<Vec<f64>>, low: f64| {
+        let Some(values) = values else {
+            return Ok(Vec::new());
+        };
+        if values.len() != teeth as usize {
+            return Err(error(
+                field,
+                format!(
+                    "has {} values; allowed: one per tooth (tool.teeth = {teeth})",
+                    values.len()
+                ),
+            ));
+        }
+        values
+            .iter()
+            .map(|&v| check(field, v, low, bound, true))
+            .collect::<Result<Vec<f64>, JobError>>()
+    };
+    let helix = spec.helix_deg.unwrap_or(0.0);
+    if !(0.0..60.0).contains(&helix) {
+        return Err(error(
+            "tool.helix_deg",
+            format!("{helix} is out of range; allowed: a finite number in [0, 60)"),
+        ));
+    }
+    Ok(Flutes {
+        edges,
+        helix_rad: helix.to_radians(),
+        radial_runout_mm: per_tooth(
+            "tool.tooth_radial_runout_mm",
+            &spec.tooth_radial_runout_mm,
+            0.0,
+        )?,
+        axial_runout_mm: per_tooth(
+            "tool.tooth_axial_runout_mm",
+            &spec.tooth_axial_runout_mm,
+            -bound,
+        )?,
+    })
 }
 
 /// The width across the feed one pass can cut (the step-over must stay below it).

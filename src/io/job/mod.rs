@@ -193,6 +193,30 @@ pub struct ToolSpec {
     /// Disc: the edges' lead from the radial direction, (0, 180), 90 = parallel to the axis.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lead_angle_deg: Option<f64>,
+    /// Milling with feed per tooth: "edges" (default) — each tooth's edge cuts a point
+    /// where it passes it, sweeping its trochoid — or "body": the whole tool at each
+    /// tooth's position (faster).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flutes: Option<FluteModel>,
+    /// Milling, end mill, edges: the flutes' helix angle, constant lead, [0, 60) (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub helix_deg: Option<f64>,
+    /// Milling, end mill, edges: how far each tooth's edge stands beyond the nominal
+    /// radius (mm, one per tooth, [0, diameter/10]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tooth_radial_runout_mm: Option<Vec<f64>>,
+    /// Milling, end mill, edges: how far each tooth's tip lies below the nominal tip along
+    /// the axis (mm, one per tooth, [−diameter/10, diameter/10]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tooth_axial_runout_mm: Option<Vec<f64>>,
+}
+
+/// How a milling tool's teeth cut (`[tool] flutes`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FluteModel {
+    Edges,
+    Body,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -157,6 +157,16 @@ fn validate_tool(spec: &ToolSpec) -> Result<ArcNoseTool, JobError> {
             ("insert_length_mm", spec.insert_length_mm.is_some()),
             ("side_rake_deg", spec.side_rake_deg.is_some()),
             ("lead_angle_deg", spec.lead_angle_deg.is_some()),
+            ("flutes", spec.flutes.is_some()),
+            ("helix_deg", spec.helix_deg.is_some()),
+            (
+                "tooth_radial_runout_mm",
+                spec.tooth_radial_runout_mm.is_some(),
+            ),
+            (
+                "tooth_axial_runout_mm",
+                spec.tooth_axial_runout_mm.is_some(),
+            ),
         ],
     )?;
     let nose = required(
