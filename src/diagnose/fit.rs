@@ -14,7 +14,7 @@ use super::forward::{ForwardError, ForwardModel, SimulatedSurface};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
 use super::zones::correlation_length;
-use crate::numeric::{invert, least_squares, solve_linear, try_golden_section};
+use crate::numeric::{invert, least_squares, solve_linear, student_t_975, try_golden_section};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::rc::Rc;
@@ -889,7 +889,10 @@ fn observable(jacobian: &[Vec<f64>], frozen: &[usize]) -> Vec<usize> {
 /// residual's variance inflated by its correlation length `tau` (points) — and a block
 /// sandwich estimate, (JᵀJ)⁻¹ (Σ_b g_b g_bᵀ) (JᵀJ)⁻¹ with g_b = J_bᵀ r_b over blocks of
 /// 5 τ points, which also carries structure the noise model ignores (model error,
-/// correlated residuals). ∞ when JᵀJ is singular.
+/// correlated residuals); then scaled by t₀.₉₇₅(ν)/1.96 with ν the residual's effective
+/// points less the parameters, so that ±2σ stays a 95 % interval when a long-correlated
+/// residual (1/f noise, form error) leaves only a few independent points. ∞ when JᵀJ is
+/// singular.
 pub(super) fn uncertainties(
     jacobian: &[Vec<f64>],
     free: &[usize],
@@ -903,6 +906,8 @@ pub(super) fn uncertainties(
     };
     let used = residual.iter().filter(|r| **r != 0.0).count() as f64;
     let variance = dot(residual, residual) / (used - k as f64 - 4.0).max(1.0) * tau;
+    let dof = used / tau.max(1.0) - k as f64;
+    let few_points = student_t_975(dof) / student_t_975(f64::INFINITY);
     let block = ((5.0 * tau).ceil() as usize).max(n / 200).max(1);
     let mut meat = vec![vec![0.0; k]; k];
     for start in (0..n).step_by(block) {
@@ -924,7 +929,7 @@ pub(super) fn uncertainties(
                 .flat_map(|b| (0..k).map(move |c| (b, c)))
                 .map(|(b, c)| inverse[a][b] * meat[b][c] * inverse[c][a])
                 .sum();
-            jacobian_sigma.max(sandwich.max(0.0).sqrt())
+            few_points * jacobian_sigma.max(sandwich.max(0.0).sqrt())
         })
         .collect()
 }
