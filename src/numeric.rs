@@ -286,7 +286,10 @@ mod tests {
             (1e9, 1.960),
         ] {
             let t = student_t_975(nu);
-            assert!((t / table - 1.0).abs() < 0.002, "ν = {nu}: {t} against {table}");
+            assert!(
+                (t / table - 1.0).abs() < 0.002,
+                "ν = {nu}: {t} against {table}"
+            );
         }
     }
 }
