@@ -10,7 +10,7 @@
 //! search bound is flagged as such, never reported as a fit.
 
 use super::candidates::{Candidate, Parameter};
-use super::forward::{ForwardError, ForwardModel, SimulatedSurface};
+use super::forward::{ForwardError, ForwardModel, Frame, SimulatedSurface};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
 use super::zones::correlation_length;
@@ -205,12 +205,12 @@ pub fn fitted_stretch(fit: &Fit) -> (f64, f64) {
     }
 }
 
-/// The indices of the parameters of `set`'s members that are `kind`.
-fn member_parameters(set: &[Candidate], kind: Candidate) -> Vec<usize> {
+/// The indices of the parameters of `set`'s members for which `which` holds.
+pub fn member_parameters(set: &[Candidate], which: impl Fn(&Candidate) -> bool) -> Vec<usize> {
     let mut at = 0;
     let mut found = Vec::new();
     for c in set {
-        if *c == kind {
+        if which(c) {
             found.extend(at..at + width(c));
         }
         at += width(c);
@@ -227,25 +227,20 @@ fn register_trial(
     set: &[Candidate],
     values: &[f64],
 ) -> Registered {
-    let stretch = lateral_stretch(set, values);
+    let stretch: f64 = member_parameters(set, |c| *c == Candidate::LateralScale)
+        .iter()
+        .map(|&j| 1.0 + values[j] * 1e-6)
+        .product();
     if stretch == 1.0 {
         return register(m, sim, terms, Some(shift));
     }
-    register(&m.stretched(stretch), sim, terms, Some(shift))
-}
-
-/// The factor the set's lateral scale member stretches the measurement by (1 without
-/// one).
-pub fn lateral_stretch(set: &[Candidate], values: &[f64]) -> f64 {
-    let mut at = 0;
-    let mut stretch = 1.0;
-    for c in set {
-        if *c == Candidate::LateralScale {
-            stretch *= 1.0 + values[at] * 1e-6;
-        }
-        at += width(c);
-    }
-    stretch
+    // Placed about its own axis (no shift) at the stretch: its distances from the axis
+    // scaled.
+    let stretched = m.placed(Frame {
+        shift_mm: glam::DVec2::ZERO,
+        scale: stretch,
+    });
+    register(&stretched, sim, terms, Some(shift))
 }
 
 /// Parameters a candidate takes.
@@ -456,7 +451,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             .collect();
         // The lateral scale is not re-adjusted linearly along a scan: the marks make the
         // residual far from linear in it, and a linear step there misjudges every trial.
-        let scale_member = member_parameters(set, Candidate::LateralScale);
+        let scale_member = member_parameters(set, |c| *c == Candidate::LateralScale);
         let others: Vec<usize> = (0..start.len())
             .filter(|j| !scan.contains(j) && !scale_member.contains(j))
             .collect();
@@ -951,15 +946,12 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// The key of the job a set makes: its members but the lateral scale, and their values.
 fn job_key(set: &[Candidate], values: &[f64]) -> (String, Vec<u64>) {
-    let mut at = 0;
-    let (mut members, mut kept) = (Vec::new(), Vec::new());
-    for c in set {
-        if *c != Candidate::LateralScale {
-            members.push(*c);
-            kept.extend_from_slice(&values[at..at + width(c)]);
-        }
-        at += width(c);
-    }
+    let in_job = |c: &Candidate| *c != Candidate::LateralScale;
+    let members: Vec<Candidate> = set.iter().copied().filter(in_job).collect();
+    let kept: Vec<f64> = member_parameters(set, in_job)
+        .iter()
+        .map(|&j| values[j])
+        .collect();
     cache_key(&members, &kept)
 }
 

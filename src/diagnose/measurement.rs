@@ -160,17 +160,6 @@ impl Measurement {
         }
     }
 
-    /// The points of a placed measurement at `factor` times their distance from the
-    /// axis (a lateral scale change).
-    pub fn stretched(&self, factor: f64) -> Measurement {
-        Measurement {
-            xy_mm: self.xy_mm.iter().map(|p| *p * factor).collect(),
-            along_mm: self.along_mm.iter().map(|a| a * factor).collect(),
-            file_per_mm: self.file_per_mm / factor,
-            ..self.clone()
-        }
-    }
-
     pub fn len(&self) -> usize {
         self.height_mm.len()
     }

@@ -19,7 +19,7 @@
 //! widens its σ.
 
 use super::candidates::Candidate;
-use super::fit::{Problem, width};
+use super::fit::{Problem, member_parameters, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
 use super::zones::rms;
@@ -231,15 +231,7 @@ fn judge_folds(
 
 /// The indices of the parameters of `set`'s registration members.
 fn registration_parameters(set: &[Candidate]) -> Vec<usize> {
-    let mut at = 0;
-    let mut held = Vec::new();
-    for c in set {
-        if c.is_registration() {
-            held.extend(at..at + width(c));
-        }
-        at += width(c);
-    }
-    held
+    member_parameters(set, Candidate::is_registration)
 }
 
 fn judge_fold(
