@@ -179,15 +179,24 @@ fn turning_scenes(
     groundwork: &Groundwork,
 ) -> Vec<TurningScene> {
     let edge = turning.effects.edge_model(&turning.tool);
-    let extra_reach = turning.effects.extra_reach_mm(&edge);
     let mut passes = groundwork.passes.clone();
     for poses in &mut passes {
         turning
             .correction
             .apply(poses, &job.surface, &groundwork.meridian);
+    }
+    let max_x_mm = passes
+        .iter()
+        .flat_map(|p| p.poses.iter())
+        .map(|pose| pose.x_mm.abs())
+        .fold(0.0, f64::max);
+    let extra_reach = turning.effects.extra_reach_mm(&edge, max_x_mm);
+    // Effects first: error motion is synchronous with the program's own spindle angle,
+    // which turns with the part when the program is looked at along another azimuth.
+    turning.effects.apply_to_passes(&mut passes);
+    for poses in &mut passes {
         poses.start_angle_rad += turning.azimuth_offset_rad;
     }
-    turning.effects.apply_to_passes(&mut passes);
     passes
         .into_iter()
         .map(|poses| {

@@ -62,6 +62,37 @@ fn axial_drift_on_the_asphere_gpu_matches_cpu() {
     );
 }
 
+#[test]
+fn vibration_error_motion_and_wear_on_the_asphere_gpu_matches_cpu() {
+    // The moving effects reach the GPU kernel only through the (refined) pose table.
+    compare(
+        "seed-002 asphere XZ with feed and depth vibration, axial and tilt error motion, wear",
+        example_with(
+            "asphere_xz.toml",
+            r#"[[effects]]
+kind = "vibration"
+amplitude_mm = 0.00002
+direction = "depth"
+per_revolution = 2.7
+[[effects]]
+kind = "vibration"
+amplitude_mm = 0.0003
+direction = "feed"
+per_revolution = 5.0
+phase_deg = 40.0
+[[effects]]
+kind = "axial_error_motion"
+harmonics = [{ order = 3, amplitude_mm = 0.00001 }]
+[[effects]]
+kind = "tilt_error_motion"
+tilt_harmonics = [{ order = 2, amplitude_deg = 0.0002, phase_deg = 10.0 }]
+[[effects]]
+kind = "tool_wear"
+recession_mm = 0.00005"#,
+        ),
+    );
+}
+
 /// A generating job: the seed-000 wheel (R_t 3.5 mm, r 0.5 mm) on a concave R 53.5 mm part.
 fn generating_job(
     teeth: u32,

@@ -12,6 +12,10 @@
 //! | nose-radius error | e | the real edge radius is R + e, the tool set at its tip |
 //! | edge waviness | w(ψ) harmonics or a measured edge | the edge radius varies along the edge, ψ from the tip |
 //! | axial drift | d (+ = toward +Z, away from the part) | every pose's Z shifted by d·C/C_total: C the spindle angle turned since the first pose of the first pass, C_total over all passes in program order (thermal growth linear in machining time) |
+//! | vibration | a, k cycles/rev (or f Hz = k·rpm/60), φ, feed or depth | every pose moved along X (feed) or Z (depth, + away from the part) by a·cos(2πk·n + φ), n the revolutions turned since the first pose; whole k: lobes fixed on the part, else spiral ribbons (`motion.rs`) |
+//! | spindle axial error motion | harmonics (order k, a, φ) | the part moves toward the tool by Σ a·cos(kC + φ), C the spindle angle: every pose's Z lowered by it |
+//! | spindle tilt error motion | harmonics (order k, θ, φ) | the face turns about machine Y through the spindle origin, rising toward the tool at +X: a pose at nose-centre X (as run) cuts X·Σ θ·cos(kC + φ) deeper |
+//! | tool wear | w at the end of the cut | the edge recedes by w·L/L_total, L the cut length ∫\|x\| dC so far: the nose centre moves that far along its path's normal, away from the part (for an arc edge the same as the radius shrinking by it) |
 //!
 //! Generating (cup wheel, seed 000):
 //!
@@ -46,6 +50,9 @@ use crate::process::milling::{MillingPath, MillingSetup};
 use glam::{DQuat, DVec2, DVec3};
 use std::f64::consts::TAU;
 
+mod motion;
+pub use motion::{MAX_CYCLES_PER_REV, SpindleHarmonic, Vibration, VibrationDirection};
+
 /// Samples of a harmonic waviness table over ψ ∈ [−90°, 90°] (0.045° apart).
 pub const WAVINESS_SAMPLES: usize = 4001;
 
@@ -63,6 +70,15 @@ pub struct TurningEffects {
     /// Tool drift along machine Z over the cut (mm), + = toward +Z (away from the part):
     /// 0 at the first pose, this at the last, linear in the spindle angle turned.
     pub axial_drift_mm: f64,
+    /// Relative tool–workpiece vibrations (each term adds).
+    pub vibrations: Vec<Vibration>,
+    /// Spindle axial error motion (amplitudes in mm, + = the part toward the tool).
+    pub axial_error_motion: Vec<SpindleHarmonic>,
+    /// Spindle tilt error motion (amplitudes in rad, + = the face rising toward the
+    /// tool at +X).
+    pub tilt_error_motion: Vec<SpindleHarmonic>,
+    /// Edge recession by wear at the end of the cut (mm), linear in cut length.
+    pub wear_recession_mm: f64,
 }
 
 impl TurningEffects {
@@ -72,6 +88,7 @@ impl TurningEffects {
             && self.radius_error_mm == 0.0
             && self.edge_deviation.is_zero()
             && self.axial_drift_mm == 0.0
+            && !self.has_motion()
     }
 
     /// The edge as cut by a tool with these effects.
@@ -90,11 +107,13 @@ impl TurningEffects {
     }
 
     /// The pose tables the machine actually runs, one per cutting pass in program
-    /// order: X shifted by the decentre, Z by the drift so far. Machining time runs with
-    /// the spindle angle, so the drift at a pose is d·C/C_total, C the angle turned since
-    /// the first pose of the first pass and C_total the angle of all passes together
-    /// (linear between nodes, as the poses are).
+    /// order: X shifted by the decentre, Z by the drift so far, then the moving effects
+    /// (`motion.rs`; the tables refined first where they need more nodes). Machining
+    /// time runs with the spindle angle, so the drift at a pose is d·C/C_total, C the
+    /// angle turned since the first pose of the first pass and C_total the angle of all
+    /// passes together (linear between nodes, as the poses are).
     pub fn apply_to_passes(&self, passes: &mut [PoseTable]) {
+        let wear = self.prepare_motions(passes);
         if self.x_decentre_mm != 0.0 {
             for pose in passes.iter_mut().flat_map(|p| p.poses.iter_mut()) {
                 pose.x_mm += self.x_decentre_mm;
@@ -113,14 +132,17 @@ impl TurningEffects {
                 before += pass_span;
             }
         }
+        self.apply_motions(passes, wear);
     }
 
-    /// How much further than nominal any part of the tool can reach (for reach tests).
-    pub fn extra_reach_mm(&self, edge: &EdgeModel) -> f64 {
+    /// How much further than nominal any part of the tool can reach (for reach tests),
+    /// on a path reaching out to `max_x_mm` from the axis.
+    pub fn extra_reach_mm(&self, edge: &EdgeModel, max_x_mm: f64) -> f64 {
         self.x_decentre_mm.abs()
             + self.centre_height_mm.abs()
             + edge.max_excess_mm()
             + self.axial_drift_mm.abs()
+            + self.motion_reach_mm(max_x_mm + self.x_decentre_mm.abs())
     }
 }
 

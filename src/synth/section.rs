@@ -129,6 +129,9 @@ impl TurnedSection {
             return Err("the section model is for turning jobs".into());
         };
         let effects = &turning.effects;
+        if effects.has_motion() {
+            return Err("the section model does not make vibration, spindle error motion or tool wear yet; use the simulation engine".into());
+        }
         let passes = program_passes(job, turning);
         let total_angle_rad = passes
             .iter()

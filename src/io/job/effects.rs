@@ -26,6 +26,26 @@
 //! kind = "axial_drift"
 //! drift_mm = 0.0005          # Z drift at the end of the cut, + = away from the part;
 //!                            #   linear in the spindle angle turned
+//!
+//! [[effects]]
+//! kind = "vibration"         # relative tool–workpiece vibration a·cos(2πk·n + φ), n the
+//! amplitude_mm = 0.00001     #   revolutions turned since the first pose
+//! direction = "depth"        # "depth" (along Z, + away from the part) or "feed" (along X)
+//! per_revolution = 3.0       # k (synchronous when whole; ≤ 200), or instead
+//! # frequency_hz = 85.0      #   a frequency (needs process.spindle_rpm: k = f·60/rpm)
+//! phase_deg = 0.0
+//!
+//! [[effects]]
+//! kind = "axial_error_motion" # spindle axial error motion: the part toward the tool by
+//! harmonics = [{ order = 2, amplitude_mm = 0.00001, phase_deg = 0.0 }]  # Σ a·cos(kC + φ)
+//!
+//! [[effects]]
+//! kind = "tilt_error_motion"  # spindle tilt error motion: the face rising toward the
+//! tilt_harmonics = [{ order = 2, amplitude_deg = 0.0001, phase_deg = 0.0 }] # tool by x·θ
+//!
+//! [[effects]]
+//! kind = "tool_wear"
+//! recession_mm = 0.00002     # edge recession at the end of the cut, linear in cut length
 //! ```
 //!
 //! Generating jobs (cup wheel) take their own effects:
@@ -70,7 +90,10 @@
 //! ```
 
 use super::{JobError, ProcessKind, ToolSpec};
-use crate::effects::{GeneratingEffects, MillingEffects, TurningEffects, WAVINESS_SAMPLES};
+use crate::effects::{
+    GeneratingEffects, MAX_CYCLES_PER_REV, MillingEffects, SpindleHarmonic, TurningEffects,
+    Vibration, VibrationDirection, WAVINESS_SAMPLES,
+};
 use crate::geometry::ArcNoseTool;
 use crate::geometry::milling_tool::MillingTool;
 use crate::geometry::tool::AngleTable;
@@ -95,10 +118,14 @@ pub enum EffectKind {
     ToolRadiusError,
     SpindleTram,
     RadialRunout,
+    Vibration,
+    AxialErrorMotion,
+    TiltErrorMotion,
+    ToolWear,
 }
 
 impl EffectKind {
-    pub const ALL: [EffectKind; 11] = [
+    pub const ALL: [EffectKind; 15] = [
         EffectKind::CentreHeight,
         EffectKind::XDecentre,
         EffectKind::NoseRadiusError,
@@ -110,6 +137,10 @@ impl EffectKind {
         EffectKind::ToolRadiusError,
         EffectKind::SpindleTram,
         EffectKind::RadialRunout,
+        EffectKind::Vibration,
+        EffectKind::AxialErrorMotion,
+        EffectKind::TiltErrorMotion,
+        EffectKind::ToolWear,
     ];
 
     /// The name used in job files.
@@ -126,6 +157,10 @@ impl EffectKind {
             EffectKind::ToolRadiusError => "tool_radius_error",
             EffectKind::SpindleTram => "spindle_tram",
             EffectKind::RadialRunout => "radial_runout",
+            EffectKind::Vibration => "vibration",
+            EffectKind::AxialErrorMotion => "axial_error_motion",
+            EffectKind::TiltErrorMotion => "tilt_error_motion",
+            EffectKind::ToolWear => "tool_wear",
         }
     }
 
@@ -135,7 +170,11 @@ impl EffectKind {
             EffectKind::CentreHeight
             | EffectKind::XDecentre
             | EffectKind::NoseRadiusError
-            | EffectKind::EdgeWaviness => &[ProcessKind::Turning],
+            | EffectKind::EdgeWaviness
+            | EffectKind::Vibration
+            | EffectKind::AxialErrorMotion
+            | EffectKind::TiltErrorMotion
+            | EffectKind::ToolWear => &[ProcessKind::Turning],
             EffectKind::CutterDisplacement
             | EffectKind::InclinationError
             | EffectKind::PlungeError => &[ProcessKind::Generating],
@@ -159,6 +198,16 @@ impl EffectKind {
             EffectKind::AxialDrift => &["drift_mm"],
             EffectKind::SpindleTram => &["tilt_x_deg", "tilt_y_deg"],
             EffectKind::RadialRunout => &["offset_mm", "phase_deg"],
+            EffectKind::Vibration => &[
+                "amplitude_mm",
+                "direction",
+                "per_revolution",
+                "frequency_hz",
+                "phase_deg",
+            ],
+            EffectKind::AxialErrorMotion => &["harmonics"],
+            EffectKind::TiltErrorMotion => &["tilt_harmonics"],
+            EffectKind::ToolWear => &["recession_mm"],
         }
     }
 }
@@ -179,6 +228,24 @@ pub struct HarmonicSpec {
     pub amplitude_mm: f64,
     #[serde(default)]
     pub phase_deg: f64,
+}
+
+/// One harmonic of a tilt error motion.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TiltHarmonicSpec {
+    pub order: f64,
+    pub amplitude_deg: f64,
+    #[serde(default)]
+    pub phase_deg: f64,
+}
+
+/// Which way a vibration moves the tool.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DirectionSpec {
+    Feed,
+    Depth,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -203,11 +270,23 @@ pub struct EffectSpec {
     pub tilt_y_deg: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub phase_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub amplitude_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<DirectionSpec>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub per_revolution: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frequency_hz: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt_harmonics: Option<Vec<TiltHarmonicSpec>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recession_mm: Option<f64>,
 }
 
 impl EffectSpec {
     /// Each parameter field and whether it is given.
-    fn given(&self) -> [(&'static str, bool); 9] {
+    fn given(&self) -> [(&'static str, bool); 15] {
         [
             ("height_mm", self.height_mm.is_some()),
             ("offset_mm", self.offset_mm.is_some()),
@@ -218,6 +297,12 @@ impl EffectSpec {
             ("tilt_x_deg", self.tilt_x_deg.is_some()),
             ("tilt_y_deg", self.tilt_y_deg.is_some()),
             ("phase_deg", self.phase_deg.is_some()),
+            ("amplitude_mm", self.amplitude_mm.is_some()),
+            ("direction", self.direction.is_some()),
+            ("per_revolution", self.per_revolution.is_some()),
+            ("frequency_hz", self.frequency_hz.is_some()),
+            ("tilt_harmonics", self.tilt_harmonics.is_some()),
+            ("recession_mm", self.recession_mm.is_some()),
         ]
     }
 
@@ -314,11 +399,14 @@ impl Total {
     }
 }
 
-/// Combines the effect tables into one set of turning effects (waviness adds up).
-/// `nose_radius_mm` bounds the effects that only make sense below the tool's size.
+/// Combines the effect tables into one set of turning effects (waviness adds up;
+/// vibrations and error-motion harmonics are kept term by term). `nose_radius_mm`
+/// bounds the effects that only make sense below the tool's size; `spindle_rpm` turns a
+/// vibration's frequency into cycles per revolution.
 pub fn turning_effects(
     specs: &[EffectSpec],
     nose_radius_mm: f64,
+    spindle_rpm: Option<f64>,
 ) -> Result<TurningEffects, JobError> {
     let mut effects = TurningEffects::default();
     let mut harmonics = Vec::new();
@@ -366,6 +454,47 @@ pub fn turning_effects(
                     harmonics.push((harmonic.order, amplitude, phase.to_radians()));
                 }
             }
+            EffectKind::Vibration => {
+                effects
+                    .vibrations
+                    .push(vibration(spec, index, nose_radius_mm, spindle_rpm)?);
+            }
+            EffectKind::AxialErrorMotion => {
+                let list = spec.harmonics.as_deref().unwrap_or_default();
+                let terms = list.iter().map(|h| (h.order, h.amplitude_mm, h.phase_deg));
+                let limit = 0.1 * nose_radius_mm;
+                effects.axial_error_motion.extend(spindle_harmonics(
+                    terms,
+                    &field("harmonics"),
+                    "amplitude_mm",
+                    limit,
+                )?);
+            }
+            EffectKind::TiltErrorMotion => {
+                let list = spec.tilt_harmonics.as_deref().unwrap_or_default();
+                let terms = list.iter().map(|h| (h.order, h.amplitude_deg, h.phase_deg));
+                let tilts =
+                    spindle_harmonics(terms, &field("tilt_harmonics"), "amplitude_deg", 0.05)?;
+                effects
+                    .tilt_error_motion
+                    .extend(tilts.into_iter().map(|h| SpindleHarmonic {
+                        amplitude: h.amplitude.to_radians(),
+                        ..h
+                    }));
+            }
+            EffectKind::ToolWear => {
+                let limit = 0.1 * nose_radius_mm;
+                let w = bounded(field("recession_mm"), spec.recession_mm, limit)?;
+                if w < 0.0 {
+                    return Err(error(
+                        field("recession_mm"),
+                        format!(
+                            "{w} is out of range; allowed: 0 to {limit} (an edge wears back, it does not grow)"
+                        ),
+                    ));
+                }
+                effects.wear_recession_mm += w;
+            }
             _ => unreachable!("check_fields admits turning kinds only"),
         }
     }
@@ -373,6 +502,126 @@ pub fn turning_effects(
         effects.edge_deviation = AngleTable::from_harmonics(&harmonics, WAVINESS_SAMPLES);
     }
     Ok(effects)
+}
+
+/// One `vibration` table: an amplitude below a tenth of the nose radius, a direction,
+/// and exactly one of `per_revolution` and `frequency_hz` (with the spindle speed), at
+/// most [`MAX_CYCLES_PER_REV`] cycles per revolution.
+fn vibration(
+    spec: &EffectSpec,
+    index: usize,
+    nose_radius_mm: f64,
+    spindle_rpm: Option<f64>,
+) -> Result<Vibration, JobError> {
+    let field = |name: &str| format!("effects[{index}].{name}");
+    let amplitude_mm = bounded(
+        field("amplitude_mm"),
+        spec.amplitude_mm,
+        0.1 * nose_radius_mm,
+    )?;
+    let direction = match spec.direction {
+        Some(DirectionSpec::Feed) => VibrationDirection::Feed,
+        Some(DirectionSpec::Depth) => VibrationDirection::Depth,
+        None => {
+            return Err(error(
+                field("direction"),
+                "missing; allowed: \"feed\" or \"depth\"",
+            ));
+        }
+    };
+    let range = format!("a number in (0, {MAX_CYCLES_PER_REV}] cycles per revolution");
+    let cycles_per_rev = match (spec.per_revolution, spec.frequency_hz) {
+        (Some(k), None) => k,
+        (None, Some(f)) => {
+            let rpm = spindle_rpm.ok_or_else(|| {
+                error(
+                    field("frequency_hz"),
+                    "needs the spindle speed: give process.spindle_rpm, or per_revolution instead",
+                )
+            })?;
+            if !f.is_finite() || f <= 0.0 {
+                return Err(error(
+                    field("frequency_hz"),
+                    format!(
+                        "{f} is out of range; allowed: a positive frequency up to {MAX_CYCLES_PER_REV} × rpm/60"
+                    ),
+                ));
+            }
+            f * 60.0 / rpm
+        }
+        (Some(_), Some(_)) => {
+            return Err(error(
+                field("frequency_hz"),
+                "give either per_revolution or frequency_hz, not both",
+            ));
+        }
+        (None, None) => {
+            return Err(error(
+                field("per_revolution"),
+                format!("missing; give per_revolution ({range}) or frequency_hz"),
+            ));
+        }
+    };
+    if !cycles_per_rev.is_finite() || cycles_per_rev <= 0.0 || cycles_per_rev > MAX_CYCLES_PER_REV {
+        let name = if spec.per_revolution.is_some() {
+            "per_revolution"
+        } else {
+            "frequency_hz"
+        };
+        return Err(error(
+            field(name),
+            format!("{cycles_per_rev} cycles per revolution is out of range; allowed: {range}"),
+        ));
+    }
+    let phase_rad = bounded(
+        field("phase_deg"),
+        Some(spec.phase_deg.unwrap_or(0.0)),
+        360.0,
+    )?
+    .to_radians();
+    Ok(Vibration {
+        amplitude_mm,
+        cycles_per_rev,
+        phase_rad,
+        direction,
+    })
+}
+
+/// The harmonics of an error-motion table (`(order, amplitude, phase_deg)` as given):
+/// whole orders 1 to [`MAX_CYCLES_PER_REV`], amplitudes within ±`limit`, at least one.
+fn spindle_harmonics(
+    terms: impl Iterator<Item = (f64, f64, f64)>,
+    list_field: &str,
+    amplitude_name: &str,
+    limit: f64,
+) -> Result<Vec<SpindleHarmonic>, JobError> {
+    let mut harmonics = Vec::new();
+    for (h, (order, amplitude, phase_deg)) in terms.enumerate() {
+        let at = |name: &str| format!("{list_field}[{h}].{name}");
+        if !order.is_finite()
+            || order.fract() != 0.0
+            || !(1.0..=MAX_CYCLES_PER_REV).contains(&order)
+        {
+            return Err(error(
+                at("order"),
+                format!(
+                    "{order} is out of range; allowed: a whole number from 1 to {MAX_CYCLES_PER_REV}"
+                ),
+            ));
+        }
+        harmonics.push(SpindleHarmonic {
+            order: order as u32,
+            amplitude: bounded(at(amplitude_name), Some(amplitude), limit)?,
+            phase_rad: bounded(at("phase_deg"), Some(phase_deg), 360.0)?.to_radians(),
+        });
+    }
+    if harmonics.is_empty() {
+        return Err(error(
+            list_field.to_string(),
+            format!("missing; give at least one {{ order, {amplitude_name} }}"),
+        ));
+    }
+    Ok(harmonics)
 }
 
 /// Combines the effect tables of a generating job (values of a kind add up). Bounds:

@@ -88,7 +88,7 @@ pub fn validate_turning(
     }
     check_tool_against_surface(&surface, &path, &tool)?;
 
-    let mut effects = turning_effects(&file.effects, tool.nose_radius_mm)?;
+    let mut effects = turning_effects(&file.effects, tool.nose_radius_mm, spindle_rpm)?;
     if let Some(profile) = &file.tool.edge_profile {
         let profile = resolve_file("tool.edge_profile", base_dir, profile)?;
         apply_edge_profile(
