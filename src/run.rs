@@ -258,6 +258,35 @@ pub fn remove_all(
     combined.ok_or_else(|| EngineError("the job has no cutting pass".into()))
 }
 
+/// Per sample, when the pass that left it cut it: the spindle angle turned since the
+/// first pose of the first pass (rad; passes in program order, as the effects' clocks
+/// count). NaN where no pass cut, and for processes other than turning.
+pub fn cut_clock_rad(scenes: &[Scene], field: &DexelField) -> Vec<f64> {
+    let mut turning = Vec::new();
+    let (mut offset, mut before) = (0u32, 0.0);
+    for scene in scenes {
+        if let Scene::Turning(t) = scene {
+            turning.push((offset, scene.pass_id_span(), before, t));
+            before += t.poses.end_angle_rad() - t.poses.start_angle_rad;
+        }
+        offset += scene.pass_id_span();
+    }
+    field
+        .pass
+        .iter()
+        .enumerate()
+        .map(|(sample, &pass)| {
+            turning
+                .iter()
+                .find(|(first, span, _, _)| pass >= *first && pass - first < *span)
+                .and_then(|(first, _, before, scene)| {
+                    Some(before + scene.pass_angle_rad(sample, pass - first)?)
+                })
+                .unwrap_or(f64::NAN)
+        })
+        .collect()
+}
+
 /// Runs a job end to end on `engine`.
 pub fn simulate(
     job: Job,

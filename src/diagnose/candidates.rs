@@ -2,7 +2,7 @@
 //! trial values enter a job (added to the job's own effects), how fitted values are
 //! written back as `[[effects]]` tables, and how a result is said to a machinist.
 
-use crate::effects::WAVINESS_SAMPLES;
+use crate::effects::{SpindleHarmonic, Vibration, VibrationDirection, WAVINESS_SAMPLES};
 use crate::geometry::milling_tool::MillingTool;
 use crate::geometry::tool::AngleTable;
 use crate::io::job::Job;
@@ -25,6 +25,20 @@ pub enum Candidate {
     ToolRadiusError,
     SpindleTram,
     RadialRunout,
+    /// Relative tool–workpiece vibration at `cycles` per revolution, along the depth
+    /// (`depth`) or the feed; cos/sin amplitudes at the cut clock (nm). `cycles` 0 =
+    /// screened on the residual first (`screen.rs`).
+    Vibration {
+        cycles: f64,
+        depth: bool,
+    },
+    /// Spindle tilt error motion of one whole order (maps); cos/sin (µrad). `order` 0 =
+    /// screened first.
+    TiltErrorMotion {
+        order: f64,
+    },
+    /// Edge recession by wear, linear in cut length (nm at the end of the cut).
+    ToolWear,
     /// Not an effect but registration: where a turned profile lies on the spiral (its
     /// azimuth from C = 0) sets where the marks fall. Re-fitted with every effect, as
     /// piston and tilt are re-solved, because a decentre, say, moves the marks too.
@@ -73,8 +87,21 @@ pub fn candidates_for(job: &Job) -> (Vec<Candidate>, Vec<NotDiagnosable>) {
                 Candidate::NoseRadiusError,
                 Candidate::AxialDrift,
                 Candidate::EdgeWaviness { order: 0.0 },
+                Candidate::ToolWear,
+                Candidate::Vibration {
+                    cycles: 0.0,
+                    depth: true,
+                },
+                Candidate::Vibration {
+                    cycles: 0.0,
+                    depth: false,
+                },
+                Candidate::TiltErrorMotion { order: 0.0 },
             ],
-            Vec::new(),
+            vec![NotDiagnosable {
+                effect: "axial_error_motion",
+                reason: "a single cut records it exactly as a depth vibration of the same whole order; it is reported as one".to_string(),
+            }],
         ),
         Process::Generating(g) => {
             let reason = match g.setup.plunge_axis {
@@ -146,6 +173,9 @@ impl Candidate {
             Candidate::ToolRadiusError => "tool_radius_error",
             Candidate::SpindleTram => "spindle_tram",
             Candidate::RadialRunout => "radial_runout",
+            Candidate::Vibration { .. } => "vibration",
+            Candidate::TiltErrorMotion { .. } => "tilt_error_motion",
+            Candidate::ToolWear => "tool_wear",
             Candidate::SpiralAzimuth => "spiral_azimuth",
             Candidate::LateralScale => "lateral_scale",
         }
@@ -164,11 +194,46 @@ impl Candidate {
         matches!(self, Candidate::SpiralAzimuth | Candidate::LateralScale)
     }
 
+    /// The harmonic order (cycles per revolution for a vibration) of a candidate that
+    /// has one; 0 until screened.
+    pub fn order(&self) -> Option<f64> {
+        match *self {
+            Candidate::EdgeWaviness { order } | Candidate::TiltErrorMotion { order } => Some(order),
+            Candidate::Vibration { cycles, .. } => Some(cycles),
+            _ => None,
+        }
+    }
+
+    /// The candidate at harmonic order `order` (itself when it has none).
+    pub fn with_order(self, order: f64) -> Candidate {
+        match self {
+            Candidate::EdgeWaviness { .. } => Candidate::EdgeWaviness { order },
+            Candidate::TiltErrorMotion { .. } => Candidate::TiltErrorMotion { order },
+            Candidate::Vibration { depth, .. } => Candidate::Vibration {
+                cycles: order,
+                depth,
+            },
+            c => c,
+        }
+    }
+
     /// A name for tables.
     pub fn label(&self) -> String {
-        match self {
-            Candidate::EdgeWaviness { order } if *order > 0.0 => {
+        match *self {
+            Candidate::EdgeWaviness { order } if order > 0.0 => {
                 format!("edge waviness (order {order:.1})")
+            }
+            Candidate::Vibration { cycles, depth } => format!(
+                "{} vibration{}",
+                if depth { "depth" } else { "feed" },
+                if cycles > 0.0 {
+                    format!(" ({cycles:.3}/rev)")
+                } else {
+                    String::new()
+                }
+            ),
+            Candidate::TiltErrorMotion { order } if order > 0.0 => {
+                format!("tilt error motion (order {order:.0})")
             }
             _ => self.kind().replace('_', " "),
         }
@@ -198,6 +263,24 @@ impl Candidate {
                     }
                     // 7.2° moves the marks by a fiftieth of a feed.
                     Candidate::SpiralAzimuth => vec![parameter("offset", "deg", 7.2, 180.0)],
+                    Candidate::ToolWear => {
+                        vec![parameter("recession", "nm", 10.0, 0.1 * nose_um * 1e3)]
+                    }
+                    Candidate::Vibration { depth, .. } => {
+                        let scale = if *depth { 5.0 } else { 100.0 };
+                        let bound = 0.1 * nose_um * 1e3 / 2f64.sqrt();
+                        vec![
+                            parameter("cos", "nm", scale, bound),
+                            parameter("sin", "nm", scale, bound),
+                        ]
+                    }
+                    Candidate::TiltErrorMotion { .. } => {
+                        let bound = 0.05f64.to_radians() * 1e6 / 2f64.sqrt();
+                        vec![
+                            parameter("cos", "µrad", 1.0, bound),
+                            parameter("sin", "µrad", 1.0, bound),
+                        ]
+                    }
                     _ => vec![
                         parameter("cos", "nm", 10.0, 1e4),
                         parameter("sin", "nm", 10.0, 1e4),
@@ -268,6 +351,28 @@ impl Candidate {
                         values[0] * 1e-6,
                         values[1] * 1e-6,
                     ),
+                    Candidate::ToolWear => e.wear_recession_mm += values[0] * 1e-6,
+                    Candidate::Vibration { cycles, depth } => {
+                        let (amplitude, phase) = amplitude_phase(values);
+                        e.vibrations.push(Vibration {
+                            amplitude_mm: amplitude * 1e-6,
+                            cycles_per_rev: *cycles,
+                            phase_rad: phase.to_radians(),
+                            direction: if *depth {
+                                VibrationDirection::Depth
+                            } else {
+                                VibrationDirection::Feed
+                            },
+                        });
+                    }
+                    Candidate::TiltErrorMotion { order } => {
+                        let (amplitude, phase) = amplitude_phase(values);
+                        e.tilt_error_motion.push(SpindleHarmonic {
+                            order: order.round() as u32,
+                            amplitude: amplitude * 1e-6,
+                            phase_rad: phase.to_radians(),
+                        });
+                    }
                     _ => unreachable!("a turning candidate"),
                 }
             }
@@ -320,6 +425,22 @@ impl Candidate {
                 );
             }
             Candidate::InclinationError => ("error_deg", values[0]),
+            Candidate::ToolWear => ("recession_mm", values[0] * 1e-6),
+            Candidate::Vibration { cycles, depth } => {
+                let (amplitude, phase) = amplitude_phase(values);
+                return format!(
+                    "[[effects]]\nkind = \"vibration\"\namplitude_mm = {:.6e}\ndirection = \"{}\"\nper_revolution = {cycles:.6}\nphase_deg = {phase:.3}\n",
+                    amplitude * 1e-6,
+                    if *depth { "depth" } else { "feed" }
+                );
+            }
+            Candidate::TiltErrorMotion { order } => {
+                let (amplitude, phase) = amplitude_phase(values);
+                return format!(
+                    "[[effects]]\nkind = \"tilt_error_motion\"\ntilt_harmonics = [{{ order = {order:.0}, amplitude_deg = {:.6e}, phase_deg = {phase:.3} }}]\n",
+                    (amplitude * 1e-6).to_degrees()
+                );
+            }
             Candidate::SpiralAzimuth | Candidate::LateralScale => return String::new(),
             Candidate::EdgeWaviness { order } => {
                 let (amplitude, phase) = amplitude_phase(values);
@@ -431,6 +552,38 @@ impl Candidate {
                     values[1].atan2(values[0]).to_degrees()
                 )
             }
+            Candidate::ToolWear if v >= 0.0 => format!(
+                "the edge wore back {} nm over the cut (growing with the length cut)",
+                pm(v, s)
+            ),
+            Candidate::ToolWear => format!(
+                "the edge advanced {} nm over the cut, growing with the length cut (not wear: a built-up edge, or a tool still running in)",
+                pm(-v, s)
+            ),
+            Candidate::Vibration { cycles, depth } => {
+                let (amplitude, phase) = amplitude_phase(values);
+                let synchronous = (cycles - cycles.round()).abs() < 0.005;
+                format!(
+                    "the tool vibrated {} nm along the {} at {cycles:.3} cycles per revolution (phase {phase:.0}°){}",
+                    pm(amplitude, pair_sigma(sigmas)),
+                    if *depth { "depth (Z)" } else { "feed (X)" },
+                    match (synchronous, depth) {
+                        (true, true) => format!(
+                            ": synchronous with the spindle, which an axial spindle error motion of order {:.0} leaves exactly alike",
+                            cycles.round()
+                        ),
+                        (true, false) => ": synchronous with the spindle".to_string(),
+                        _ => String::new(),
+                    }
+                )
+            }
+            Candidate::TiltErrorMotion { order } => {
+                let (amplitude, phase) = amplitude_phase(values);
+                format!(
+                    "the spindle tilts {} µrad at order {order:.0} (phase {phase:.0}°)",
+                    pm(amplitude, pair_sigma(sigmas))
+                )
+            }
             Candidate::SpiralAzimuth => format!(
                 "the profile lies {}° round the spiral from where registration first put it",
                 pm(v, s)
@@ -484,6 +637,15 @@ impl Candidate {
                 "re-seat the tool or clean the collet: {:.2} µm of runout",
                 values[0].hypot(values[1])
             ),
+            Candidate::ToolWear => {
+                "re-lap or replace the tool, or finish with a fresh edge on a shorter cut".to_string()
+            }
+            Candidate::Vibration { cycles, .. } => format!(
+                "find what excites {cycles:.3} × the spindle frequency (balance, drives, pumps, the floor) and isolate it, or move the spindle speed so it no longer prints"
+            ),
+            Candidate::TiltErrorMotion { .. } => {
+                "measure the spindle's tilt error motion (ISO 230-7) and service the bearing if it exceeds its specification".to_string()
+            }
             Candidate::SpiralAzimuth | Candidate::LateralScale => String::new(),
         }
     }

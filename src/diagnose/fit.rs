@@ -227,10 +227,7 @@ fn register_trial(
     set: &[Candidate],
     values: &[f64],
 ) -> Registered {
-    let stretch: f64 = member_parameters(set, |c| *c == Candidate::LateralScale)
-        .iter()
-        .map(|&j| 1.0 + values[j] * 1e-6)
-        .product();
+    let stretch = stretch_of(set, values);
     if stretch == 1.0 {
         return register(m, sim, terms, Some(shift));
     }
@@ -243,10 +240,22 @@ fn register_trial(
     register(&stretched, sim, terms, Some(shift))
 }
 
+/// The lateral scale the set's registration members stretch the measurement by.
+fn stretch_of(set: &[Candidate], values: &[f64]) -> f64 {
+    member_parameters(set, |c| *c == Candidate::LateralScale)
+        .iter()
+        .map(|&j| 1.0 + values[j] * 1e-6)
+        .product()
+}
+
 /// Parameters a candidate takes.
 pub fn width(candidate: &Candidate) -> usize {
     match candidate {
-        Candidate::EdgeWaviness { .. } | Candidate::SpindleTram | Candidate::RadialRunout => 2,
+        Candidate::EdgeWaviness { .. }
+        | Candidate::Vibration { .. }
+        | Candidate::TiltErrorMotion { .. }
+        | Candidate::SpindleTram
+        | Candidate::RadialRunout => 2,
         _ => 1,
     }
 }
@@ -413,6 +422,42 @@ impl<'a, 'e> Problem<'a, 'e> {
         self.forget_simulations(1);
         self.simulations.insert(key, sim.clone());
         Ok(sim)
+    }
+
+    /// The measured points as the rate screen sees them with `set` at `values`: the
+    /// residual (0 where not judged), the simulation's cut clock and radial slope where
+    /// the registration puts each point, and its radius; `None` without a clock.
+    pub fn screen_points(
+        &mut self,
+        set: &[Candidate],
+        values: &[f64],
+    ) -> Result<Option<Vec<super::screen::Point>>, ForwardError> {
+        let e = self.evaluate(set, values)?;
+        let sim = self.simulation(set, values)?;
+        let stretch = stretch_of(set, values);
+        let frame = Frame {
+            shift_mm: e.registered.shift_mm / stretch,
+            scale: stretch,
+        };
+        let Some(clock) = sim.clock_and_slope(self.measurement, frame) else {
+            return Ok(None);
+        };
+        let residual = self.residual(&e);
+        Ok(Some(
+            clock
+                .iter()
+                .zip(&residual)
+                .zip(&self.measurement.xy_mm)
+                .map(
+                    |((&(clock_rad, slope), &residual_mm), p)| super::screen::Point {
+                        residual_mm,
+                        clock_rad,
+                        slope,
+                        radius_mm: frame.to_part(*p).length(),
+                    },
+                )
+                .collect(),
+        ))
     }
 
     /// Makes room for `coming` simulations among those kept.

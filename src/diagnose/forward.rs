@@ -343,9 +343,15 @@ impl Seen {
                 ring.height_mm + field.depth_mm[s] / ring.normal.y
             })
             .collect();
+        let clock_rad = if matches!(scenes[0], crate::engine::Scene::Turning(_)) {
+            crate::run::cut_clock_rad(scenes, field)
+        } else {
+            Vec::new()
+        };
         SimulatedSurface::new(
             grid,
             height_mm,
+            clock_rad,
             self.line_rows,
             self.instrument,
             self.pixel_mm,
@@ -450,6 +456,9 @@ pub struct SimulatedSurface {
     pub grid: PolarGrid,
     /// Height along Z of the machined surface at each sample (mm).
     pub height_mm: Vec<f64>,
+    /// Turning: per sample, the spindle angle turned when its pass cut it (rad, NaN
+    /// where uncut; `run::cut_clock_rad`); empty for other processes.
+    pub clock_rad: Vec<f64>,
     trace: Option<Trace>,
     /// Raster with pixel averaging: the pixel's size (mm).
     pixel_mm: Option<[f64; 2]>,
@@ -460,6 +469,7 @@ impl SimulatedSurface {
     fn new(
         grid: PolarGrid,
         height_mm: Vec<f64>,
+        clock_rad: Vec<f64>,
         line_rows: Option<(u32, u32)>,
         instrument: Instrument,
         pixel_mm: Option<[f64; 2]>,
@@ -474,6 +484,7 @@ impl SimulatedSurface {
         Self {
             grid,
             height_mm,
+            clock_rad,
             trace,
             pixel_mm,
             stylus_tip_mm: instrument.stylus_tip_mm,
@@ -524,6 +535,49 @@ impl SimulatedSurface {
                 sum / 9.0
             }
         }
+    }
+
+    /// Per measured point (in `frame`), the cut clock and the surface's slope along the
+    /// radius (dz/dr) at the nearest sample: what a vibration's signature is written
+    /// in. `None` without a clock (not turning).
+    pub fn clock_and_slope(
+        &self,
+        measurement: &Measurement,
+        frame: Frame,
+    ) -> Option<Vec<(f64, f64)>> {
+        if self.clock_rad.is_empty() {
+            return None;
+        }
+        let rings = &self.grid.rings;
+        let (count, rows) = (rings.len(), self.grid.azimuths);
+        let value = |k: usize, j: u32| self.height_mm[self.grid.sample_index(k, j)];
+        Some(
+            measurement
+                .xy_mm
+                .iter()
+                .map(|p| {
+                    let p = frame.to_part(*p);
+                    let r = p.length();
+                    let k = rings
+                        .partition_point(|ring| ring.radius_mm <= r)
+                        .min(count - 1);
+                    let k = if k > 0 && r - rings[k - 1].radius_mm < rings[k].radius_mm - r {
+                        k - 1
+                    } else {
+                        k
+                    };
+                    let turn = p.y.atan2(p.x).rem_euclid(TAU) / TAU * rows as f64;
+                    let j = (turn.round() as u32) % rows;
+                    let (a, b) = (k.saturating_sub(1), (k + 1).min(count - 1));
+                    let slope = if b > a {
+                        (value(b, j) - value(a, j)) / (rings[b].radius_mm - rings[a].radius_mm)
+                    } else {
+                        0.0
+                    };
+                    (self.clock_rad[self.grid.sample_index(k, j)], slope)
+                })
+                .collect(),
+        )
     }
 
     /// Bilinear in (radius, azimuth) on the polar grid; NaN outside its rings.

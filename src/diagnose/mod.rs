@@ -22,6 +22,7 @@ pub mod locate;
 pub mod measurement;
 pub mod register;
 pub mod report;
+pub mod screen;
 pub mod search;
 pub mod validate;
 pub mod verdict;
@@ -199,7 +200,13 @@ pub fn diagnose(
     let comparison = compare::compare(&fitted, &nominal, options.terms.power, &spacing);
     let check = checks::fit_check(&fitted, &nominal, job, options.terms, period, &comparison);
 
-    let (all_candidates, not_diagnosable) = candidates_for(job);
+    let (all_candidates, mut not_diagnosable) = candidates_for(job);
+    if fitted.is_line() && all_candidates.contains(&Candidate::TiltErrorMotion { order: 0.0 }) {
+        not_diagnosable.push(NotDiagnosable {
+            effect: "tilt_error_motion",
+            reason: "along one line its print is a tilt, or a cone across the axis, which registration and the set-up effects take: it needs a map".into(),
+        });
+    }
     let candidates: Vec<Candidate> = all_candidates
         .into_iter()
         .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
@@ -468,10 +475,7 @@ fn effect_result(fit: &Fit, i: usize, rss0: f64) -> CandidateResult {
     CandidateResult {
         effect: c.kind().into(),
         label: c.label(),
-        order: match c {
-            Candidate::EdgeWaviness { order } => Some(order),
-            _ => None,
-        },
+        order: c.order(),
         parameters: values
             .iter()
             .zip(sigmas)

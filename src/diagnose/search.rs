@@ -407,6 +407,25 @@ pub fn fit_new(
             start.extend([a, b]);
             Ok(Some(problem.fit(&set, start, &[])?))
         }
+        // A moving effect's rate is screened on the residual's projection on its
+        // signature at the cut clock; a tilt error motion only on a map (along a line
+        // its print is a tilt or a cone, which registration and the set-up effects take).
+        Candidate::Vibration { cycles: 0.0, .. } | Candidate::TiltErrorMotion { order: 0.0 } => {
+            if fitted.is_line() && matches!(c, Candidate::TiltErrorMotion { .. }) {
+                return Ok(None);
+            }
+            let Some(points) = problem.screen_points(base, base_values)? else {
+                return Ok(None);
+            };
+            let Some((rate, [a, b], _)) = super::screen::screen_rate(c, &points, fitted.is_line())
+            else {
+                return Ok(None);
+            };
+            set.push(c.with_order(rate));
+            // mm → nm, rad → µrad.
+            start.extend([a * 1e6, b * 1e6]);
+            Ok(Some(problem.fit(&set, start, &[])?))
+        }
         _ => {
             set.push(c);
             start.extend(std::iter::repeat_n(0.0, width(&c)));

@@ -196,6 +196,17 @@ impl TurningScene {
         Some((index as usize, t))
     }
 
+    /// The spindle angle turned since this table's first node when this scene's pass
+    /// `pass_id` crosses `sample` (rad); `None` outside the table.
+    pub fn pass_angle_rad(&self, sample: usize, pass_id: u32) -> Option<f64> {
+        let rings = self.grid.ring_count();
+        let (ring, row) = (sample % rings, (sample / rings) as u32);
+        let branch = *Branch::ALL.get((pass_id % PASS_ID_STRIDE) as usize)?;
+        let phase = self.pass_phase(ring, self.grid.azimuth_rad(row), branch);
+        let (index, t) = self.pass_position(pass_id / PASS_ID_STRIDE, phase)?;
+        Some((index as f64 + t) * self.poses.step_rad())
+    }
+
     /// Dexel–pass pairs an engine evaluates: the work measure for throughput.
     pub fn pair_count(&self) -> u64 {
         let per_row: u64 = self

@@ -326,10 +326,7 @@ fn write_case(
             .map(|(c, v)| TruthEffect {
                 effect: c.kind().into(),
                 values: v.clone(),
-                order: match c {
-                    Candidate::EdgeWaviness { order } => Some(*order),
-                    _ => None,
-                },
+                order: c.order(),
             })
             .collect(),
         effects_toml: tables,

@@ -46,6 +46,7 @@
 //! [[effects]]
 //! kind = "tool_wear"
 //! recession_mm = 0.00002     # edge recession at the end of the cut, linear in cut length
+//!                            #   (negative: the edge advanced, e.g. a built-up edge)
 //! ```
 //!
 //! Generating jobs (cup wheel) take their own effects:
@@ -483,17 +484,11 @@ pub fn turning_effects(
                     }));
             }
             EffectKind::ToolWear => {
-                let limit = 0.1 * nose_radius_mm;
-                let w = bounded(field("recession_mm"), spec.recession_mm, limit)?;
-                if w < 0.0 {
-                    return Err(error(
-                        field("recession_mm"),
-                        format!(
-                            "{w} is out of range; allowed: 0 to {limit} (an edge wears back, it does not grow)"
-                        ),
-                    ));
-                }
-                effects.wear_recession_mm += w;
+                effects.wear_recession_mm += bounded(
+                    field("recession_mm"),
+                    spec.recession_mm,
+                    0.1 * nose_radius_mm,
+                )?;
             }
             _ => unreachable!("check_fields admits turning kinds only"),
         }

@@ -1,0 +1,180 @@
+//! Screening the rate of a moving effect before it is fitted: a vibration's cycles per
+//! revolution, a tilt error motion's order. Each leaves, to first order, a known
+//! signature at each measured point — written in the cut clock t (the spindle angle
+//! turned when the pass that left the point cut it) — so the residual's projection on
+//! that signature is tried at every rate on a grid fine enough to keep a quarter-cycle
+//! phase error across the data, and the best refined; the simulation then fits it.
+//!
+//! | candidate | signature at a point (per unit amplitude) |
+//! | --- | --- |
+//! | depth vibration | cos(k·t), sin(k·t): the surface lifts with the tool |
+//! | feed vibration | −s·cos(k·t), −s·sin(k·t), s = dz/dr there: the marks move out |
+//! | tilt error motion | −r·cos(k·t), −r·sin(k·t), whole k: the face turns under the tool |
+
+use super::candidates::Candidate;
+use crate::effects::MAX_CYCLES_PER_REV;
+use crate::numeric::golden_section;
+use std::f64::consts::TAU;
+
+/// Most rates tried on the grid (the step widens beyond it).
+const MAX_RATES: usize = 20_000;
+/// Local maxima of the grid refined by golden section.
+const REFINED: usize = 6;
+
+/// One measured point as the screen sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct Point {
+    pub residual_mm: f64,
+    pub clock_rad: f64,
+    /// dz/dr of the simulated surface there.
+    pub slope: f64,
+    pub radius_mm: f64,
+}
+
+/// The best rate for `candidate` and its cos/sin amplitudes (mm, or rad for a tilt),
+/// with the share of the residual's sum of squares it explains; `None` when the points
+/// cannot carry the signature (no clock, a single revolution).
+pub fn screen_rate(
+    candidate: Candidate,
+    points: &[Point],
+    line: bool,
+) -> Option<(f64, [f64; 2], f64)> {
+    let points: Vec<Point> = points
+        .iter()
+        .copied()
+        .filter(|p| p.clock_rad.is_finite() && p.residual_mm.is_finite() && p.residual_mm != 0.0)
+        .collect();
+    let (t_lo, t_hi) = points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+            (a.min(p.clock_rad), b.max(p.clock_rad))
+        });
+    let revolutions = (t_hi - t_lo) / TAU;
+    if points.len() < 8 || revolutions < 2.0 {
+        return None;
+    }
+    let total: f64 = points.iter().map(|p| p.residual_mm.powi(2)).sum();
+    let explained = |k: f64| project(candidate, &points, k).1;
+    let rates = rate_grid(candidate, revolutions, line);
+    let scores: Vec<f64> = rates.iter().map(|&k| explained(k)).collect();
+    let mut best = (0.0, f64::NEG_INFINITY);
+    for i in local_maxima(&scores).into_iter().take(REFINED) {
+        let k = if matches!(candidate, Candidate::TiltErrorMotion { .. }) {
+            rates[i]
+        } else {
+            let (lo, hi) = (
+                rates[i.saturating_sub(1)],
+                rates[(i + 1).min(rates.len() - 1)],
+            );
+            let bracket = golden_section(|k| -explained(k), lo, hi, 24);
+            bracket
+                .inner
+                .iter()
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map_or(rates[i], |x| x.0)
+        };
+        let score = explained(k);
+        if score > best.1 {
+            best = (k, score);
+        }
+    }
+    let (coefficients, score) = project(candidate, &points, best.0);
+    Some((best.0, coefficients, score / total.max(f64::MIN_POSITIVE)))
+}
+
+/// Rates to try: whole orders for a tilt (up to 60); for a vibration steps of a quarter
+/// cycle over the revolutions the data spans, from one such step up to 1 cycle per
+/// revolution on a line or to the job files' bound on a map. A line through the axis
+/// sees the clock at two spindle angles half a turn apart only, t = 2πm or 2πm + π, so
+/// rates k + 2 and 2 − k (with the phase mirrored) leave the same trace as k, and a
+/// profile knows a vibration's rate only modulo that.
+fn rate_grid(candidate: Candidate, revolutions: f64, line: bool) -> Vec<f64> {
+    if matches!(candidate, Candidate::TiltErrorMotion { .. }) {
+        return (1..=60).map(f64::from).collect();
+    }
+    let top = if line { 1.0 } else { MAX_CYCLES_PER_REV };
+    let step = (0.25 / revolutions).max(top / MAX_RATES as f64);
+    let count = (top / step).floor() as usize;
+    (1..=count).map(|i| i as f64 * step).collect()
+}
+
+/// Indices of the grid's local maxima, highest first.
+fn local_maxima(scores: &[f64]) -> Vec<usize> {
+    let mut peaks: Vec<usize> = (0..scores.len())
+        .filter(|&i| {
+            let left = i == 0 || scores[i - 1] <= scores[i];
+            let right = i + 1 == scores.len() || scores[i + 1] < scores[i];
+            left && right
+        })
+        .collect();
+    peaks.sort_by(|a, b| scores[*b].total_cmp(&scores[*a]));
+    peaks
+}
+
+/// The least-squares cos/sin coefficients of the signature at rate `k` and the sum of
+/// squares they explain.
+fn project(candidate: Candidate, points: &[Point], k: f64) -> ([f64; 2], f64) {
+    let (mut cc, mut cs, mut ss, mut rc, mut rs) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for p in points {
+        let weight = match candidate {
+            Candidate::Vibration { depth: true, .. } => 1.0,
+            Candidate::Vibration { depth: false, .. } => -p.slope,
+            _ => -p.radius_mm,
+        };
+        let (sin, cos) = (k * p.clock_rad).sin_cos();
+        let (c, s) = (weight * cos, weight * sin);
+        cc += c * c;
+        cs += c * s;
+        ss += s * s;
+        rc += p.residual_mm * c;
+        rs += p.residual_mm * s;
+    }
+    let det = cc * ss - cs * cs;
+    if det <= 1e-12 * (cc * ss).max(f64::MIN_POSITIVE) {
+        return ([0.0, 0.0], 0.0);
+    }
+    let a = (rc * ss - rs * cs) / det;
+    let b = (rs * cc - rc * cs) / det;
+    ([a, b], a * rc + b * rs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Points along a diameter of a facing cut, 10 µm per revolution: a point at radius
+    /// r is left by revolution m = ⌊(1.2 − r)/0.01⌋, on the far side half a turn later.
+    fn points(residual: impl Fn(f64, f64) -> f64) -> Vec<Point> {
+        (0..4000)
+            .map(|i| {
+                let x = -1.1 + 1e-3 * i as f64 * 0.55;
+                let r = x.abs();
+                let m = ((1.2 - r) / 0.01).floor();
+                let clock = TAU * m + if x < 0.0 { std::f64::consts::PI } else { 0.0 };
+                Point {
+                    residual_mm: residual(clock, r),
+                    clock_rad: clock,
+                    slope: 0.0,
+                    radius_mm: r,
+                }
+            })
+            .filter(|p| p.radius_mm > 0.1)
+            .collect()
+    }
+
+    #[test]
+    fn a_fractional_depth_vibration_is_found_at_its_rate_and_amplitude() {
+        // Data made as 3 nm·cos(0.37·t + 0.5) plus a slower form term it must not take.
+        let data = points(|t, r| 3e-6 * (0.37 * t + 0.5).cos() + 2e-6 * (4.0 * r).sin());
+        let candidate = Candidate::Vibration {
+            cycles: 0.0,
+            depth: true,
+        };
+        let (k, [a, b], share) = screen_rate(candidate, &data, true).unwrap();
+        assert!((k - 0.37).abs() < 2e-4, "k = {k}");
+        // a·cos + b·sin = A·cos(kt + φ): A = 3 nm, φ = 0.5 (a = A cos φ, b = −A sin φ).
+        assert!((a.hypot(b) - 3e-6).abs() < 0.1e-6, "A = {}", a.hypot(b));
+        assert!(((-b).atan2(a) - 0.5).abs() < 0.05, "φ = {}", (-b).atan2(a));
+        assert!(share > 0.5);
+    }
+}
