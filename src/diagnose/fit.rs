@@ -219,7 +219,7 @@ pub fn member_parameters(set: &[Candidate], which: impl Fn(&Candidate) -> bool) 
 }
 
 /// Registers `m`, stretched by the set's lateral scale member, to `sim`.
-fn register_trial(
+pub(super) fn register_trial(
     m: &Measurement,
     sim: &SimulatedSurface,
     terms: Terms,

@@ -10,7 +10,7 @@ use super::candidates::Candidate;
 use super::fit::{Fit, Problem, bic, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
-use super::register::{ShiftSearch, register};
+use super::register::ShiftSearch;
 use super::validate::{Fold, Validation, cross_validate};
 use super::zones;
 use super::{DiagnoseError, Options};
@@ -338,7 +338,7 @@ fn refit_if_axis_moves(
         let sim = problem
             .model
             .simulate(&|job| super::fit::apply_set(&fit.set, &values, job))?;
-        let again = register(fitted, &sim, problem.terms, Some(wide));
+        let again = super::fit::register_trial(fitted, &sim, problem.terms, wide, &fit.set, &values);
         if best.as_ref().is_none_or(|b| again.rss < b.0) {
             best = Some((again.rss, values, again.shift_mm));
         }
