@@ -136,7 +136,6 @@ impl Spec {
 
 const CUSP_PILEUP: &str =
     "[[unmodelled]]\nkind = \"cusp_pileup\"\nheight_nm = 6.0\nwidth_um = 1.5\n";
-const CHATTER: &str = "[[unmodelled]]\nkind = \"chatter\"\namplitude_nm = 8.0\nper_revolution = 3.37\nphase_deg = 20.0\n";
 const EDGE_CHIP: &str =
     "[[unmodelled]]\nkind = \"edge_chip\"\ndepth_nm = 60.0\nat_deg = 8.0\nwidth_deg = 4.0\n";
 
@@ -151,6 +150,14 @@ fn suite() -> Vec<Spec> {
     let (cm, im, tm) = (&TURNING_CENTRE_MAP, &TURNING_FORM_MAP, &BULL_NOSE_FLAT_MAP);
     let v = &SPIRAL_VARYING_FEED;
     let wave = |order: f64| EdgeWaviness { order };
+    let shake = |cycles: f64| Vibration {
+        cycles,
+        depth: true,
+    };
+    let sway = |cycles: f64| Vibration {
+        cycles,
+        depth: false,
+    };
     vec![
         single(t, CentreHeight, &[3.0]),
         single(t, CentreHeight, &[-2.0]),
@@ -175,7 +182,9 @@ fn suite() -> Vec<Spec> {
         control(t),
         measured_with(t, "lateral_scale = 1.006\n"),
         measured_with(t, CUSP_PILEUP),
-        measured_with(t, CHATTER),
+        // Once an unmodelled chatter; a depth vibration is a candidate now: 8 nm at
+        // 3.37 per revolution, phase 20° (as cos/sin: 8·(cos 20°, −sin 20°)).
+        single(t, shake(3.37), &[7.518, -2.736]),
         measured_with(t, EDGE_CHIP),
         single(v, CentreHeight, &[2.0]),
         single(v, CentreHeight, &[-3.0]),
@@ -187,7 +196,7 @@ fn suite() -> Vec<Spec> {
         control(v),
         measured_with(v, "lateral_scale = 0.995\n"),
         measured_with(v, CUSP_PILEUP),
-        measured_with(v, CHATTER),
+        single(v, shake(3.37), &[7.518, -2.736]),
         single(g, CutterDisplacement, &[20.0]),
         single(g, CutterDisplacement, &[-10.0]),
         single(g, CutterDisplacement, &[50.0]),
@@ -235,6 +244,24 @@ fn suite() -> Vec<Spec> {
         single(tm, SpindleTram, &[0.02, 0.05]),
         single(tm, SpindleTram, &[-0.05, 0.01]),
         control(tm),
+        // The moving effects (issue 12), alone and beside the effect each resembles:
+        // wear (∝ cut length) and drift (∝ time); a depth vibration and edge waviness;
+        // on a map a synchronous vibration (= axial error motion) and tilt error motion.
+        single(t, shake(0.37), &[6.0, -3.0]),
+        single(t, sway(0.21), &[250.0, 150.0]),
+        single(t, ToolWear, &[150.0]),
+        single(t, ToolWear, &[-80.0]),
+        pair(t, (ToolWear, &[150.0]), (AxialDrift, &[200.0])),
+        pair(t, (shake(0.37), &[6.0, -3.0]), (wave(30.0), &[30.0, 0.0])),
+        single(v, ToolWear, &[120.0]),
+        single(im, shake(3.0), &[8.0, 0.0]),
+        single(im, TiltErrorMotion { order: 2.0 }, &[4.0, 2.0]),
+        single(im, ToolWear, &[200.0]),
+        pair(
+            im,
+            (shake(3.0), &[8.0, 0.0]),
+            (TiltErrorMotion { order: 2.0 }, &[4.0, 2.0]),
+        ),
     ]
 }
 
