@@ -12,6 +12,7 @@
 pub mod instrument;
 pub mod section;
 mod simulated;
+mod tool_motion;
 pub mod unmodelled;
 
 use crate::diagnose::forward::ForwardError;
