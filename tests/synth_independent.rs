@@ -9,6 +9,7 @@ use glam::DVec2;
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::io::job::Job;
 use toolmark::process::Process;
+use toolmark::run::RunResult;
 use toolmark::synth::instrument::{footprint, pixel_mean, stylus_trace};
 use toolmark::synth::section::TurnedSection;
 use toolmark::synth::{MeasurementModel, Unmodelled, synthesize};
@@ -98,15 +99,19 @@ fn with_effect(base: &str, effect: &str) -> Job {
 /// point where the engine put the surface (the sample's nominal point moved along its
 /// normal by the depth it found), and how many samples were compared.
 fn agreement_nm(job: &Job) -> (f64, usize) {
-    let result = run_cpu(job.clone());
+    let gaps = gaps_nm(job, &run_cpu(job.clone()));
+    (gaps.iter().fold(0.0, |m, g| m.max(g.abs())), gaps.len())
+}
+
+/// Section − engine (nm) at every sample of the engine's grid (see `agreement_nm`).
+fn gaps_nm(job: &Job, result: &RunResult) -> Vec<f64> {
     let section = TurnedSection::new(job, &[]).unwrap();
     let grid = result.grid();
     let pip = match &job.process {
         Process::Turning(t) => t.effects.centre_height_mm.abs(),
         _ => 0.0,
     };
-    let mut worst = 0.0_f64;
-    let mut compared = 0;
+    let mut gaps = Vec::new();
     for row in 0..grid.azimuths {
         for (k, ring) in grid.rings.iter().enumerate() {
             let depth = result.field.depth_mm[grid.sample_index(k, row)];
@@ -118,11 +123,10 @@ fn agreement_nm(job: &Job) -> (f64, usize) {
             if mine.is_nan() || across_the_wall {
                 continue; // beyond the aperture's rim (the outermost ring, slanted)
             }
-            compared += 1;
-            worst = worst.max((mine - at.y).abs() * 1e6);
+            gaps.push((mine - at.y) * 1e6);
         }
     }
-    (worst, compared)
+    gaps
 }
 
 fn assert_agreement(name: &str, base: &str) {
@@ -565,4 +569,281 @@ fn measurement_fields_out_of_range_are_refused_naming_them() {
 
 fn withheld_milling_job() -> &'static str {
     toolmark::diagnose::withheld::BALL_FEED_MARKS_FLAT.job
+}
+
+// ---------------------------------------------------------------------------------------
+// The tool's motion as it cuts (issue 12): vibration, spindle error motion, wear. The
+// section model (`synth/tool_motion.rs`) was written from the effects' definitions
+// without reading the engine's `effects/motion.rs`.
+
+/// A turned base for the motion cases: its job, nose radius and feed (mm), and the
+/// steepest slope of its nominal surface (at the rim).
+struct Turned {
+    name: &'static str,
+    toml: String,
+    nose_mm: f64,
+    feed_mm: f64,
+    surface_slope: f64,
+}
+
+fn turned_bases() -> [Turned; 3] {
+    // The sphere R5 out to r = 0.3 mm: slope 0.3/√(25 − 0.09).
+    let sphere_slope = 0.3 / (25.0f64 - 0.09).sqrt();
+    [
+        Turned {
+            name: "flat",
+            toml: FLAT.to_string(),
+            nose_mm: 0.5,
+            feed_mm: 0.01,
+            surface_slope: 0.0,
+        },
+        Turned {
+            name: "sphere XZ",
+            toml: sphere("xz"),
+            nose_mm: 0.2,
+            feed_mm: 0.005,
+            surface_slope: sphere_slope,
+        },
+        Turned {
+            name: "sphere XZB",
+            toml: sphere("xzb"),
+            nose_mm: 0.2,
+            feed_mm: 0.005,
+            surface_slope: sphere_slope,
+        },
+    ]
+}
+
+/// A moving effect: its name, its job table, and the terms it moves the surface by
+/// along Z as [amplitude (nm), cycles per revolution] — what the engine's linear
+/// interpolation between its table's nodes can miss. A feed motion moves the surface
+/// along Z by the X motion times the slope there (`slope`, the mark's included); a tilt
+/// by the nose centre's X (at most `x_max_mm`) times the angle.
+fn motion_cases(slope: f64, x_max_mm: f64) -> Vec<(&'static str, &'static str, Vec<[f64; 2]>)> {
+    let tilt_nm = |deg: f64| x_max_mm * 1e6 * deg.to_radians();
+    vec![
+        (
+            "depth vibration, 3 per revolution",
+            "kind = \"vibration\"\namplitude_mm = 0.00002\ndirection = \"depth\"\nper_revolution = 3\nphase_deg = 40",
+            vec![[20.0, 3.0]],
+        ),
+        (
+            "depth vibration, 2.37 per revolution",
+            "kind = \"vibration\"\namplitude_mm = 0.00002\ndirection = \"depth\"\nper_revolution = 2.37\nphase_deg = -70",
+            vec![[20.0, 2.37]],
+        ),
+        (
+            "feed vibration, 2 per revolution",
+            "kind = \"vibration\"\namplitude_mm = 0.001\ndirection = \"feed\"\nper_revolution = 2\nphase_deg = 25",
+            vec![[1000.0 * slope, 2.0]],
+        ),
+        (
+            "feed vibration, 7.3 per revolution",
+            "kind = \"vibration\"\namplitude_mm = 0.0005\ndirection = \"feed\"\nper_revolution = 7.3\nphase_deg = 10",
+            vec![[500.0 * slope, 7.3]],
+        ),
+        (
+            "axial error motion, orders 2 and 5",
+            "kind = \"axial_error_motion\"\nharmonics = [{ order = 2, amplitude_mm = 0.00002 }, { order = 5, amplitude_mm = 0.000008, phase_deg = 30 }]",
+            vec![[20.0, 2.0], [8.0, 5.0]],
+        ),
+        (
+            "tilt error motion, orders 1 and 3",
+            "kind = \"tilt_error_motion\"\ntilt_harmonics = [{ order = 1, amplitude_deg = 0.003 }, { order = 3, amplitude_deg = 0.001, phase_deg = -50 }]",
+            vec![[tilt_nm(0.003), 1.0], [tilt_nm(0.001), 3.0]],
+        ),
+    ]
+}
+
+/// Largest nose-centre X of a run's passes (mm).
+fn x_max_mm(result: &RunResult) -> f64 {
+    result
+        .turning_scenes()
+        .flat_map(|s| s.poses.poses.iter())
+        .fold(0.0, |m, p| m.max(p.x_mm.abs()))
+}
+
+fn assert_motions_agree(base: &Turned) {
+    // The largest feed vibration here is 1 µm: the marks' slope reaches (f/2 + 1 µm)/R.
+    let slope = base.surface_slope + (0.5 * base.feed_mm + 0.001) / base.nose_mm;
+    for azimuths in [8, 7] {
+        let toml = base
+            .toml
+            .replace("azimuths = 8", &format!("azimuths = {azimuths}"));
+        let x_max = x_max_mm(&run_cpu(job(&toml)));
+        for (effect, table, terms) in motion_cases(slope, x_max) {
+            let job = with_effect(&toml, table);
+            let result = run_cpu(job.clone());
+            let gaps = gaps_nm(&job, &result);
+            let worst = gaps.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
+            // The engine refines its table for the motion and moves linearly between
+            // nodes; the section model evaluates the motion at the crossing itself. On 8
+            // rows every crossing falls on a node of the engine's table (its nodes per
+            // revolution are multiples of 8): only rounding differs. On 7 rows the
+            // crossings fall between nodes, where a chord of A·cos(kC) sags by at most
+            // A(kh)²/8, h the node step.
+            let steps = result.turning_scenes().next().unwrap().poses.steps_per_rev;
+            let h = std::f64::consts::TAU / steps as f64;
+            let chord: f64 = if steps.is_multiple_of(azimuths) {
+                0.0
+            } else {
+                terms.iter().map(|[a, k]| a * (k * h).powi(2) / 8.0).sum()
+            };
+            let bound = 0.001 + chord;
+            println!(
+                "{}, {azimuths} rows, {effect}: max |Δ| = {worst:.2e} nm over {} samples (bound {bound:.2e} nm; engine {steps} nodes/rev)",
+                base.name,
+                gaps.len()
+            );
+            assert!(gaps.len() > 1000, "{}", gaps.len());
+            assert!(
+                worst <= bound,
+                "{}, {effect}: {worst} nm > {bound} nm",
+                base.name
+            );
+        }
+    }
+}
+
+#[test]
+fn the_section_model_agrees_with_the_engine_on_vibration_and_error_motion_on_a_flat() {
+    assert_motions_agree(&turned_bases()[0]);
+}
+
+#[test]
+fn the_section_model_agrees_with_the_engine_on_vibration_and_error_motion_on_a_sphere_in_xz() {
+    assert_motions_agree(&turned_bases()[1]);
+}
+
+#[test]
+fn the_section_model_agrees_with_the_engine_on_vibration_and_error_motion_on_a_sphere_in_xzb() {
+    assert_motions_agree(&turned_bases()[2]);
+}
+
+#[test]
+fn the_section_model_agrees_with_the_engine_on_motions_together_with_set_up_errors() {
+    // Centre height +3 µm (crossings off the engine's nodes, two families per ring near
+    // the axis), X decentre +2 µm (the tilt acts on the X the machine runs: 2 µm·θ =
+    // 0.1 nm if one code took the programmed X), a fractional depth vibration, tilt and
+    // axial error motion at once. Bound: 0.001 nm plus the engine's chord sag.
+    let base = &turned_bases()[1];
+    let job = with_effect(
+        &base.toml,
+        "kind = \"centre_height\"\nheight_mm = 0.003\n[[effects]]\nkind = \"x_decentre\"\noffset_mm = 0.002\n\
+         [[effects]]\nkind = \"vibration\"\namplitude_mm = 0.00002\ndirection = \"depth\"\nper_revolution = 2.37\n\
+         [[effects]]\nkind = \"tilt_error_motion\"\ntilt_harmonics = [{ order = 1, amplitude_deg = 0.003 }, { order = 3, amplitude_deg = 0.001 }]\n\
+         [[effects]]\nkind = \"axial_error_motion\"\nharmonics = [{ order = 2, amplitude_mm = 0.00002 }]",
+    );
+    let result = run_cpu(job.clone());
+    let x_max = x_max_mm(&result);
+    let tilt_nm = |deg: f64| x_max * 1e6 * f64::to_radians(deg);
+    let terms = [
+        [20.0, 2.37],
+        [tilt_nm(0.003), 1.0],
+        [tilt_nm(0.001), 3.0],
+        [20.0, 2.0],
+    ];
+    let steps = result.turning_scenes().next().unwrap().poses.steps_per_rev;
+    let h = std::f64::consts::TAU / steps as f64;
+    let bound = 0.001
+        + terms
+            .iter()
+            .map(|[a, k]| a * (k * h).powi(2) / 8.0)
+            .sum::<f64>();
+    let gaps = gaps_nm(&job, &result);
+    let worst = gaps.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
+    println!(
+        "sphere XZ, h +3 µm, δ +2 µm, vibration, tilt, axial: max |Δ| = {worst:.2e} nm over {} samples (bound {bound:.2e} nm; engine {steps} nodes/rev)",
+        gaps.len()
+    );
+    assert!(gaps.len() > 1000);
+    assert!(worst <= bound, "{worst} nm");
+}
+
+#[test]
+fn the_section_model_agrees_with_the_engine_on_wear_to_second_order() {
+    // Wear by the definition (the section model): the edge circle's radius shrinks by w
+    // about its centre. The engine moves the nose centre by w along its path's normal n
+    // instead. A point at lateral offset u from the nose centre (S = √(R² − u²)) then
+    // lies, to first order in w, higher in the section model by
+    //   Δ = w·R·(1 − cos γ)/S ≥ 0,   γ the angle between n and the edge's normal there
+    // (γ ≈ asin(u/R); along Z on the sphere 1/cos(slope) more). The cut leaving a point
+    // lies within u_max of it: half the feed, plus how far the cusp moves because the
+    // later pass wears more, δ per revolution: u_A − u_B = 2Rδ/f, so
+    // u_max = f/2 + Rδ/f with δ ≤ 2π·x_max·w/L_total = 2wf/x_max (L_total = πx_max²/f
+    // for a spiral to the axis). Bound: w(R/√(R² − u_max²) − 1)/cos(slope), plus
+    // 0.001 nm between the codes.
+    let w = 0.001;
+    for base in turned_bases() {
+        let job = with_effect(
+            &base.toml,
+            &format!("kind = \"tool_wear\"\nrecession_mm = {w}"),
+        );
+        let result = run_cpu(job.clone());
+        let (r, f) = (base.nose_mm, base.feed_mm);
+        let u_max = 0.5 * f + 2.0 * w * r / x_max_mm(&result);
+        let tilt = 1.0 / (1.0 + base.surface_slope.powi(2)).sqrt();
+        let bound = w * 1e6 * (r / (r * r - u_max * u_max).sqrt() - 1.0) / tilt + 0.001;
+        let gaps = gaps_nm(&job, &result);
+        let (low, high) = gaps
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), g| {
+                (lo.min(*g), hi.max(*g))
+            });
+        println!(
+            "{}, wear 1 µm: section − engine from {low:.2e} to {high:.2e} nm over {} samples (bound 0 to {bound:.3} nm)",
+            base.name,
+            gaps.len()
+        );
+        assert!(gaps.len() > 1000);
+        assert!(low >= -0.001 && high <= bound, "{}", base.name);
+    }
+}
+
+#[test]
+fn spring_back_raises_the_later_side_of_each_cusp_by_the_closed_form() {
+    // Facing inward at f per revolution: pass k's nose centre crosses azimuth 0 at
+    // r_k = 0.3 − k·f, after pass k − 1 at r_k + f. At x = r − r_k the passes leave
+    // z_k(x) = R − √(R² − x²) above the tip (exact circles). For 0 < x ≤ f/2 pass k − 1
+    // left its own mark (its chip over pass k − 2 is ≥ f²/R = 200 nm ≫ h_min), so
+    // pass k takes the chip c(x) = z_{k−1} − z_k = √(R² − x²) − √(R² − (x − f)²)
+    // ≈ f(f/2 − x)/R: where c < h_min the surface springs back by ρc; elsewhere (and
+    // for −f/2 ≤ x ≤ 0, where pass k's chip is thick and pass k + 1 stands higher)
+    // nothing changes. Steps of ρ·h_min = 3 nm at c = h_min, 0.25 µm before each cusp.
+    let (nose, feed, h_min, rho) = (0.5, 0.01, 5e-6, 0.6);
+    let plain_job = facing(nose, feed);
+    let mut sprung_job = plain_job.clone();
+    if let Process::Turning(t) = &mut sprung_job.process {
+        t.effects.spring_back_min_chip_mm = h_min;
+        t.effects.spring_back_recovery = rho;
+    }
+    let plain = TurnedSection::new(&plain_job, &[]).unwrap();
+    let sprung = TurnedSection::new(&sprung_job, &[]).unwrap();
+    let mut raised = 0;
+    for k in 2..20 {
+        let r_k = START_MM - k as f64 * feed;
+        for i in 0..400 {
+            let x = feed * (i as f64 / 400.0 - 0.5) + 1e-9;
+            let chip = (nose * nose - x * x).sqrt() - (nose * nose - (x - feed).powi(2)).sqrt();
+            if (chip - h_min).abs() < 1e-12 {
+                continue; // on the step
+            }
+            let expected = if x > 0.0 && chip < h_min {
+                raised += 1;
+                rho * chip
+            } else {
+                0.0
+            };
+            let got = sprung.height(r_k + x, 0.0) - plain.height(r_k + x, 0.0);
+            assert!(
+                (got - expected).abs() < 1e-12,
+                "k = {k}, x = {x}: {} nm vs {} nm",
+                got * 1e6,
+                expected * 1e6
+            );
+        }
+    }
+    // The band where c < h_min: x from 4.75001 µm (exact circles; f/2 − R·h_min/f =
+    // 4.75 µm for parabolas) to f/2, so 9 of the 400 points per mark (i = 391…399).
+    assert_eq!(raised, 18 * 9);
 }

@@ -79,6 +79,10 @@ pub struct TurningEffects {
     pub tilt_error_motion: Vec<SpindleHarmonic>,
     /// Edge recession by wear at the end of the cut (mm), linear in cut length.
     pub wear_recession_mm: f64,
+    /// Spring-back: the minimum chip thickness h_min (mm; 0 = none).
+    pub spring_back_min_chip_mm: f64,
+    /// Spring-back: the share ρ of a thinner chip that recovers (0 < ρ ≤ 1).
+    pub spring_back_recovery: f64,
 }
 
 impl TurningEffects {

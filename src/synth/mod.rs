@@ -1,8 +1,8 @@
 //! Measured-like data from a job and effects the diagnosis is not told, made apart from
 //! the diagnosis's forward model so that a benchmark built on it can see that model's
 //! errors: a turned part comes from the section model (`section.rs`, the surface
-//! computed from the cut's physics, with effects the diagnosis has no candidate for
-//! added on request), a generated or milled part from the simulation engine on a fine
+//! computed from the cut's physics, the tool placed at each instant by `tool_motion.rs`,
+//! with effects the diagnosis has no candidate for added on request), a generated or milled part from the simulation engine on a fine
 //! grid read by this module's own interpolation (`simulated.rs`); either is then
 //! "measured" by this module's instrument (`instrument.rs`: a stylus tip's trace or
 //! pixel averaging over a dense lattice), a lateral scale error, a mount that tilts,
@@ -12,6 +12,7 @@
 pub mod instrument;
 pub mod section;
 mod simulated;
+mod tool_motion;
 pub mod unmodelled;
 
 use crate::diagnose::forward::ForwardError;

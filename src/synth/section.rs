@@ -10,25 +10,34 @@
 //! revolution when r ≥ |y₀|: at machine x = +q (azimuth α = atan2(y₀, q)) and at
 //! x = −q (azimuth π − α), q = √(r² − y₀²). At each crossing C = α − φ + 2πk (or
 //! π − α − φ + 2πk) the nose centre is read from the program's pose table (linear in C
-//! between nodes, as the controller moves), moved by the X decentre and the Z drift
-//! (linear in the angle turned since the first pose, over all passes in program order),
-//! and the edge's height at lateral x is solved for: the edge point at direction
-//! (−sin θ, −cos θ) from the real arc centre, at radius ρ(ψ) = R + e + w(ψ) with
-//! ψ = θ − B, is the one with x = ±q (a fixed-point iteration on θ when ρ varies).
-//! The tool is set at its tip, so the real arc centre sits (e + w(0)) behind the
-//! programmed one along the tool axis. Samples closer to the axis than |y₀| never meet
+//! between nodes, as the controller moves), moved as the machine runs it (`tool_motion.rs`:
+//! the X decentre, the Z drift, vibration, spindle axial and tilt error motion, all at
+//! that instant), and the edge's height at lateral x is solved for: the edge point at
+//! direction (−sin θ, −cos θ) from the real arc centre, at radius
+//! ρ(ψ) = R + e + w(ψ) − wear with ψ = θ − B, is the one with x = ±q (a fixed-point
+//! iteration on θ when ρ varies). The tool is set at its tip before it cuts, so the real
+//! arc centre sits (e + w(0)) behind the programmed one along the tool axis; wear then
+//! shrinks the edge about that centre. Samples closer to the axis than |y₀| never meet
 //! the edge: below centre (y₀ > 0) they keep the stock; above centre (y₀ < 0) the flank,
 //! which lies behind the rake plane and straddles the axis, passes them at machine
 //! (0, −r), |y₀| − r behind the edge, standing (|y₀| − r)·tan(clearance) above the
 //! edge's height at x = 0 (the flank model `engine/scene.rs` documents). No pass below
 //! the stock: the stock top, the nominal surface offset along its normal by the stock
 //! allowance.
+//!
+//! Without spring-back the surface is the lowest cut. With spring-back (minimum chip
+//! thickness h_min, recovery ρ) every cut below the stock is kept with its time, and
+//! they act in machining order from the stock top: a cut d below the current height h
+//! takes a chip c = h − d (along the surface normal: the Z gap times the nominal
+//! normal's Z component); c ≥ h_min leaves d, a thinner chip springs back to d + ρ·c.
 
+use super::tool_motion::{CutLength, ToolAt, ToolMotion};
 use super::unmodelled::{Unmodelled, notch_depth_mm};
+use crate::effects::{Vibration, VibrationDirection};
 use crate::geometry::SurfaceOfRevolution;
 use crate::geometry::tool::AngleTable;
 use crate::io::job::{EffectKind, Job};
-use crate::process::{PoseTable, Process, ToolPose, TurningProcess};
+use crate::process::{PoseTable, Process, TurningProcess};
 use glam::DVec2;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -46,12 +55,8 @@ pub struct TurnedSection {
     /// Machine y of the edge's plane (mm).
     plane_y_mm: f64,
     tan_clearance: f64,
-    x_decentre_mm: f64,
-    drift_mm: f64,
-    /// Spindle angle of all passes together (rad).
-    total_angle_rad: f64,
-    /// Chatter: (amplitude mm, cycles per revolution, phase rad).
-    chatter: Vec<[f64; 3]>,
+    motion: ToolMotion,
+    spring_back: Option<SpringBack>,
     /// Cusp pile-up: (height mm, standard deviation mm).
     pileups: Vec<[f64; 2]>,
     surface: SurfaceOfRevolution,
@@ -64,11 +69,13 @@ struct Pass {
     table: PoseTable,
     /// Spindle angle turned before this pass began, over the passes in program order.
     angle_before_rad: f64,
+    /// The cut length along it (when the edge wears).
+    length: Option<CutLength>,
     blocks: Vec<Block>,
 }
 
 /// A run of spindle angles [from, to) ([from, to] for a pass's last) and the range of
-/// nose-centre X over it (decentre included).
+/// nose-centre X over it (decentre and feed vibration included).
 struct Block {
     from_rad: f64,
     to_rad: f64,
@@ -87,7 +94,7 @@ struct Edge {
     chips: Vec<[f64; 3]>,
     /// How far the real centre sits behind the programmed one along the tool axis.
     tip_offset_mm: f64,
-    /// Largest distance of an edge point from the real centre (mm).
+    /// Largest distance of an edge point from the real centre, worn or not (mm).
     reach_mm: f64,
 }
 
@@ -129,14 +136,11 @@ impl TurnedSection {
             return Err("the section model is for turning jobs".into());
         };
         let effects = &turning.effects;
-        if effects.has_motion() {
-            return Err("the section model does not make vibration, spindle error motion or tool wear yet; use the simulation engine".into());
-        }
-        let passes = program_passes(job, turning);
-        let total_angle_rad = passes
-            .iter()
-            .map(|p| p.end_angle_rad() - p.start_angle_rad)
-            .sum();
+        let spring_back = SpringBack::of(
+            effects.spring_back_min_chip_mm,
+            effects.spring_back_recovery,
+        )?;
+        let tables = program_passes(job, turning);
         let mut chips = Vec::new();
         let (mut chatter, mut pileups) = (Vec::new(), Vec::new());
         for effect in unmodelled {
@@ -149,7 +153,12 @@ impl TurnedSection {
                     amplitude_nm,
                     per_revolution,
                     phase_deg,
-                } => chatter.push([amplitude_nm * 1e-6, per_revolution, phase_deg.to_radians()]),
+                } => chatter.push(Vibration {
+                    amplitude_mm: amplitude_nm * 1e-6,
+                    cycles_per_rev: per_revolution,
+                    phase_rad: phase_deg.to_radians(),
+                    direction: VibrationDirection::Depth,
+                }),
                 Unmodelled::EdgeChip {
                     depth_nm,
                     at_deg,
@@ -157,40 +166,24 @@ impl TurnedSection {
                 } => chips.push([depth_nm * 1e-6, at_deg.to_radians(), width_deg.to_radians()]),
             }
         }
+        let motion = ToolMotion::new(effects, &chatter, &tables);
         let deviation = deviation_of(job, &effects.edge_deviation);
         let radius_mm = turning.tool.nose_radius_mm + effects.radius_error_mm;
         let edge = Edge {
             radius_mm,
             half_span_rad: turning.tool.half_span_rad(),
             tip_offset_mm: effects.radius_error_mm + deviation.at(0.0),
-            reach_mm: radius_mm + deviation.max_abs_mm() + 1e-6,
+            reach_mm: radius_mm + deviation.max_abs_mm() + motion.max_recession_mm() + 1e-6,
             deviation,
             chips,
         };
-        let x_decentre_mm = effects.x_decentre_mm;
-        let mut before = 0.0;
-        let passes = passes
-            .into_iter()
-            .map(|table| {
-                let blocks = blocks_of(&table, x_decentre_mm);
-                let pass = Pass {
-                    angle_before_rad: before,
-                    blocks,
-                    table,
-                };
-                before += pass.table.end_angle_rad() - pass.table.start_angle_rad;
-                pass
-            })
-            .collect();
         Ok(Self {
-            passes,
+            passes: passes_of(tables, &motion),
             edge,
             plane_y_mm: effects.edge_plane_y_mm(),
             tan_clearance: turning.tool.clearance_angle_deg.to_radians().tan(),
-            x_decentre_mm,
-            drift_mm: effects.axial_drift_mm,
-            total_angle_rad,
-            chatter,
+            motion,
+            spring_back,
             pileups,
             surface: job.surface.clone(),
             stock_mm: turning.path.stock_allowance_mm(),
@@ -212,41 +205,50 @@ impl TurnedSection {
             return f64::NAN;
         }
         let stock = self.stock_top(r_mm);
-        // Cuts at or above the stock change nothing; with pile-ups the next-lowest
-        // cut matters too.
-        let mut lowest = Lowest::below(stock, !self.pileups.is_empty());
+        // Cuts at or above the stock change nothing; with pile-ups the next-lowest cut
+        // matters too, with spring-back every cut.
+        let keep = match (&self.spring_back, self.pileups.is_empty()) {
+            (Some(_), _) => usize::MAX,
+            (None, false) => 2,
+            (None, true) => 1,
+        };
+        let mut cuts = Cuts::below(stock, keep);
         let y0 = self.plane_y_mm;
         let mut radial_per_lateral = None;
         if y0 == 0.0 || r_mm > y0.abs() {
             let q = ((r_mm - y0.abs()) * (r_mm + y0.abs())).sqrt();
             radial_per_lateral = Some(if r_mm > 0.0 { q / r_mm } else { 1.0 });
             let alpha = y0.atan2(q);
-            self.cuts(q, alpha - azimuth_rad, 0.0, &mut lowest);
+            self.cuts(q, alpha - azimuth_rad, 0.0, &mut cuts);
             // Beyond the axis, the edge's far side (its x < 0 part); one crossing when
             // the edge plane is tangent to the ring.
             if q > 0.0 || y0 == 0.0 {
-                self.cuts(-q, PI - alpha - azimuth_rad, 0.0, &mut lowest);
+                self.cuts(-q, PI - alpha - azimuth_rad, 0.0, &mut cuts);
             }
         } else if y0 < 0.0 {
             let rise = (y0.abs() - r_mm) * self.tan_clearance;
-            self.cuts(0.0, -FRAC_PI_2 - azimuth_rad, rise, &mut lowest);
+            self.cuts(0.0, -FRAC_PI_2 - azimuth_rad, rise, &mut cuts);
         }
-        let Some(first) = lowest.first else {
+        let Some(first) = cuts.list.first() else {
             return stock;
         };
+        let cut = match &self.spring_back {
+            Some(spring_back) => spring_back.after(stock, &cuts.list, self.surface.normal(r_mm).y),
+            None => first.z_mm,
+        };
         // Cusps are where two passes of the edge meet (not on the flank).
-        let pileup = match (lowest.second, radial_per_lateral) {
+        let pileup = match (cuts.list.get(1), radial_per_lateral) {
             (Some(second), Some(factor)) => self.pileup(first, second, factor),
             _ => 0.0,
         };
-        first.0 + pileup
+        cut + pileup
     }
 
-    /// Adds to `lowest` the cut of every crossing of the part point with the edge plane
+    /// Adds to `cuts` the cut of every crossing of the part point with the edge plane
     /// at machine x = `lateral_mm` (raised by `rise_mm`: the flank), the crossings lying
     /// at spindle angles C ≡ `base_rad` (mod 2π). Blocks whose nose centres pass over
     /// the point go first, so that the bound below skips most of the rest.
-    fn cuts(&self, lateral_mm: f64, base_rad: f64, rise_mm: f64, lowest: &mut Lowest) {
+    fn cuts(&self, lateral_mm: f64, base_rad: f64, rise_mm: f64, cuts: &mut Cuts) {
         let reach = self.edge.reach_mm;
         let over = |b: &Block| lateral_mm >= b.x_min_mm && lateral_mm <= b.x_max_mm;
         let near = |b: &Block| lateral_mm >= b.x_min_mm - reach && lateral_mm <= b.x_max_mm + reach;
@@ -260,7 +262,7 @@ impl TurnedSection {
                     }
                 });
                 for block in blocks {
-                    self.block_cuts(pass, block, lateral_mm, base_rad, rise_mm, lowest);
+                    self.block_cuts(pass, block, lateral_mm, base_rad, rise_mm, cuts);
                 }
             }
         }
@@ -273,7 +275,7 @@ impl TurnedSection {
         lateral_mm: f64,
         base_rad: f64,
         rise_mm: f64,
-        lowest: &mut Lowest,
+        cuts: &mut Cuts,
     ) {
         let first = ((block.from_rad - base_rad) / TAU).ceil() as i64;
         let end = (block.to_rad - base_rad) / TAU;
@@ -283,43 +285,44 @@ impl TurnedSection {
             end.ceil() as i64 - 1
         };
         for k in first..=last {
-            let Some(pose) = self.pose(pass, base_rad + TAU * k as f64) else {
+            let Some(tool) = self.tool_at(pass, base_rad + TAU * k as f64) else {
                 continue;
             };
-            if self.edge.lowest_bound(lateral_mm, pose) + rise_mm >= lowest.threshold() {
+            if self.edge.lowest_bound(lateral_mm, &tool) + rise_mm >= cuts.threshold() {
                 continue;
             }
-            if let Some((z, slope)) = self.edge.lowest_at(lateral_mm, pose) {
-                lowest.add(z + rise_mm, slope);
+            if let Some((z, slope)) = self.edge.lowest_at(lateral_mm, &tool) {
+                cuts.add(Cut {
+                    z_mm: z + rise_mm,
+                    slope,
+                    turned_rad: tool.turned_rad,
+                });
             }
         }
     }
 
-    /// The nose centre at spindle angle `c_rad` of `pass` as the machine runs it: the
-    /// program's pose, X moved by the decentre, Z by the drift and any chatter.
-    fn pose(&self, pass: &Pass, c_rad: f64) -> Option<ToolPose> {
-        let mut pose = pass.table.pose_at(c_rad)?;
+    /// The tool at spindle angle `c_rad` of `pass` as the machine runs it (the
+    /// program's pose moved by `tool_motion`), with its edge's wear then.
+    fn tool_at(&self, pass: &Pass, c_rad: f64) -> Option<ToolAt> {
+        let programmed = pass.table.pose_at(c_rad)?;
         let turned = pass.angle_before_rad + (c_rad - pass.table.start_angle_rad);
-        pose.x_mm += self.x_decentre_mm;
-        if self.total_angle_rad > 0.0 {
-            pose.z_mm += self.drift_mm * turned / self.total_angle_rad;
-        }
-        for [amplitude, per_rev, phase] in &self.chatter {
-            pose.z_mm += amplitude * (per_rev * turned + phase).cos();
-        }
-        Some(pose)
+        let length = pass
+            .length
+            .as_ref()
+            .map_or(0.0, |l| l.at(&pass.table, c_rad));
+        Some(self.motion.at(programmed, c_rad, turned, length))
     }
 
     /// Cusp pile-up at a point whose lowest and next-lowest cuts are `first` and
-    /// `second` (height, slope): the distance to their cusp, where the two edges meet,
-    /// is the height gap over the slope gap (exact for equal parabolic arcs), taken
-    /// along the radius (`radial_per_lateral` = dr/dq = q/r).
-    fn pileup(&self, first: (f64, f64), second: (f64, f64), radial_per_lateral: f64) -> f64 {
-        let gap = (second.1 - first.1).abs();
+    /// `second`: the distance to their cusp, where the two edges meet, is the height gap
+    /// over the slope gap (exact for equal parabolic arcs), taken along the radius
+    /// (`radial_per_lateral` = dr/dq = q/r).
+    fn pileup(&self, first: &Cut, second: &Cut, radial_per_lateral: f64) -> f64 {
+        let gap = (second.slope - first.slope).abs();
         if self.pileups.is_empty() || gap < 1e-12 {
             return 0.0;
         }
-        let distance = (second.0 - first.0) / gap * radial_per_lateral;
+        let distance = (second.z_mm - first.z_mm) / gap * radial_per_lateral;
         self.pileups
             .iter()
             .map(|[height, sigma]| height * (-0.5 * (distance / sigma).powi(2)).exp())
@@ -340,78 +343,128 @@ impl TurnedSection {
     }
 }
 
-/// The lowest and next-lowest cuts at a point below a ceiling: (height, slope).
-struct Lowest {
-    ceiling: f64,
-    keep_two: bool,
-    first: Option<(f64, f64)>,
-    second: Option<(f64, f64)>,
+/// One pass of the edge over a point: the height it leaves (mm), the edge's slope dz/dx
+/// there, and when (the spindle angle turned since the first pose, rad).
+#[derive(Debug, Clone, Copy)]
+struct Cut {
+    z_mm: f64,
+    slope: f64,
+    turned_rad: f64,
 }
 
-impl Lowest {
-    fn below(ceiling: f64, keep_two: bool) -> Self {
+/// The cuts at a point below a ceiling (the stock's top), lowest first: as many as the
+/// surface there needs (one; two for cusp pile-up; all for spring-back, where their
+/// order in time matters).
+struct Cuts {
+    ceiling: f64,
+    keep: usize,
+    list: Vec<Cut>,
+}
+
+impl Cuts {
+    fn below(ceiling: f64, keep: usize) -> Self {
         Self {
             ceiling,
-            keep_two,
-            first: None,
-            second: None,
+            keep,
+            list: Vec::new(),
         }
     }
 
     /// A cut at or above this height changes nothing kept.
     fn threshold(&self) -> f64 {
-        let kept = if self.keep_two {
-            self.second
-        } else {
-            self.first
-        };
-        kept.map_or(self.ceiling, |(z, _)| z.min(self.ceiling))
+        match self.list.get(self.keep.saturating_sub(1)) {
+            Some(kept) => kept.z_mm.min(self.ceiling),
+            None => self.ceiling,
+        }
     }
 
-    fn add(&mut self, z: f64, slope: f64) {
-        if z >= self.ceiling {
+    fn add(&mut self, cut: Cut) {
+        if cut.z_mm >= self.threshold() {
             return;
         }
-        match self.first {
-            Some((z1, _)) if z >= z1 => {
-                if self.second.is_none_or(|(z2, _)| z < z2) {
-                    self.second = Some((z, slope));
-                }
-            }
-            _ => {
-                self.second = self.first;
-                self.first = Some((z, slope));
-            }
+        let at = self.list.partition_point(|c| c.z_mm <= cut.z_mm);
+        self.list.insert(at, cut);
+        self.list.truncate(self.keep);
+    }
+}
+
+/// Spring-back below a minimum chip thickness (the material recovers by a share of a
+/// chip too thin to form).
+struct SpringBack {
+    min_chip_mm: f64,
+    recovery: f64,
+}
+
+impl SpringBack {
+    /// None without a minimum chip; the values checked against their ranges.
+    fn of(min_chip_mm: f64, recovery: f64) -> Result<Option<Self>, String> {
+        if min_chip_mm == 0.0 {
+            return Ok(None);
         }
+        if !(min_chip_mm.is_finite() && min_chip_mm > 0.0) {
+            return Err(format!(
+                "effects.spring_back_min_chip_mm: {min_chip_mm} is out of range; allowed: 0 (none) or a positive thickness"
+            ));
+        }
+        if !(recovery > 0.0 && recovery <= 1.0) {
+            return Err(format!(
+                "effects.spring_back_recovery: {recovery} is out of range; allowed: (0, 1]"
+            ));
+        }
+        Ok(Some(Self {
+            min_chip_mm,
+            recovery,
+        }))
+    }
+
+    /// The height (along Z) the `cuts` leave, acting in time order on the stock top
+    /// `stock_mm`; `normal_z`: the nominal surface normal's Z component, a Z gap times
+    /// it being the chip along the normal.
+    fn after(&self, stock_mm: f64, cuts: &[Cut], normal_z: f64) -> f64 {
+        let mut in_time = cuts.to_vec();
+        in_time.sort_by(|a, b| a.turned_rad.total_cmp(&b.turned_rad));
+        in_time.iter().fold(stock_mm, |h, cut| {
+            let chip = h - cut.z_mm;
+            if chip <= 0.0 {
+                h
+            } else if chip * normal_z >= self.min_chip_mm {
+                cut.z_mm
+            } else {
+                cut.z_mm + self.recovery * chip
+            }
+        })
     }
 }
 
 impl Edge {
-    fn radius_at(&self, psi_rad: f64) -> f64 {
+    /// The edge's radius at edge angle `psi_rad` when it has receded by `recession_mm`.
+    fn radius_at(&self, psi_rad: f64, recession_mm: f64) -> f64 {
         let notches: f64 = self
             .chips
             .iter()
             .map(|[depth, at, width]| notch_depth_mm(*depth, *at, *width, psi_rad))
             .sum();
-        self.radius_mm + self.deviation.at(psi_rad) - notches
+        self.radius_mm + self.deviation.at(psi_rad) - notches - recession_mm
     }
 
     fn is_circle(&self) -> bool {
         matches!(self.deviation, Deviation::None) && self.chips.is_empty()
     }
 
-    /// A height no edge point at machine x = `x_mm` lies below for the tool at `pose`:
+    /// A height no edge point at machine x = `x_mm` lies below for the tool at `tool`:
     /// the edge lies within ρ_max of its real centre, itself within |e + w(0)| of the
     /// programmed one, and √(ρ² − u²) ≤ ρ − u²/2ρ.
-    fn lowest_bound(&self, x_mm: f64, pose: ToolPose) -> f64 {
+    fn lowest_bound(&self, x_mm: f64, tool: &ToolAt) -> f64 {
+        let pose = tool.pose;
         let offset = self.tip_offset_mm.abs();
         let u = ((x_mm - pose.x_mm).abs() - offset).max(0.0);
         pose.z_mm - offset - self.reach_mm + u * u / (2.0 * self.reach_mm)
     }
 
-    /// The lowest edge point at machine x = `x_mm` for the tool at `pose`: its height
+    /// The lowest edge point at machine x = `x_mm` for the tool at `tool`: its height
     /// and the edge's slope dz/dx there; `None` when no edge point lies at that x.
-    fn lowest_at(&self, x_mm: f64, pose: ToolPose) -> Option<(f64, f64)> {
+    fn lowest_at(&self, x_mm: f64, tool: &ToolAt) -> Option<(f64, f64)> {
+        let (pose, recession) = (tool.pose, tool.recession_mm);
         let (sin_b, cos_b) = pose.b_rad.sin_cos();
         let tip = DVec2::new(-sin_b, -cos_b);
         let centre = DVec2::new(pose.x_mm, pose.z_mm) - self.tip_offset_mm * tip;
@@ -419,11 +472,11 @@ impl Edge {
         // The edge point in direction (−sin θ, −cos θ) from the centre, at radius ρ, has
         // x = centre.x − ρ sin θ: θ = asin(−u/ρ) on the lower half of the arc.
         let angle = |rho: f64| (u.abs() <= rho).then(|| (-u / rho).asin());
-        let mut rho = self.radius_at(angle(self.radius_mm)? - pose.b_rad);
+        let mut rho = self.radius_at(angle(self.radius_mm - recession)? - pose.b_rad, recession);
         let mut theta = angle(rho)?;
         if !self.is_circle() {
             for _ in 0..MAX_ITERATIONS {
-                rho = self.radius_at(theta - pose.b_rad);
+                rho = self.radius_at(theta - pose.b_rad, recession);
                 let next = angle(rho)?;
                 let change = (next - theta).abs();
                 theta = next;
@@ -454,8 +507,29 @@ fn program_passes(job: &Job, turning: &TurningProcess) -> Vec<PoseTable> {
     passes
 }
 
-/// The reach index of a pass: blocks of a few revolutions and their nose-centre X range.
-fn blocks_of(table: &PoseTable, x_decentre_mm: f64) -> Vec<Block> {
+/// The passes as the section reads them: each with the spindle angle and (when the edge
+/// wears) the cut length before it, over the passes in program order, and its reach index.
+fn passes_of(tables: Vec<PoseTable>, motion: &ToolMotion) -> Vec<Pass> {
+    let (mut angle, mut length) = (0.0, 0.0);
+    tables
+        .into_iter()
+        .map(|table| {
+            let pass = Pass {
+                angle_before_rad: angle,
+                length: motion.wears().then(|| CutLength::new(&table, length)),
+                blocks: blocks_of(&table, motion.x_decentre_mm(), motion.x_spread_mm()),
+                table,
+            };
+            angle += pass.table.end_angle_rad() - pass.table.start_angle_rad;
+            length = pass.length.as_ref().map_or(0.0, CutLength::end_mm);
+            pass
+        })
+        .collect()
+}
+
+/// The reach index of a pass: blocks of a few revolutions and their nose-centre X range
+/// (moved by `x_decentre_mm`, widened by `x_spread_mm` either way).
+fn blocks_of(table: &PoseTable, x_decentre_mm: f64, x_spread_mm: f64) -> Vec<Block> {
     let (start, end) = (table.start_angle_rad, table.end_angle_rad());
     let span = TAU * BLOCK_REVOLUTIONS;
     let count = (((end - start) / span).ceil() as usize).max(1);
@@ -480,8 +554,8 @@ fn blocks_of(table: &PoseTable, x_decentre_mm: f64) -> Vec<Block> {
                 from_rad: from,
                 to_rad: to,
                 last,
-                x_min_mm: x_min + x_decentre_mm,
-                x_max_mm: x_max + x_decentre_mm,
+                x_min_mm: x_min + x_decentre_mm - x_spread_mm,
+                x_max_mm: x_max + x_decentre_mm + x_spread_mm,
             }
         })
         .collect()
@@ -565,21 +639,56 @@ azimuths = 4
     }
 
     #[test]
+    fn spring_back_folds_the_cuts_in_time_order() {
+        // Heights in nm from a stock top at 100, h_min = 5, ρ = 0.5, in time order:
+        // 90 (chip 10: cut) → 87 (chip 3: springs back to 87 + 1.5 = 88.5) → 89 (above:
+        // nothing) → 84 (chip 4.5: 84 + 2.25 = 86.25). Given out of order.
+        let nm = |z: f64, t: f64| Cut {
+            z_mm: z * 1e-6,
+            slope: 0.0,
+            turned_rad: t,
+        };
+        let cuts = [nm(84.0, 4.0), nm(90.0, 1.0), nm(89.0, 3.0), nm(87.0, 2.0)];
+        let spring_back = SpringBack::of(5e-6, 0.5).unwrap().unwrap();
+        let h = spring_back.after(100e-6, &cuts, 1.0);
+        assert!((h * 1e6 - 86.25).abs() < 1e-9, "{}", h * 1e6);
+        // On a slope the chip along the normal is the Z gap times the normal's Z
+        // component: at 0.6 the first chip is 6 ≥ 5 (the same as above); at 0.4 it is 4,
+        // so: 90 (Z gap 10: 90 + 5 = 95) → 87 (gap 8, chip 3.2: 87 + 4 = 91) → 89 (gap
+        // 2, chip 0.8: 89 + 1 = 90) → 84 (gap 6, chip 2.4: 84 + 3 = 87).
+        let h = spring_back.after(100e-6, &cuts, 0.6);
+        assert!((h * 1e6 - 86.25).abs() < 1e-9, "{}", h * 1e6);
+        let h = spring_back.after(100e-6, &cuts, 0.4);
+        assert!((h * 1e6 - 87.0).abs() < 1e-9, "{}", h * 1e6);
+        // Out-of-range values are refused, naming the field.
+        assert!(SpringBack::of(0.0, 0.0).unwrap().is_none());
+        let err = SpringBack::of(5e-6, 1.5).err().unwrap();
+        assert!(
+            err.starts_with("effects.spring_back_recovery: 1.5"),
+            "{err}"
+        );
+    }
+
+    #[test]
     fn the_edge_of_an_ideal_tool_is_its_arc_below_the_nose_centre() {
         // Closed form: z = z_c − √(R² − u²) for a point u sideways of the centre, slope
         // u/√(R² − u²); outside the ±70° span nothing.
         let section = TurnedSection::new(&job(""), &[]).unwrap();
-        let pose = ToolPose {
-            x_mm: 0.3,
-            z_mm: 0.5,
-            b_rad: 0.0,
+        let tool = ToolAt {
+            pose: crate::process::ToolPose {
+                x_mm: 0.3,
+                z_mm: 0.5,
+                b_rad: 0.0,
+            },
+            recession_mm: 0.0,
+            turned_rad: 0.0,
         };
         for u in [-0.2, -0.01, 0.0, 0.05, 0.4] {
-            let (z, slope) = section.edge.lowest_at(0.3 + u, pose).unwrap();
+            let (z, slope) = section.edge.lowest_at(0.3 + u, &tool).unwrap();
             let root = (0.25f64 - u * u).sqrt();
             assert!((z - (0.5 - root)).abs() < 1e-15, "{u}");
             assert!((slope - u / root).abs() < 1e-12, "{u}");
         }
-        assert!(section.edge.lowest_at(0.3 + 0.48, pose).is_none());
+        assert!(section.edge.lowest_at(0.3 + 0.48, &tool).is_none());
     }
 }

@@ -3,6 +3,11 @@
 //! can check they come back "unexplained" rather than as a proxy. Turning only; the
 //! section model applies them (`section.rs`).
 //!
+//! `chatter` is now a modelled effect too: it is exactly a job's `vibration` with
+//! `direction = "depth"` (amplitude_mm = amplitude_nm·1e-6, per_revolution and phase_deg
+//! the same), and the section model applies it as one. It stays here so that older
+//! suites still read; whether a suite keeps it as "unmodelled" is the suite's choice.
+//!
 //! ```toml
 //! [[measurement.unmodelled]]
 //! kind = "cusp_pileup"     # material side flow: each cusp raised by height_nm in a
@@ -32,6 +37,7 @@ pub enum Unmodelled {
         height_nm: f64,
         width_um: f64,
     },
+    /// The same as a `vibration` with direction depth (see the module notes).
     Chatter {
         amplitude_nm: f64,
         per_revolution: f64,

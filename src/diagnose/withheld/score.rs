@@ -1,10 +1,18 @@
 //! Scoring the withheld suite against its sealed truth: the right effect, its size and
 //! whether the stated σ covers it, where the axis was found, the lateral scale, nothing
-//! claimed in controls, and unmodelled effects called unexplained.
+//! claimed in controls, and unmodelled effects called unexplained; per process, a
+//! confusion matrix of the truth against what the diagnosis claimed first, and for
+//! each pair of effects whether each was found.
 
 use super::{Truth, TruthEffect, selected};
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::path::Path;
+
+/// What a diagnosis that claims no effect says instead: the gap unexplained, or nothing
+/// beyond noise (or no fit, no diagnosis).
+pub const UNEXPLAINED: &str = "unexplained";
+pub const NONE: &str = "none";
 
 /// How one case scored.
 #[derive(Debug, Clone, Serialize)]
@@ -16,6 +24,10 @@ pub struct CaseScore {
     /// The diagnosis's first-ranked candidate and what it accepted.
     pub ranked_first: Option<String>,
     pub accepted: Vec<String>,
+    /// The effect the diagnosis claimed first (its highest-ranked accepted candidate);
+    /// with none accepted, [`UNEXPLAINED`] when the verdict calls the gap unexplained,
+    /// else [`NONE`].
+    pub claimed_first: String,
     /// The verdict's status.
     pub status: String,
     /// Single: the first-ranked is the truth. Pair: both truths accepted. Control:
@@ -39,6 +51,8 @@ pub struct CaseScore {
     pub rms_after_nm: f64,
     pub rms_reduction: f64,
     pub seconds: f64,
+    /// The unmodelled effects the measurement added (their kinds).
+    pub unmodelled: Vec<String>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -58,6 +72,33 @@ pub struct Scores {
     pub unmodelled: usize,
     pub unmodelled_unexplained: usize,
     pub axis_within_20_um: usize,
+    /// Per process: the truth of each single, control and unmodelled case against what
+    /// the diagnosis claimed first.
+    pub confusion: Vec<Confusion>,
+    /// Per process and pair of effects: how often each was found.
+    pub pairs_found: Vec<PairFound>,
+}
+
+/// One process's confusion matrix: `counts[row][column]` cases whose truth is `rows[row]`
+/// (a single-effect case's effect, "control", or "unmodelled: <kind>") and whose
+/// diagnosis claimed `columns[column]` first (an effect, [`UNEXPLAINED`] or [`NONE`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Confusion {
+    pub process: String,
+    pub rows: Vec<String>,
+    pub columns: Vec<String>,
+    pub counts: Vec<Vec<usize>>,
+}
+
+/// The pair cases of one process with the same two true effects: how many there are,
+/// in how many each effect was found (accepted), and both.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairFound {
+    pub process: String,
+    pub effects: [String; 2],
+    pub cases: usize,
+    pub found: [usize; 2],
+    pub both: usize,
 }
 
 /// Opens the truth and the diagnoses and scores the `selected` cases.
@@ -87,6 +128,11 @@ pub fn score(dir: &Path, cases_selected: &[String]) -> Result<Scores, String> {
             .unwrap_or(serde_json::Value::Null);
         cases.push(score_case(truth, &diagnosis));
     }
+    Ok(scores_of(cases))
+}
+
+/// The totals, the confusion matrices and the pair table of scored cases.
+fn scores_of(cases: Vec<CaseScore>) -> Scores {
     let singles: Vec<&CaseScore> = cases.iter().filter(|c| c.kind == "single").collect();
     let effect_cases: Vec<&CaseScore> = cases
         .iter()
@@ -94,7 +140,7 @@ pub fn score(dir: &Path, cases_selected: &[String]) -> Result<Scores, String> {
         .collect();
     let pairs: Vec<&CaseScore> = cases.iter().filter(|c| c.kind == "pair").collect();
     let controls: Vec<&CaseScore> = cases.iter().filter(|c| c.kind == "control").collect();
-    Ok(Scores {
+    Scores {
         singles: singles.len(),
         singles_ranked_first: singles.iter().filter(|c| c.right).count(),
         singles_parameter_within_10_percent: singles
@@ -124,8 +170,102 @@ pub fn score(dir: &Path, cases_selected: &[String]) -> Result<Scores, String> {
             .filter(|c| c.kind == "unmodelled" && c.right)
             .count(),
         axis_within_20_um: cases.iter().filter(|c| c.axis_error_um <= 20.0).count(),
+        confusion: confusion(&cases),
+        pairs_found: pairs_found(&cases),
         cases,
-    })
+    }
+}
+
+/// A case's row in its process's confusion matrix (`None`: a pair, tabled apart).
+fn confusion_row(c: &CaseScore) -> Option<String> {
+    match c.kind.as_str() {
+        "single" => c.truth.first().cloned(),
+        "control" => Some("control".into()),
+        "unmodelled" => Some(if c.unmodelled.is_empty() {
+            "unmodelled".into()
+        } else {
+            format!("unmodelled: {}", c.unmodelled.join(" + "))
+        }),
+        _ => None,
+    }
+}
+
+/// Per process (in name order): rows the true effects (by name), then "control", then
+/// the unmodelled kinds; columns the true effects in the same order (so that right
+/// claims lie on the diagonal), then other effects claimed, then [`UNEXPLAINED`] and
+/// [`NONE`].
+fn confusion(cases: &[CaseScore]) -> Vec<Confusion> {
+    let mut by_process: BTreeMap<&str, Vec<(String, &str)>> = BTreeMap::new();
+    for c in cases {
+        if let Some(row) = confusion_row(c) {
+            by_process
+                .entry(c.process.as_str())
+                .or_default()
+                .push((row, c.claimed_first.as_str()));
+        }
+    }
+    by_process
+        .into_iter()
+        .map(|(process, entries)| {
+            let rank = |row: &str| match row {
+                "control" => 1,
+                r if r.starts_with("unmodelled") => 2,
+                _ => 0,
+            };
+            let mut rows: Vec<String> = entries.iter().map(|(r, _)| r.clone()).collect();
+            rows.sort_by(|a, b| (rank(a), a).cmp(&(rank(b), b)));
+            rows.dedup();
+            let mut columns: Vec<String> = rows.iter().filter(|r| rank(r) == 0).cloned().collect();
+            let mut others: Vec<String> = entries
+                .iter()
+                .map(|(_, claimed)| claimed.to_string())
+                .filter(|c| !columns.contains(c) && c != UNEXPLAINED && c != NONE)
+                .collect();
+            others.sort();
+            others.dedup();
+            columns.extend(others);
+            columns.extend([UNEXPLAINED.to_string(), NONE.to_string()]);
+            let mut counts = vec![vec![0; columns.len()]; rows.len()];
+            for (row, claimed) in &entries {
+                let i = rows.iter().position(|r| r == row).unwrap_or(0);
+                let j = columns.iter().position(|c| c == claimed).unwrap_or(0);
+                counts[i][j] += 1;
+            }
+            Confusion {
+                process: process.to_string(),
+                rows,
+                columns,
+                counts,
+            }
+        })
+        .collect()
+}
+
+/// The pair cases grouped by process and their two true effects (in suite order).
+fn pairs_found(cases: &[CaseScore]) -> Vec<PairFound> {
+    let mut groups: BTreeMap<(String, [String; 2]), PairFound> = BTreeMap::new();
+    for c in cases
+        .iter()
+        .filter(|c| c.kind == "pair" && c.truth.len() == 2)
+    {
+        let effects = [c.truth[0].clone(), c.truth[1].clone()];
+        let entry = groups
+            .entry((c.process.clone(), effects.clone()))
+            .or_insert_with(|| PairFound {
+                process: c.process.clone(),
+                effects,
+                cases: 0,
+                found: [0, 0],
+                both: 0,
+            });
+        let found = [0, 1].map(|k| c.accepted.contains(&c.truth[k]));
+        entry.cases += 1;
+        for (count, was) in entry.found.iter_mut().zip(found) {
+            *count += usize::from(was);
+        }
+        entry.both += usize::from(found[0] && found[1]);
+    }
+    groups.into_values().collect()
 }
 
 fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
@@ -140,6 +280,11 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
     };
     let ranked_first = names(&d["candidates"]).into_iter().next();
     let accepted = names(&d["accepted"]);
+    let claimed = d["candidates"].as_array().and_then(|list| {
+        list.iter()
+            .find(|c| c["accepted"].as_bool() == Some(true))
+            .and_then(|c| c["effect"].as_str())
+    });
     let truth_names: Vec<String> = truth.effects.iter().map(|e| e.effect.clone()).collect();
     let status = d["verdict"]["status"]
         .as_str()
@@ -196,7 +341,20 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
         _ => f64::INFINITY,
     };
     let effect_case = matches!(truth.kind.as_str(), "single" | "pair");
+    let claimed_first = match (claimed, accepted.first()) {
+        (Some(effect), _) => effect.to_string(),
+        (None, Some(effect)) => effect.clone(),
+        (None, None) if status == "unexplained_residual" => UNEXPLAINED.into(),
+        (None, None) => NONE.into(),
+    };
     CaseScore {
+        claimed_first,
+        unmodelled: truth
+            .measurement
+            .unmodelled
+            .iter()
+            .map(|u| u.name().to_string())
+            .collect(),
         case: truth.case.clone(),
         process: truth.process.clone(),
         kind: truth.kind.clone(),
@@ -355,6 +513,7 @@ pub fn scores_markdown(s: &Scores) -> String {
             100.0 * reductions[reductions.len() / 2]
         );
     }
+    out += &confusion_markdown(s);
     out += "\n| case | truth | status | ranked first | accepted | parameter error | axis error (µm) | lateral scale (truth) | RMS before → after (nm) | s |\n|---|---|---|---|---|---|---|---|---|---|\n";
     for c in &s.cases {
         let errors: Vec<String> = c
@@ -387,4 +546,233 @@ pub fn scores_markdown(s: &Scores) -> String {
         );
     }
     out
+}
+
+/// The confusion matrices (a zero as "·") and the pair table, as Markdown.
+fn confusion_markdown(s: &Scores) -> String {
+    let mut out = String::new();
+    for m in &s.confusion {
+        out += &format!(
+            "\n**Confusion, {}** (rows: the truth; columns: the effect the diagnosis claimed first)\n\n| truth \\ claimed | {} |\n|---|{}\n",
+            m.process,
+            m.columns.join(" | "),
+            "---|".repeat(m.columns.len())
+        );
+        for (row, counts) in m.rows.iter().zip(&m.counts) {
+            let cells: Vec<String> = counts
+                .iter()
+                .map(|&n| if n == 0 { "·".into() } else { n.to_string() })
+                .collect();
+            out += &format!("| {row} | {} |\n", cells.join(" | "));
+        }
+    }
+    if !s.pairs_found.is_empty() {
+        out += "\n**Pairs** (each effect found: accepted by the diagnosis)\n\n| process | effect A | A found | effect B | B found | both found | cases |\n|---|---|---|---|---|---|---|\n";
+        for p in &s.pairs_found {
+            out += &format!(
+                "| {} | {} | {} | {} | {} | {} | {} |\n",
+                p.process, p.effects[0], p.found[0], p.effects[1], p.found[1], p.both, p.cases
+            );
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// A truth record: `effects` the true effect names, `unmodelled` a chatter added.
+    fn truth(case: &str, process: &str, kind: &str, effects: &[&str], unmodelled: bool) -> Truth {
+        let mut text = "kind = \"profile\"\n".to_string();
+        if unmodelled {
+            text +=
+                "[[unmodelled]]\nkind = \"chatter\"\namplitude_nm = 8.0\nper_revolution = 3.37\n";
+        }
+        Truth {
+            case: case.into(),
+            process: process.into(),
+            kind: kind.into(),
+            effects: effects
+                .iter()
+                .map(|e| TruthEffect {
+                    effect: e.to_string(),
+                    values: vec![1.0],
+                    order: None,
+                })
+                .collect(),
+            effects_toml: String::new(),
+            measurement: toml::from_str(&text).unwrap(),
+        }
+    }
+
+    /// A diagnosis record: the candidates in rank order with whether each was accepted.
+    fn diagnosis(candidates: &[(&str, bool)], status: &str) -> serde_json::Value {
+        let row =
+            |e: &str, accepted: bool| json!({"effect": e, "accepted": accepted, "parameters": []});
+        json!({
+            "candidates": candidates.iter().map(|(e, a)| row(e, *a)).collect::<Vec<_>>(),
+            "accepted": candidates.iter().filter(|(_, a)| *a).map(|(e, _)| row(e, true)).collect::<Vec<_>>(),
+            "verdict": {"status": status},
+        })
+    }
+
+    #[test]
+    fn the_confusion_matrix_counts_each_truth_against_the_effect_claimed_first() {
+        let found = "effects_found";
+        let records = [
+            // Turning singles: centre height claimed twice, once as a decentre (ranked
+            // first and accepted); a nose radius ranked first but not accepted (none);
+            // a drift claimed below a rejected waviness (the claim counts, not the rank).
+            (
+                truth("01", "turning", "single", &["centre_height"], false),
+                diagnosis(&[("centre_height", true)], found),
+            ),
+            (
+                truth("02", "turning", "single", &["centre_height"], false),
+                diagnosis(&[("centre_height", true), ("axial_drift", false)], found),
+            ),
+            (
+                truth("03", "turning", "single", &["centre_height"], false),
+                diagnosis(&[("x_decentre", true), ("centre_height", false)], found),
+            ),
+            (
+                truth("04", "turning", "single", &["nose_radius_error"], false),
+                diagnosis(&[("nose_radius_error", false)], "no_effect_beyond_noise"),
+            ),
+            (
+                truth("05", "turning", "single", &["axial_drift"], false),
+                diagnosis(&[("edge_waviness", false), ("axial_drift", true)], found),
+            ),
+            // Controls: one clean, one false claim; chatter called unexplained.
+            (
+                truth("06", "turning", "control", &[], false),
+                diagnosis(&[("axial_drift", false)], "no_effect_beyond_noise"),
+            ),
+            (
+                truth("07", "turning", "control", &[], false),
+                diagnosis(&[("axial_drift", true)], found),
+            ),
+            (
+                truth("08", "turning", "unmodelled", &[], true),
+                diagnosis(&[("axial_drift", false)], "unexplained_residual"),
+            ),
+            // Pairs: centre height + nose radius twice (one found, then both), decentre +
+            // drift once (the drift found).
+            (
+                truth(
+                    "09",
+                    "turning",
+                    "pair",
+                    &["centre_height", "nose_radius_error"],
+                    false,
+                ),
+                diagnosis(&[("centre_height", true)], found),
+            ),
+            (
+                truth(
+                    "10",
+                    "turning",
+                    "pair",
+                    &["centre_height", "nose_radius_error"],
+                    false,
+                ),
+                diagnosis(
+                    &[("nose_radius_error", true), ("centre_height", true)],
+                    found,
+                ),
+            ),
+            (
+                truth(
+                    "11",
+                    "turning",
+                    "pair",
+                    &["x_decentre", "axial_drift"],
+                    false,
+                ),
+                diagnosis(&[("axial_drift", true)], found),
+            ),
+            // Milling: one right claim, and a control with no diagnosis at all.
+            (
+                truth("12", "milling", "single", &["tool_radius_error"], false),
+                diagnosis(&[("tool_radius_error", true)], found),
+            ),
+            (
+                truth("13", "milling", "control", &[], false),
+                serde_json::Value::Null,
+            ),
+        ];
+        let scores = scores_of(records.iter().map(|(t, d)| score_case(t, d)).collect());
+        let turning = Confusion {
+            process: "turning".into(),
+            rows: [
+                "axial_drift",
+                "centre_height",
+                "nose_radius_error",
+                "control",
+                "unmodelled: chatter",
+            ]
+            .map(String::from)
+            .to_vec(),
+            columns: [
+                "axial_drift",
+                "centre_height",
+                "nose_radius_error",
+                "x_decentre",
+                "unexplained",
+                "none",
+            ]
+            .map(String::from)
+            .to_vec(),
+            counts: vec![
+                vec![1, 0, 0, 0, 0, 0],
+                vec![0, 2, 0, 1, 0, 0],
+                vec![0, 0, 0, 0, 0, 1],
+                vec![1, 0, 0, 0, 0, 1],
+                vec![0, 0, 0, 0, 1, 0],
+            ],
+        };
+        let milling = Confusion {
+            process: "milling".into(),
+            rows: vec!["tool_radius_error".into(), "control".into()],
+            columns: ["tool_radius_error", "unexplained", "none"]
+                .map(String::from)
+                .to_vec(),
+            counts: vec![vec![1, 0, 0], vec![0, 0, 1]],
+        };
+        assert_eq!(scores.confusion, vec![milling, turning]);
+        let pair = |a: &str, b: &str, cases, found, both| PairFound {
+            process: "turning".into(),
+            effects: [a.into(), b.into()],
+            cases,
+            found,
+            both,
+        };
+        assert_eq!(
+            scores.pairs_found,
+            vec![
+                pair("centre_height", "nose_radius_error", 2, [2, 1], 1),
+                pair("x_decentre", "axial_drift", 1, [0, 1], 0),
+            ]
+        );
+        // "Ranked first" (the older score) counts case 04 right and 05 wrong; the matrix
+        // counts what was claimed: 01, 02, 05 and 12 on its diagonals.
+        assert_eq!((scores.singles, scores.singles_ranked_first), (6, 4));
+        let markdown = scores_markdown(&scores);
+        println!("{markdown}");
+        assert!(
+            markdown.contains("| centre_height | · | 2 | · | 1 | · | · |"),
+            "{markdown}"
+        );
+        assert!(
+            markdown.contains("| turning | centre_height | 2 | nose_radius_error | 1 | 1 | 2 |")
+        );
+        let value = serde_json::to_value(&scores).unwrap();
+        assert_eq!(
+            value["confusion"][1]["counts"][3],
+            json!([1, 0, 0, 0, 0, 1])
+        );
+        assert_eq!(value["cases"][2]["claimed_first"], json!("x_decentre"));
+    }
 }
