@@ -487,3 +487,57 @@ fn fitted_effects_change_the_job_as_the_fit_says() {
         "{fragment}"
     );
 }
+
+#[test]
+fn a_fractional_depth_vibration_is_found_at_its_rate_modulo_the_profiles_aliases() {
+    // 8 nm at 0.37 cycles per revolution along the depth, made by the section model. A
+    // line through the axis reads the cut clock at two spindle angles half a turn
+    // apart, so 0.37 and 0.63 (= 1 − 0.37, phase mirrored) leave the same trace; the
+    // amplitude within 10 %, the rate within 0.01 of one of them.
+    let m = measure(
+        &sphere(),
+        "[[effects]]\nkind = \"vibration\"\namplitude_mm = 0.000008\ndirection = \"depth\"\nper_revolution = 0.37\nphase_deg = 20.0\n",
+        &model(PROFILE),
+    );
+    let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
+    let d = &outcome.diagnosis;
+    println!("{}", d.verdict.sentence);
+    assert_eq!(d.verdict.status, "effects_found");
+    assert_eq!(d.accepted[0].effect, "vibration");
+    let rate = d.accepted[0].order.expect("a vibration has a rate");
+    assert!(
+        (rate - 0.37).abs() < 0.01 || (rate - 0.63).abs() < 0.01,
+        "{rate} cycles per revolution"
+    );
+    let v = accepted(&outcome, "vibration");
+    let amplitude = v[0].0.hypot(v[1].0);
+    assert!(
+        (amplitude / 8.0 - 1.0).abs() < 0.1,
+        "{amplitude} nm against 8 nm"
+    );
+}
+
+#[test]
+fn wear_on_a_sphere_is_never_claimed_as_another_effect() {
+    // On a sphere a spiral's wear lifts the face by w(r₀² − r²)/r₀² and a nose-radius
+    // error bends it by e·r²/2R²: with the lateral scale free, one profile cannot tell
+    // them apart. The diagnosis must then claim neither (ambiguous) or the wear within
+    // 10 % — never a nose radius.
+    let m = measure(
+        &sphere(),
+        "[[effects]]\nkind = \"tool_wear\"\nrecession_mm = 0.00015\n",
+        &model(PROFILE),
+    );
+    let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
+    let d = &outcome.diagnosis;
+    println!("{}: {}", d.verdict.status, d.verdict.sentence);
+    for a in &d.accepted {
+        assert_eq!(a.effect, "tool_wear", "{}", d.verdict.sentence);
+        assert!((a.parameters[0].value / 150.0 - 1.0).abs() < 0.1);
+    }
+    assert!(
+        d.verdict.status == "ambiguous" || d.verdict.status == "effects_found",
+        "{}",
+        d.verdict.status
+    );
+}

@@ -39,6 +39,8 @@ pub enum Candidate {
     },
     /// Edge recession by wear, linear in cut length (nm at the end of the cut).
     ToolWear,
+    /// Spring-back below a minimum chip thickness: h_min (nm) and the recovered share ρ.
+    SpringBack,
     /// Not an effect but registration: where a turned profile lies on the spiral (its
     /// azimuth from C = 0) sets where the marks fall. Re-fitted with every effect, as
     /// piston and tilt are re-solved, because a decentre, say, moves the marks too.
@@ -97,6 +99,7 @@ pub fn candidates_for(job: &Job) -> (Vec<Candidate>, Vec<NotDiagnosable>) {
                     depth: false,
                 },
                 Candidate::TiltErrorMotion { order: 0.0 },
+                Candidate::SpringBack,
             ],
             vec![NotDiagnosable {
                 effect: "axial_error_motion",
@@ -176,6 +179,7 @@ impl Candidate {
             Candidate::Vibration { .. } => "vibration",
             Candidate::TiltErrorMotion { .. } => "tilt_error_motion",
             Candidate::ToolWear => "tool_wear",
+            Candidate::SpringBack => "spring_back",
             Candidate::SpiralAzimuth => "spiral_azimuth",
             Candidate::LateralScale => "lateral_scale",
         }
@@ -266,6 +270,10 @@ impl Candidate {
                     Candidate::ToolWear => {
                         vec![parameter("recession", "nm", 10.0, 0.1 * nose_um * 1e3)]
                     }
+                    Candidate::SpringBack => vec![
+                        parameter("min_chip", "nm", 2.0, (0.1 * nose_um).min(5.0) * 1e3),
+                        parameter("recovery", "1", 0.1, 1.0),
+                    ],
                     Candidate::Vibration { depth, .. } => {
                         let scale = if *depth { 5.0 } else { 100.0 };
                         let bound = 0.1 * nose_um * 1e3 / 2f64.sqrt();
@@ -352,6 +360,13 @@ impl Candidate {
                         values[1] * 1e-6,
                     ),
                     Candidate::ToolWear => e.wear_recession_mm += values[0] * 1e-6,
+                    // Only a positive threshold and share spring back (a trial outside
+                    // them leaves the cut as it is).
+                    Candidate::SpringBack if values[0] > 0.0 && values[1] > 0.0 => {
+                        e.spring_back_min_chip_mm = values[0] * 1e-6;
+                        e.spring_back_recovery = values[1].min(1.0);
+                    }
+                    Candidate::SpringBack => {}
                     Candidate::Vibration { cycles, depth } => {
                         let (amplitude, phase) = amplitude_phase(values);
                         e.vibrations.push(Vibration {
@@ -426,6 +441,13 @@ impl Candidate {
             }
             Candidate::InclinationError => ("error_deg", values[0]),
             Candidate::ToolWear => ("recession_mm", values[0] * 1e-6),
+            Candidate::SpringBack => {
+                return format!(
+                    "[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = {:.6e}\nrecovery = {:.4}\n",
+                    values[0] * 1e-6,
+                    values[1]
+                );
+            }
             Candidate::Vibration { cycles, depth } => {
                 let (amplitude, phase) = amplitude_phase(values);
                 return format!(
@@ -560,6 +582,11 @@ impl Candidate {
                 "the edge advanced {} nm over the cut, growing with the length cut (not wear: a built-up edge, or a tool still running in)",
                 pm(-v, s)
             ),
+            Candidate::SpringBack => format!(
+                "chips thinner than {} nm plough and {} % of them springs back (raising the flank beside each cusp; the mark spacing stays)",
+                pm(v, s),
+                pm(100.0 * values[1], 100.0 * sigmas[1])
+            ),
             Candidate::Vibration { cycles, depth } => {
                 let (amplitude, phase) = amplitude_phase(values);
                 let synchronous = (cycles - cycles.round()).abs() < 0.005;
@@ -639,6 +666,9 @@ impl Candidate {
             ),
             Candidate::ToolWear => {
                 "re-lap or replace the tool, or finish with a fresh edge on a shorter cut".to_string()
+            }
+            Candidate::SpringBack => {
+                "a property of edge and material, not a machine error: carry it in the model (run --effects); a sharper edge or a finishing feed that keeps the chip thicker reduces it".to_string()
             }
             Candidate::Vibration { cycles, .. } => format!(
                 "find what excites {cycles:.3} × the spindle frequency (balance, drives, pumps, the floor) and isolate it, or move the spindle speed so it no longer prints"

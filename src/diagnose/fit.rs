@@ -255,7 +255,8 @@ pub fn width(candidate: &Candidate) -> usize {
         | Candidate::Vibration { .. }
         | Candidate::TiltErrorMotion { .. }
         | Candidate::SpindleTram
-        | Candidate::RadialRunout => 2,
+        | Candidate::RadialRunout
+        | Candidate::SpringBack => 2,
         _ => 1,
     }
 }

@@ -211,7 +211,7 @@ pub fn diagnose(
         .into_iter()
         .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
         .collect();
-    let found = if check.fits && !options.compare_only {
+    let mut found = if check.fits && !options.compare_only {
         search::search(
             &mut problem,
             &base,
@@ -226,6 +226,8 @@ pub fn diagnose(
         Search::default()
     };
     let baseline = base.evaluation.clone();
+    let indistinguishable = indistinguishable(&found.singles, &baseline.registered);
+    let ambiguous = withdraw_if_ambiguous(&mut found, &indistinguishable, log);
     let rss0 = baseline.rss();
     let after = found
         .accepted
@@ -293,7 +295,6 @@ pub fn diagnose(
             &zones,
         ));
     }
-    let indistinguishable = indistinguishable(&found.singles, &baseline.registered);
     let held = match (&calibration, check.fits) {
         (Some(calibration), true) => {
             Some(judge_held_out(&mut problem, calibration, &base, accepted)?)
@@ -306,7 +307,7 @@ pub fn diagnose(
         &check,
         accepted,
         (&before_info, &after_info),
-        &indistinguishable,
+        &ambiguous,
         held.as_ref(),
         &found.refused,
     );
@@ -508,8 +509,28 @@ fn shrink_step(model: &str, residual: &[f64], radii: &[f64], zones: &Zones) -> S
     }
 }
 
-/// Candidates the data cannot tell from the best: nearly the same evidence and nearly
-/// the same change to the residual.
+/// When the first candidate has rivals the data cannot tell from it, nothing is
+/// accepted: acting on one of two causes that leave the same print is a coin toss
+/// that may make the next part worse. Returns the tied labels, the first first.
+fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&str)) -> Vec<String> {
+    let (Some(_), Some((best, _))) = (&found.accepted, found.singles.first()) else {
+        return Vec::new();
+    };
+    if rivals.is_empty() {
+        return Vec::new();
+    }
+    let mut tied = vec![best.set[best.set.len() - 1].label()];
+    tied.extend(rivals.iter().cloned());
+    log(&format!(
+        "{} cannot be told apart on this measurement: nothing accepted",
+        tied.join(", ")
+    ));
+    found.accepted = None;
+    tied
+}
+
+/// Candidates the data cannot tell from the best: nearly the same evidence (within 5 %,
+/// or 2 of ΔBIC) and nearly the same change to the residual (correlation above 0.95).
 fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<String> {
     let Some((best, best_evidence)) = singles.first() else {
         return Vec::new();
@@ -542,8 +563,8 @@ fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<Strin
                 .sum::<f64>()
                 / (norm(&reference) * norm(&other)).max(1e-300);
             *best_evidence > 0.0
-                && (best_evidence - evidence).abs() < 0.02 * best_evidence.abs() + 2.0
-                && cos > 0.98
+                && (best_evidence - evidence).abs() < (0.05 * best_evidence.abs()).max(2.0)
+                && cos > 0.95
         })
         .map(|(f, _)| f.set[f.set.len() - 1].label())
         .collect()

@@ -338,7 +338,8 @@ fn refit_if_axis_moves(
         let sim = problem
             .model
             .simulate(&|job| super::fit::apply_set(&fit.set, &values, job))?;
-        let again = super::fit::register_trial(fitted, &sim, problem.terms, wide, &fit.set, &values);
+        let again =
+            super::fit::register_trial(fitted, &sim, problem.terms, wide, &fit.set, &values);
         if best.as_ref().is_none_or(|b| again.rss < b.0) {
             best = Some((again.rss, values, again.shift_mm));
         }
@@ -425,6 +426,13 @@ pub fn fit_new(
             // mm → nm, rad → µrad.
             start.extend([a * 1e6, b * 1e6]);
             Ok(Some(problem.fit(&set, start, &[])?))
+        }
+        // Spring-back does nothing until both its threshold and its share are above
+        // zero: the threshold is scanned at half recovery, then both fitted.
+        Candidate::SpringBack => {
+            set.push(c);
+            start.extend([0.0, 0.5]);
+            Ok(Some(problem.fit(&set, start, &[first])?))
         }
         _ => {
             set.push(c);

@@ -19,7 +19,7 @@ pub fn verdict(
     check: &FitCheck,
     fit: Option<&Fit>,
     (before, after): (&ResidualInfo, &ResidualInfo),
-    alternatives: &[String],
+    ambiguous: &[String],
     held: Option<&HeldOut>,
     refused: &[(String, String)],
 ) -> Verdict {
@@ -84,12 +84,6 @@ pub fn verdict(
                 "; {which} cuts the residual from {:.0} nm to {:.0} nm PV ({:.1} → {:.1} nm RMS).",
                 before.pv_nm, after.pv_nm, before.rms_nm, after.rms_nm
             ));
-            if !alternatives.is_empty() {
-                sentence.push_str(&format!(
-                    " The data cannot tell this from: {}.",
-                    alternatives.join(", ")
-                ));
-            }
             if let Some(h) = held {
                 sentence.push_str(&format!(
                     " On the {} held-out points it cuts the residual from {:.1} to {:.1} nm RMS.",
@@ -120,6 +114,16 @@ pub fn verdict(
                 advice,
             }
         }
+        None if !ambiguous.is_empty() => Verdict {
+            status: "ambiguous".into(),
+            sentence: format!(
+                "The gap is explained about equally well by {}: this measurement cannot tell them apart, so none is claimed{location}.",
+                ambiguous.join(" or ")
+            ),
+            advice: vec![
+                "correct nothing yet: measure what separates them (another radius range, a map of the part, or a part cut with another program) and diagnose again".into(),
+            ],
+        },
         None if near_noise => Verdict {
             status: "no_effect_beyond_noise".into(),
             sentence: format!(
