@@ -190,8 +190,9 @@ fn turning_scenes(
     turning.effects.apply_to_passes(&mut passes);
     passes
         .into_iter()
-        .map(|poses| {
-            TurningScene::new(
+        .map(|poses| TurningScene {
+            spring_back: turning.effects.spring_back(),
+            ..TurningScene::new(
                 grid.clone(),
                 poses,
                 &turning.tool,

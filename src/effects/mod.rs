@@ -12,6 +12,7 @@
 //! | nose-radius error | e | the real edge radius is R + e, the tool set at its tip |
 //! | edge waviness | w(ψ) harmonics or a measured edge | the edge radius varies along the edge, ψ from the tip |
 //! | axial drift | d (+ = toward +Z, away from the part) | every pose's Z shifted by d·C/C_total: C the spindle angle turned since the first pose of the first pass, C_total over all passes in program order (thermal growth linear in machining time) |
+//! | spring-back / minimum chip | h_min, ρ (0 < ρ ≤ 1) | per sample, the passes act in machining order from the stock top: one whose edge reaches depth d below the current height h cuts to d when the chip h − d ≥ h_min, and otherwise ploughs, the material springing back to d + ρ·(h − d) (heights along the sample's ray); raises and rounds the cusps, leaves their spacing |
 //!
 //! Generating (cup wheel, seed 000):
 //!
@@ -38,6 +39,7 @@
 //! an edge plane offset and an `EdgeModel` (turning); a moved cutting circle
 //! (generating); a transformed path, a changed tool and displaced tooth sweeps (milling).
 
+use crate::engine::scene::SpringBack;
 use crate::geometry::cutter::Cutter;
 use crate::geometry::milling_tool::MillingTool;
 use crate::geometry::tool::{AngleTable, ArcNoseTool, EdgeModel};
@@ -63,6 +65,11 @@ pub struct TurningEffects {
     /// Tool drift along machine Z over the cut (mm), + = toward +Z (away from the part):
     /// 0 at the first pose, this at the last, linear in the spindle angle turned.
     pub axial_drift_mm: f64,
+    /// Minimum chip thickness h_min (mm): a thinner chip ploughs instead of cutting
+    /// (0 = no spring-back).
+    pub spring_back_min_chip_mm: f64,
+    /// Fraction ρ of a ploughed chip the material recovers (0 = no spring-back).
+    pub spring_back_recovery: f64,
 }
 
 impl TurningEffects {
@@ -72,6 +79,17 @@ impl TurningEffects {
             && self.radius_error_mm == 0.0
             && self.edge_deviation.is_zero()
             && self.axial_drift_mm == 0.0
+            && self.spring_back_min_chip_mm == 0.0
+            && self.spring_back_recovery == 0.0
+    }
+
+    /// The removal rule the engines apply at each sample (the running minimum without
+    /// spring-back).
+    pub fn spring_back(&self) -> SpringBack {
+        SpringBack {
+            min_chip_mm: self.spring_back_min_chip_mm,
+            recovery: self.spring_back_recovery,
+        }
     }
 
     /// The edge as cut by a tool with these effects.

@@ -15,7 +15,9 @@
 //!   once for the eight rings; off centre each ring has its own.
 //! - Per pair: the ray's entry into the edge circle (one square root, one division; off
 //!   centre a second entry after the ray's re-linearisation), the span test and the
-//!   running minimum.
+//!   height update (the running minimum, or with spring-back the same
+//!   [`SpringBack::after`](super::scene::SpringBack::after) as the twin: the passes of a
+//!   lane run in the twin's order, so the sequential rule holds lane-wise).
 //!
 //! Left to the scalar twin: edges that depart from their circle (waviness, measured
 //! edges: the hit angle needs an arctangent), the flank branch (the few rings inside
@@ -341,8 +343,9 @@ impl<'a> TurningKernel<'a> {
         (best, best_pass)
     }
 
-    /// Every pass of one branch over the block, in revolution order, lowering each
-    /// lane's (depth, pass) where the pass lies in the lane's window.
+    /// Every pass of one branch over the block, in revolution order, changing each
+    /// lane's (height, pass) by the scene's spring-back rule where the pass lies in the
+    /// lane's window.
     #[inline(always)]
     fn run<const OFF_CENTRE: bool>(
         &self,
@@ -397,10 +400,12 @@ impl<'a> TurningKernel<'a> {
                 depth[l] = if inside { entry } else { f64::INFINITY };
             }
             let pass_id = rev as u32 * PASS_ID_STRIDE + branch as u32;
+            let rule = self.scene.spring_back;
             for l in 0..LANES {
-                let better = depth[l] < best[l];
-                best[l] = if better { depth[l] } else { best[l] };
-                best_pass[l] = if better { pass_id } else { best_pass[l] };
+                let height = rule.after(best[l], depth[l]);
+                let changed = height < best[l];
+                best[l] = if changed { height } else { best[l] };
+                best_pass[l] = if changed { pass_id } else { best_pass[l] };
             }
         }
     }
@@ -431,11 +436,12 @@ impl<'a> TurningKernel<'a> {
         let last = scene.poses.poses.len() - 1;
         let pose = scene.poses.poses[last - 1].lerp(scene.poses.poses[last], 1.0);
         debug_assert_eq!(window.t, 0.0);
-        if let Some(depth) = pass_entry(scene, &self.edge, ring, pose, branch)
-            && depth < *best
-        {
-            *best = depth;
-            *best_pass = rev as u32 * PASS_ID_STRIDE + branch as u32;
+        if let Some(depth) = pass_entry(scene, &self.edge, ring, pose, branch) {
+            let height = scene.spring_back.after(*best, depth);
+            if height < *best {
+                *best = height;
+                *best_pass = rev as u32 * PASS_ID_STRIDE + branch as u32;
+            }
         }
     }
 

@@ -26,6 +26,11 @@
 //! kind = "axial_drift"
 //! drift_mm = 0.0005          # Z drift at the end of the cut, + = away from the part;
 //!                            #   linear in the spindle angle turned
+//!
+//! [[effects]]
+//! kind = "spring_back"       # once per job (its values do not add up)
+//! min_chip_mm = 0.000005     # h_min: a thinner chip ploughs; 0 < h_min ≤ min(0.005, R/10)
+//! recovery = 0.6             # ρ: the ploughed fraction that springs back; 0 < ρ ≤ 1
 //! ```
 //!
 //! Generating jobs (cup wheel) take their own effects:
@@ -95,10 +100,11 @@ pub enum EffectKind {
     ToolRadiusError,
     SpindleTram,
     RadialRunout,
+    SpringBack,
 }
 
 impl EffectKind {
-    pub const ALL: [EffectKind; 11] = [
+    pub const ALL: [EffectKind; 12] = [
         EffectKind::CentreHeight,
         EffectKind::XDecentre,
         EffectKind::NoseRadiusError,
@@ -110,6 +116,7 @@ impl EffectKind {
         EffectKind::ToolRadiusError,
         EffectKind::SpindleTram,
         EffectKind::RadialRunout,
+        EffectKind::SpringBack,
     ];
 
     /// The name used in job files.
@@ -126,6 +133,7 @@ impl EffectKind {
             EffectKind::ToolRadiusError => "tool_radius_error",
             EffectKind::SpindleTram => "spindle_tram",
             EffectKind::RadialRunout => "radial_runout",
+            EffectKind::SpringBack => "spring_back",
         }
     }
 
@@ -135,7 +143,8 @@ impl EffectKind {
             EffectKind::CentreHeight
             | EffectKind::XDecentre
             | EffectKind::NoseRadiusError
-            | EffectKind::EdgeWaviness => &[ProcessKind::Turning],
+            | EffectKind::EdgeWaviness
+            | EffectKind::SpringBack => &[ProcessKind::Turning],
             EffectKind::CutterDisplacement
             | EffectKind::InclinationError
             | EffectKind::PlungeError => &[ProcessKind::Generating],
@@ -159,6 +168,7 @@ impl EffectKind {
             EffectKind::AxialDrift => &["drift_mm"],
             EffectKind::SpindleTram => &["tilt_x_deg", "tilt_y_deg"],
             EffectKind::RadialRunout => &["offset_mm", "phase_deg"],
+            EffectKind::SpringBack => &["min_chip_mm", "recovery"],
         }
     }
 }
@@ -203,11 +213,15 @@ pub struct EffectSpec {
     pub tilt_y_deg: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub phase_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_chip_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recovery: Option<f64>,
 }
 
 impl EffectSpec {
     /// Each parameter field and whether it is given.
-    fn given(&self) -> [(&'static str, bool); 9] {
+    fn given(&self) -> [(&'static str, bool); 11] {
         [
             ("height_mm", self.height_mm.is_some()),
             ("offset_mm", self.offset_mm.is_some()),
@@ -218,6 +232,8 @@ impl EffectSpec {
             ("tilt_x_deg", self.tilt_x_deg.is_some()),
             ("tilt_y_deg", self.tilt_y_deg.is_some()),
             ("phase_deg", self.phase_deg.is_some()),
+            ("min_chip_mm", self.min_chip_mm.is_some()),
+            ("recovery", self.recovery.is_some()),
         ]
     }
 
@@ -278,6 +294,24 @@ fn bounded(field: String, value: Option<f64>, limit: f64) -> Result<f64, JobErro
     }
 }
 
+/// A required finite value in (0, limit].
+fn positive_up_to(field: String, value: Option<f64>, limit: f64) -> Result<f64, JobError> {
+    let range = format!("allowed: a finite number in (0, {limit}]");
+    match value {
+        None => Err(error(field, format!("missing; {range}"))),
+        Some(v) if !v.is_finite() || v <= 0.0 || v > limit => {
+            Err(error(field, format!("{v} is out of range; {range}")))
+        }
+        Some(v) => Ok(v),
+    }
+}
+
+/// Largest minimum chip thickness (mm), and as a fraction of the nose radius: ploughing
+/// is an edge-sharpness effect (h_min is a fraction of the cutting-edge radius, nm in
+/// diamond turning, µm with honed carbide), far below the tool's nose.
+const MAX_MIN_CHIP_MM: f64 = 0.005;
+const MAX_MIN_CHIP_PER_NOSE_RADIUS: f64 = 0.1;
+
 /// A running total of one kind's values over the tables, which must stay within the
 /// same range as each table (checked at the last table that added to it).
 struct Total {
@@ -322,6 +356,7 @@ pub fn turning_effects(
 ) -> Result<TurningEffects, JobError> {
     let mut effects = TurningEffects::default();
     let mut harmonics = Vec::new();
+    let mut spring_back_at = None;
     for (index, spec) in specs.iter().enumerate() {
         let field = |name: &str| format!("effects[{index}].{name}");
         spec.check_fields(index, ProcessKind::Turning)?;
@@ -341,6 +376,21 @@ pub fn turning_effects(
             EffectKind::AxialDrift => {
                 effects.axial_drift_mm +=
                     bounded(field("drift_mm"), spec.drift_mm, 0.5 * nose_radius_mm)?;
+            }
+            EffectKind::SpringBack => {
+                if let Some(first) = spring_back_at.replace(index) {
+                    return Err(error(
+                        field("kind"),
+                        format!(
+                            "\"spring_back\" is already given in effects[{first}]; allowed: one spring_back table per job (its parameters do not add up)"
+                        ),
+                    ));
+                }
+                let limit = MAX_MIN_CHIP_MM.min(MAX_MIN_CHIP_PER_NOSE_RADIUS * nose_radius_mm);
+                effects.spring_back_min_chip_mm =
+                    positive_up_to(field("min_chip_mm"), spec.min_chip_mm, limit)?;
+                effects.spring_back_recovery =
+                    positive_up_to(field("recovery"), spec.recovery, 1.0)?;
             }
             EffectKind::EdgeWaviness => {
                 let list = spec
