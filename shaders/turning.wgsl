@@ -1,7 +1,8 @@
 // Turning removal kernel: one invocation per dexel (sample of the nominal surface).
 // For every spindle revolution whose tool can reach the sample (ranges prepared on the
 // CPU, per branch: direct, mirrored past the axis, flank), find where the tool enters
-// the sample's normal ray and keep the lowest entry.
+// the sample's normal ray and apply the entries in that order by the spring-back rule
+// (`after_pass`; without spring-back: keep the lowest entry).
 // f64 twin: `sample_dexel` and its helpers in src/engine/cpu.rs, `EdgeModel::entry` in
 // src/geometry/tool.rs, pass bookkeeping in src/engine/scene.rs — change them together.
 //
@@ -34,7 +35,11 @@ struct Params {
     deviation_count: u32,
     edge_refinements: u32,
     ray_refinements: u32,
-    _padding: u32,
+    min_chip_mm: f32,
+    recovery: f32,
+    _padding0: u32,
+    _padding1: u32,
+    _padding2: u32,
 }
 
 struct Ring {
@@ -179,6 +184,30 @@ struct Best {
     pass_id: u32,
 }
 
+// `SpringBack::after` (src/engine/scene.rs): the height a pass whose edge reaches `depth`
+// leaves where the surface stands at `height`. A chip below min_chip_mm ploughs and
+// springs back by `recovery` of itself; both 0 = the running minimum.
+fn after_pass(height: f32, depth: f32) -> f32 {
+    let chip = height - depth;
+    if !(chip > 0.0) {
+        return height;
+    }
+    if chip < params.min_chip_mm {
+        return depth + params.recovery * chip;
+    }
+    return depth;
+}
+
+// The pass `pass_id` reaching `depth`: `best` changed by `after_pass`, the id kept when
+// the height does not change.
+fn apply_pass(best: Best, depth: f32, pass_id: u32) -> Best {
+    let height = after_pass(best.depth_mm, depth);
+    if height < best.depth_mm {
+        return Best(height, pass_id);
+    }
+    return best;
+}
+
 // Direct (sign +1, branch 0) or mirrored (sign −1, branch 1) passes through the edge.
 fn scan_edge(ring: Ring, first: u32, last: u32, phase: f32, sign: f32, branch: u32, best_in: Best) -> Best {
     var best = best_in;
@@ -220,9 +249,7 @@ fn scan_edge(ring: Ring, first: u32, last: u32, phase: f32, sign: f32, branch: u
                 d = edge_entry(from_pivot + vec2<f32>(shift, d * n.y) - d * slope, slope, tip, sign);
             }
         }
-        if d < best.depth_mm {
-            best = Best(d, rev * PASS_ID_STRIDE + branch);
-        }
+        best = apply_pass(best, d, rev * PASS_ID_STRIDE + branch);
     }
     return best;
 }
@@ -252,9 +279,7 @@ fn scan_flank(ring: Ring, first: u32, last: u32, phase: f32, best_in: Best) -> B
             + t * ((p1.z_hi - p0.z_hi) + (p1.z_lo - p0.z_lo)) - offset.y;
         let above = centre_above - sqrt(radius * radius - centre_x * centre_x) + behind * params.tan_clearance;
         let d = above / slope_factor;
-        if d < best.depth_mm {
-            best = Best(d, rev * PASS_ID_STRIDE + 2u);
-        }
+        best = apply_pass(best, d, rev * PASS_ID_STRIDE + 2u);
     }
     return best;
 }

@@ -199,8 +199,9 @@ fn turning_scenes(
     }
     passes
         .into_iter()
-        .map(|poses| {
-            TurningScene::new(
+        .map(|poses| TurningScene {
+            spring_back: turning.effects.spring_back(),
+            ..TurningScene::new(
                 grid.clone(),
                 poses,
                 &turning.tool,

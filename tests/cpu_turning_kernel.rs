@@ -3,7 +3,7 @@
 //! shader, itself held to closed forms and the golden files): the same IEEE operations
 //! in the same order, so every sample's depth must agree to the bit and its winning
 //! pass exactly — on centre and off (above centre: the flank branch; below), XZ and
-//! XZB, tool errors, drift, waviness and an NC program.
+//! XZB, tool errors, drift, waviness, spring-back and an NC program.
 
 mod common;
 use common::*;
@@ -129,6 +129,36 @@ drift_mm = 0.0003
             "asphere_xz_with_errors.toml",
             &[("aperture_diameter_mm = 20.0", "aperture_diameter_mm = 4.0")],
             "",
+        ),
+    );
+}
+
+#[test]
+fn spring_back_lane_by_lane_on_centre_off_centre_and_xzb() {
+    // The sequential rule in the lanes: each lane's passes in the twin's order.
+    let spring_back =
+        "\n[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = 0.00001\nrecovery = 0.7\n";
+    assert_same_bits(
+        "flat facing with spring-back",
+        example_with(
+            "flat_facing.toml",
+            &[("azimuths = 32", "azimuths = 8")],
+            spring_back,
+        ),
+    );
+    assert_same_bits(
+        "5 µm above centre with spring-back",
+        example_with("sphere_centre_height.toml", &[], spring_back),
+    );
+    assert_same_bits(
+        "seed-002 asphere XZB, 4 mm, with spring-back",
+        example_with(
+            "asphere_xzb.toml",
+            &[
+                ("aperture_diameter_mm = 20.0", "aperture_diameter_mm = 4.0"),
+                ("azimuths = 32", "azimuths = 8"),
+            ],
+            spring_back,
         ),
     );
 }

@@ -76,7 +76,11 @@ fn rust_layouts() -> Vec<RustLayout> {
                 deviation_count,
                 edge_refinements,
                 ray_refinements,
-                _padding
+                min_chip_mm,
+                recovery,
+                _padding0,
+                _padding1,
+                _padding2
             ),
         ),
         (

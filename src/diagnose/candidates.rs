@@ -6,7 +6,7 @@ use crate::effects::{SpindleHarmonic, Vibration, VibrationDirection, WAVINESS_SA
 use crate::geometry::milling_tool::MillingTool;
 use crate::geometry::tool::AngleTable;
 use crate::io::job::Job;
-use crate::process::{PlungeAxis, Process};
+use crate::process::{PlungeAxis, Process, TurningPath};
 use glam::DVec2;
 
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -82,8 +82,8 @@ pub struct NotDiagnosable {
 /// The candidates for a job's process, and the process's effects left out (with why).
 pub fn candidates_for(job: &Job) -> (Vec<Candidate>, Vec<NotDiagnosable>) {
     match &job.process {
-        Process::Turning(_) => (
-            vec![
+        Process::Turning(t) => {
+            let mut fit = vec![
                 Candidate::CentreHeight,
                 Candidate::XDecentre,
                 Candidate::NoseRadiusError,
@@ -99,13 +99,23 @@ pub fn candidates_for(job: &Job) -> (Vec<Candidate>, Vec<NotDiagnosable>) {
                     depth: false,
                 },
                 Candidate::TiltErrorMotion { order: 0.0 },
-                Candidate::SpringBack,
-            ],
-            vec![NotDiagnosable {
+            ];
+            let mut skip = vec![NotDiagnosable {
                 effect: "axial_error_motion",
                 reason: "a single cut records it exactly as a depth vibration of the same whole order; it is reported as one".to_string(),
-            }],
-        ),
+            }];
+            match &t.path {
+                TurningPath::Nc(nc) if nc.tables.len() > 1 => skip.push(NotDiagnosable {
+                    effect: "spring_back",
+                    reason: format!(
+                        "the engines run this program's {} cutting passes apart, and spring-back needs them in one sequence",
+                        nc.tables.len()
+                    ),
+                }),
+                _ => fit.push(Candidate::SpringBack),
+            }
+            (fit, skip)
+        }
         Process::Generating(g) => {
             let reason = match g.setup.plunge_axis {
                 PlungeAxis::Z => "a plunge error along Z only moves the part as a whole (a piston), which registration removes".to_string(),

@@ -16,6 +16,7 @@
 //! | spindle axial error motion | harmonics (order k, a, φ) | the part moves toward the tool by Σ a·cos(kC + φ), C the spindle angle: every pose's Z lowered by it |
 //! | spindle tilt error motion | harmonics (order k, θ, φ) | the face turns about machine Y through the spindle origin, rising toward the tool at +X: a pose at nose-centre X (as run) cuts X·Σ θ·cos(kC + φ) deeper |
 //! | tool wear | w at the end of the cut | the edge recedes by w·L/L_total, L the cut length ∫\|x\| dC so far: the nose centre moves that far along its path's normal, away from the part (for an arc edge the same as the radius shrinking by it) |
+//! | spring-back / minimum chip | h_min, ρ (0 < ρ ≤ 1) | per sample, the passes act in machining order from the stock top: one whose edge reaches depth d below the current height h cuts to d when the chip h − d ≥ h_min, and otherwise ploughs, the material springing back to d + ρ·(h − d) (heights along the sample's ray); raises and rounds the cusps, leaves their spacing |
 //!
 //! Generating (cup wheel, seed 000):
 //!
@@ -42,6 +43,7 @@
 //! an edge plane offset and an `EdgeModel` (turning); a moved cutting circle
 //! (generating); a transformed path, a changed tool and displaced tooth sweeps (milling).
 
+use crate::engine::scene::SpringBack;
 use crate::geometry::cutter::Cutter;
 use crate::geometry::milling_tool::MillingTool;
 use crate::geometry::tool::{AngleTable, ArcNoseTool, EdgeModel};
@@ -79,9 +81,10 @@ pub struct TurningEffects {
     pub tilt_error_motion: Vec<SpindleHarmonic>,
     /// Edge recession by wear at the end of the cut (mm), linear in cut length.
     pub wear_recession_mm: f64,
-    /// Spring-back: the minimum chip thickness h_min (mm; 0 = none).
+    /// Minimum chip thickness h_min (mm): a thinner chip ploughs instead of cutting
+    /// (0 = no spring-back).
     pub spring_back_min_chip_mm: f64,
-    /// Spring-back: the share ρ of a thinner chip that recovers (0 < ρ ≤ 1).
+    /// Fraction ρ of a ploughed chip the material recovers (0 = no spring-back).
     pub spring_back_recovery: f64,
 }
 
@@ -93,6 +96,17 @@ impl TurningEffects {
             && self.edge_deviation.is_zero()
             && self.axial_drift_mm == 0.0
             && !self.has_motion()
+            && self.spring_back_min_chip_mm == 0.0
+            && self.spring_back_recovery == 0.0
+    }
+
+    /// The removal rule the engines apply at each sample (the running minimum without
+    /// spring-back).
+    pub fn spring_back(&self) -> SpringBack {
+        SpringBack {
+            min_chip_mm: self.spring_back_min_chip_mm,
+            recovery: self.spring_back_recovery,
+        }
     }
 
     /// The edge as cut by a tool with these effects.

@@ -93,9 +93,11 @@ impl RemovalEngine for CpuEngine {
     }
 }
 
-/// The machined surface at one sample: the lowest entry of any pass into the sample's
-/// dexel ray, and which pass made it (`rev · PASS_ID_STRIDE + branch`). The scalar twin
-/// of the shader; the engine runs [`TurningKernel`], which gives the same bits.
+/// The machined surface at one sample: the passes' entries into the sample's dexel ray
+/// applied in machining order by the scene's [`SpringBack`](super::scene::SpringBack) rule (without spring-back the
+/// lowest entry), and which pass last changed it (`rev · PASS_ID_STRIDE + branch`).
+/// The scalar twin of the shader; the engine runs [`TurningKernel`], which gives the
+/// same bits.
 pub fn sample_dexel(scene: &TurningScene, ring_index: usize, azimuth: u32) -> (f64, u32) {
     let edge = scene.edge.solver();
     let azimuth_rad = scene.grid.azimuth_rad(azimuth);
@@ -106,8 +108,9 @@ pub fn sample_dexel(scene: &TurningScene, ring_index: usize, azimuth: u32) -> (f
     best
 }
 
-/// Lowers `best` (depth, pass id) to the lowest entry of one branch's passes into the
-/// dexel ray of sample (`ring_index`, `azimuth_rad`), passes taken in revolution order.
+/// Applies one branch's passes, in revolution order, to `best` (height, pass id) of
+/// sample (`ring_index`, `azimuth_rad`): each entry into the dexel ray changes the height
+/// by the scene's [`SpringBack`](super::scene::SpringBack) rule.
 pub fn branch_dexel(
     scene: &TurningScene,
     edge: &EdgeSolver,
@@ -126,10 +129,11 @@ pub fn branch_dexel(
             continue;
         };
         let pose = scene.poses.poses[node].lerp(scene.poses.poses[node + 1], t);
-        if let Some(depth) = pass_entry(scene, edge, ring_index, pose, branch)
-            && depth < best.0
-        {
-            *best = (depth, rev * PASS_ID_STRIDE + branch as u32);
+        if let Some(depth) = pass_entry(scene, edge, ring_index, pose, branch) {
+            let height = scene.spring_back.after(best.0, depth);
+            if height < best.0 {
+                *best = (height, rev * PASS_ID_STRIDE + branch as u32);
+            }
         }
     }
 }

@@ -86,6 +86,39 @@ impl RevRange {
     }
 }
 
+/// How a pass changes the height it finds at a sample (heights along the sample's ray,
+/// higher = more material): an edge reaching depth d below the height h cuts a chip
+/// c = h − d and leaves d when c ≥ `min_chip_mm`; a thinner chip ploughs and the
+/// material springs back to d + `recovery`·c. Zero parameters ([`SpringBack::NONE`])
+/// give the running minimum bit for bit.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SpringBack {
+    pub min_chip_mm: f64,
+    pub recovery: f64,
+}
+
+impl SpringBack {
+    pub const NONE: SpringBack = SpringBack {
+        min_chip_mm: 0.0,
+        recovery: 0.0,
+    };
+
+    /// The height after a pass whose edge reaches depth `depth` (+∞ or NaN: it misses)
+    /// where the surface stands at `height`. The pass changed the sample when the result
+    /// is below `height`. Written as selects so that the CPU's lanes vectorise it (a
+    /// miss makes `cut` NaN, which the last select drops, as `depth < height` would).
+    #[inline(always)]
+    pub fn after(self, height: f64, depth: f64) -> f64 {
+        let chip = height - depth;
+        let cut = if chip < self.min_chip_mm {
+            depth + self.recovery * chip
+        } else {
+            depth
+        };
+        if chip > 0.0 { cut } else { height }
+    }
+}
+
 /// Per ring: the edge's lateral coordinate q = √(r² − y₀²) there (0 when the edge
 /// cannot reach the ring), the direct branch's pass azimuth α, and the revolutions
 /// each branch can reach it in.
@@ -108,6 +141,8 @@ pub struct TurningScene {
     pub tan_clearance: f64,
     /// Normal distance of the stock's top above nominal: the value of uncut samples.
     pub stock_top_mm: f64,
+    /// How each pass changes a sample's height (spring-back below a minimum chip).
+    pub spring_back: SpringBack,
     /// Number of revolutions with passes (relative index 0 = the first).
     pub rev_count: u32,
     /// Node index of pass (rev 0, β = 0) before subtracting the phase: (k_first − k0)·S.
@@ -155,6 +190,7 @@ impl TurningScene {
             edge_plane_y_mm,
             tan_clearance: tool.clearance_angle_deg.to_radians().tan(),
             stock_top_mm: stock_allowance_mm,
+            spring_back: SpringBack::NONE,
             rev_count,
             base_steps,
             start_phase_rad,

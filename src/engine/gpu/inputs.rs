@@ -124,7 +124,11 @@ pub fn turning_params(
         },
         edge_refinements: EDGE_REFINEMENTS as u32,
         ray_refinements: RAY_REFINEMENTS as u32,
-        _padding: 0,
+        min_chip_mm: scene.spring_back.min_chip_mm as f32,
+        recovery: scene.spring_back.recovery as f32,
+        _padding0: 0,
+        _padding1: 0,
+        _padding2: 0,
     })
 }
 

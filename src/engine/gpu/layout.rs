@@ -29,7 +29,11 @@ pub struct Params {
     pub deviation_count: u32,
     pub edge_refinements: u32,
     pub ray_refinements: u32,
-    pub _padding: u32,
+    pub min_chip_mm: f32,
+    pub recovery: f32,
+    pub _padding0: u32,
+    pub _padding1: u32,
+    pub _padding2: u32,
 }
 
 #[repr(C)]

@@ -47,6 +47,11 @@
 //! kind = "tool_wear"
 //! recession_mm = 0.00002     # edge recession at the end of the cut, linear in cut length
 //!                            #   (negative: the edge advanced, e.g. a built-up edge)
+//!
+//! [[effects]]
+//! kind = "spring_back"       # once per job (its values do not add up)
+//! min_chip_mm = 0.000005     # h_min: a thinner chip ploughs; 0 < h_min ≤ min(0.005, R/10)
+//! recovery = 0.6             # ρ: the ploughed fraction that springs back; 0 < ρ ≤ 1
 //! ```
 //!
 //! Generating jobs (cup wheel) take their own effects:
@@ -123,10 +128,11 @@ pub enum EffectKind {
     AxialErrorMotion,
     TiltErrorMotion,
     ToolWear,
+    SpringBack,
 }
 
 impl EffectKind {
-    pub const ALL: [EffectKind; 15] = [
+    pub const ALL: [EffectKind; 16] = [
         EffectKind::CentreHeight,
         EffectKind::XDecentre,
         EffectKind::NoseRadiusError,
@@ -142,6 +148,7 @@ impl EffectKind {
         EffectKind::AxialErrorMotion,
         EffectKind::TiltErrorMotion,
         EffectKind::ToolWear,
+        EffectKind::SpringBack,
     ];
 
     /// The name used in job files.
@@ -162,6 +169,7 @@ impl EffectKind {
             EffectKind::AxialErrorMotion => "axial_error_motion",
             EffectKind::TiltErrorMotion => "tilt_error_motion",
             EffectKind::ToolWear => "tool_wear",
+            EffectKind::SpringBack => "spring_back",
         }
     }
 
@@ -175,7 +183,8 @@ impl EffectKind {
             | EffectKind::Vibration
             | EffectKind::AxialErrorMotion
             | EffectKind::TiltErrorMotion
-            | EffectKind::ToolWear => &[ProcessKind::Turning],
+            | EffectKind::ToolWear
+            | EffectKind::SpringBack => &[ProcessKind::Turning],
             EffectKind::CutterDisplacement
             | EffectKind::InclinationError
             | EffectKind::PlungeError => &[ProcessKind::Generating],
@@ -209,6 +218,7 @@ impl EffectKind {
             EffectKind::AxialErrorMotion => &["harmonics"],
             EffectKind::TiltErrorMotion => &["tilt_harmonics"],
             EffectKind::ToolWear => &["recession_mm"],
+            EffectKind::SpringBack => &["min_chip_mm", "recovery"],
         }
     }
 }
@@ -283,11 +293,15 @@ pub struct EffectSpec {
     pub tilt_harmonics: Option<Vec<TiltHarmonicSpec>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub recession_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_chip_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recovery: Option<f64>,
 }
 
 impl EffectSpec {
     /// Each parameter field and whether it is given.
-    fn given(&self) -> [(&'static str, bool); 15] {
+    fn given(&self) -> [(&'static str, bool); 17] {
         [
             ("height_mm", self.height_mm.is_some()),
             ("offset_mm", self.offset_mm.is_some()),
@@ -304,6 +318,8 @@ impl EffectSpec {
             ("frequency_hz", self.frequency_hz.is_some()),
             ("tilt_harmonics", self.tilt_harmonics.is_some()),
             ("recession_mm", self.recession_mm.is_some()),
+            ("min_chip_mm", self.min_chip_mm.is_some()),
+            ("recovery", self.recovery.is_some()),
         ]
     }
 
@@ -364,6 +380,24 @@ fn bounded(field: String, value: Option<f64>, limit: f64) -> Result<f64, JobErro
     }
 }
 
+/// A required finite value in (0, limit].
+fn positive_up_to(field: String, value: Option<f64>, limit: f64) -> Result<f64, JobError> {
+    let range = format!("allowed: a finite number in (0, {limit}]");
+    match value {
+        None => Err(error(field, format!("missing; {range}"))),
+        Some(v) if !v.is_finite() || v <= 0.0 || v > limit => {
+            Err(error(field, format!("{v} is out of range; {range}")))
+        }
+        Some(v) => Ok(v),
+    }
+}
+
+/// Largest minimum chip thickness (mm), and as a fraction of the nose radius: ploughing
+/// is an edge-sharpness effect (h_min is a fraction of the cutting-edge radius, nm in
+/// diamond turning, µm with honed carbide), far below the tool's nose.
+const MAX_MIN_CHIP_MM: f64 = 0.005;
+const MAX_MIN_CHIP_PER_NOSE_RADIUS: f64 = 0.1;
+
 /// A running total of one kind's values over the tables, which must stay within the
 /// same range as each table (checked at the last table that added to it).
 struct Total {
@@ -411,6 +445,7 @@ pub fn turning_effects(
 ) -> Result<TurningEffects, JobError> {
     let mut effects = TurningEffects::default();
     let mut harmonics = Vec::new();
+    let mut spring_back_at = None;
     for (index, spec) in specs.iter().enumerate() {
         let field = |name: &str| format!("effects[{index}].{name}");
         spec.check_fields(index, ProcessKind::Turning)?;
@@ -430,6 +465,21 @@ pub fn turning_effects(
             EffectKind::AxialDrift => {
                 effects.axial_drift_mm +=
                     bounded(field("drift_mm"), spec.drift_mm, 0.5 * nose_radius_mm)?;
+            }
+            EffectKind::SpringBack => {
+                if let Some(first) = spring_back_at.replace(index) {
+                    return Err(error(
+                        field("kind"),
+                        format!(
+                            "\"spring_back\" is already given in effects[{first}]; allowed: one spring_back table per job (its parameters do not add up)"
+                        ),
+                    ));
+                }
+                let limit = MAX_MIN_CHIP_MM.min(MAX_MIN_CHIP_PER_NOSE_RADIUS * nose_radius_mm);
+                effects.spring_back_min_chip_mm =
+                    positive_up_to(field("min_chip_mm"), spec.min_chip_mm, limit)?;
+                effects.spring_back_recovery =
+                    positive_up_to(field("recovery"), spec.recovery, 1.0)?;
             }
             EffectKind::EdgeWaviness => {
                 let list = spec

@@ -1,7 +1,7 @@
 //! The `[process]` table: a generated spiral or an NC program, and the checks of the
 //! tool against the surface along the path.
 
-use super::effects::{apply_edge_profile, turning_effects};
+use super::effects::{EffectKind, apply_edge_profile, turning_effects};
 use super::surface::{self, MAX_SLOPE_DEG, usable_at, usable_over};
 use super::{
     Aperture, JobError, JobFile, NcUnits, ProcessSpec, SurfaceKind, SurfaceSpec, ToolKind,
@@ -89,6 +89,23 @@ pub fn validate_turning(
     check_tool_against_surface(&surface, &path, &tool)?;
 
     let mut effects = turning_effects(&file.effects, tool.nose_radius_mm, spindle_rpm)?;
+    // Spring-back applies each pass to the height the earlier ones left, and the engines
+    // run an NC program's passes apart (keeping the lower of their surfaces).
+    if let TurningPath::Nc(nc) = &path
+        && nc.tables.len() > 1
+        && let Some(index) = file
+            .effects
+            .iter()
+            .position(|effect| effect.kind == EffectKind::SpringBack)
+    {
+        return Err(error(
+            &format!("effects[{index}].kind"),
+            format!(
+                "\"spring_back\" needs every pass in one sequence, and this NC program has {} cutting passes; allowed with a spiral or an NC program of one cutting pass",
+                nc.tables.len()
+            ),
+        ));
+    }
     if let Some(profile) = &file.tool.edge_profile {
         let profile = resolve_file("tool.edge_profile", base_dir, profile)?;
         apply_edge_profile(
