@@ -62,7 +62,11 @@ pub fn verdict(
     let noise = after.white_noise_nm.max(1e-3);
     let excess = |r: &ResidualInfo| (r.rms_nm.powi(2) - noise.powi(2)).max(0.0);
     let explained = 1.0 - excess(after) / excess(before).max(1e-300);
-    let near_noise = after.rms_nm <= 2.0 * noise || after.correlation_length_points < 3.0;
+    // Near the noise: within twice its level, or a residual as short-correlated as noise
+    // that is not far above it (a mark-scale structure, such as ploughed bands beside
+    // each cusp, is short-correlated too, and stands well above the noise).
+    let near_noise = after.rms_nm <= 2.0 * noise
+        || (after.correlation_length_points < 3.0 && after.rms_nm <= 3.0 * noise);
     let location = where_it_lies(before);
     match fit {
         Some(f) => {
@@ -127,8 +131,13 @@ pub fn verdict(
         None if near_noise => Verdict {
             status: "no_effect_beyond_noise".into(),
             sentence: format!(
-                "No modelled effect explains the residual beyond noise: it is {:.1} nm RMS ({:.0} nm PV) against a noise level of {:.1} nm.",
-                after.rms_nm, after.pv_nm, noise
+                "No modelled effect explains the residual beyond noise: it is {:.1} nm RMS ({:.0} nm PV) against a noise level of {:.1} nm{}.",
+                after.rms_nm,
+                after.pv_nm,
+                noise,
+                refused.first().map_or(String::new(), |(label, why)| format!(
+                    "; the strongest candidate, {label}, was not accepted: {why}"
+                ))
             ),
             advice: vec!["nothing to correct from this measurement".into()],
         },

@@ -262,6 +262,10 @@ fn suite() -> Vec<Spec> {
             (shake(3.0), &[8.0, 0.0]),
             (TiltErrorMotion { order: 2.0 }, &[4.0, 2.0]),
         ),
+        // Spring-back (h_min nm, ρ): a band h_min·R/f = 2 µm wide beside each cusp left
+        // up to 36 nm high; alone and beside the nose-radius error it resembles.
+        single(t, SpringBack, &[40.0, 0.9]),
+        pair(t, (SpringBack, &[40.0, 0.9]), (NoseRadiusError, &[5.0])),
     ]
 }
 
