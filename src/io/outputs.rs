@@ -16,7 +16,7 @@
 
 use super::atomic::write_bytes_atomically;
 use super::colour::ColourMap;
-use super::exr_io::{ExrImage, write_exr};
+use super::exr_io::{ExrImage, write_exr_owned};
 use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
 use super::png_out::{FalseColourPlot, MapGeometry, write_map_png, write_png16_gray};
 use crate::analysis::Raster;
@@ -111,19 +111,21 @@ fn clear_outputs(dir: &Path) -> io::Result<Vec<PathBuf>> {
 }
 
 /// Writes all outputs of a run into `dir` and returns the paths written. Independent
-/// groups (the EXR files, the map PNGs, the centre zoom and tables, the texture figures
-/// for the summary) run side by side; the summary and report come last.
+/// groups run side by side: the top views and then the EXR files and map PNGs made
+/// from them, beside the centre zoom and tables and the texture figures for the
+/// summary; the summary and report come last.
 pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
     let started = Instant::now();
     std::fs::create_dir_all(dir)?;
-    let maps = top_views(result);
-    let attributes = common_attributes(result, &maps.deviation_nm);
-    let ((exrs, pngs), (centre, texture)) = rayon::join(
+    let ((maps, exrs, pngs), (centre, texture)) = rayon::join(
         || {
-            rayon::join(
+            let maps = top_views(result);
+            let attributes = common_attributes(result, &maps.deviation_nm);
+            let (exrs, pngs) = rayon::join(
                 || write_exrs(dir, result, &maps, &attributes),
                 || write_map_pngs(dir, result, &maps, &attributes),
-            )
+            );
+            (maps, exrs, pngs)
         },
         || {
             rayon::join(
@@ -171,9 +173,9 @@ fn write_exrs(
     if let Some(map) = &maps.cutting_diameter_mm {
         surface_channels.push(("cutting_diameter_mm".into(), map.values.clone()));
     }
-    write_exr(
+    write_exr_owned(
         &dir.join("surface.exr"),
-        &ExrImage {
+        ExrImage {
             width: pixels,
             height: pixels,
             channels: surface_channels,
@@ -204,9 +206,9 @@ fn write_exrs(
         "deviation_nm: nm along the outward normal, + = material left; scallop_nm: nm; protrusion_nm: nm above the surround inside the central feature; pass: revolution·4 + branch (0 direct, 1 mirrored past the axis, 2 flank; −1 = uncut)".into(),
     );
     if polar_exr_written(grid) {
-        write_exr(
+        write_exr_owned(
             &dir.join("polar.exr"),
-            &ExrImage {
+            ExrImage {
                 width: rings,
                 height: grid.azimuths as usize,
                 channels: polar_channels(result),
@@ -557,9 +559,16 @@ fn percentiles(map: &Raster, tail: f64) -> (f32, f32) {
     if values.is_empty() {
         return (0.0, 0.0);
     }
-    values.sort_by(f32::total_cmp);
-    let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
-    (at(tail), at(1.0 - tail))
+    // Each quantile is the value a full sort would put at its index: a selection finds
+    // it without sorting (the upper one among the values above the lower one's place).
+    let index = |q: f64| ((values.len() - 1) as f64 * q).round() as usize;
+    let (low, high) = (index(tail), index(1.0 - tail));
+    let (_, &mut low_value, above) = values.select_nth_unstable_by(low, f32::total_cmp);
+    let high_value = match high.checked_sub(low + 1) {
+        Some(offset) => *above.select_nth_unstable_by(offset, f32::total_cmp).1,
+        None => low_value,
+    };
+    (low_value, high_value)
 }
 
 /// Valid pixels outside [low, high].
