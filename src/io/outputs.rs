@@ -1071,3 +1071,43 @@ fn circle_miss_of_axis_mm(circle: &crate::geometry::cup_wheel::CuttingCircle) ->
         })
         .fold(f64::INFINITY, f64::min)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The selection must give what a full sort puts at each quantile's index (the
+    /// definition, written here as a plain sort), with ties, negative values and
+    /// invalid pixels left out.
+    #[test]
+    fn percentiles_are_the_sorted_valid_values_at_the_quantile_indices() {
+        for n in [1usize, 2, 3, 10, 1001, 4096] {
+            let values: Vec<f32> = (0..n)
+                .map(|i| ((i * 7919) % 1009) as f32 * 0.37 - 100.0)
+                .collect();
+            let valid: Vec<bool> = (0..n).map(|i| n < 3 || i % 5 != 2).collect();
+            let raster = Raster {
+                pixels: 1,
+                pitch_mm: 1.0,
+                half_width_mm: 0.5,
+                values: values.clone(),
+                valid: valid.clone(),
+            };
+            let mut sorted: Vec<f32> = values
+                .iter()
+                .zip(&valid)
+                .filter(|(_, v)| **v)
+                .map(|(x, _)| *x)
+                .collect();
+            sorted.sort_by(f32::total_cmp);
+            for tail in [0.001, 0.25, 0.5] {
+                let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
+                assert_eq!(
+                    percentiles(&raster, tail),
+                    (at(tail), at(1.0 - tail)),
+                    "n = {n}, tail = {tail}"
+                );
+            }
+        }
+    }
+}
