@@ -1,5 +1,6 @@
 //! `toolmark bench`: throughput of the removal engines in dexel–pass evaluations per
-//! second, wall time of the default job, the scaling check (a 10× longer spiral over a
+//! second, wall time of the default job (and its stages with every output written),
+//! the scaling check (a 10× longer spiral over a
 //! 10× wider part at the same feed and pitch must cost about the same per dexel), and
 //! a grid larger than one 128 MiB storage binding (tiled on the GPU).
 //! Numbers are printed, never asserted: timings don't belong in tests.
@@ -181,6 +182,10 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
         );
     }
 
+    if cpu {
+        default_run_with_outputs(5)?;
+    }
+
     println!(
         "\n## scaling: flat facing, feed 10 µm, pitch 1 µm, 16 azimuths; aperture ×10 → spiral ×10"
     );
@@ -335,6 +340,44 @@ fn numpy_sweep(python: &str, dir: &Path, azimuths: u32) -> Result<NumpySweep, St
 }
 
 /// Median of `runs` timings of `f`.
+/// The default job on the CPU engine with every output written (what `toolmark run
+/// --engine cpu` does, the files into a temporary folder), `runs` times: each run's
+/// stages, the output stage's share of their sum, and the median share.
+fn default_run_with_outputs(runs: usize) -> Result<(), String> {
+    println!(
+        "\n## default job (seed-002 asphere, XZ) on the CPU engine with every output written ({runs} runs)"
+    );
+    println!("| run | prepare s | removal s | analysis s | output s | total s | output share |");
+    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    let dir = std::env::temp_dir().join(format!("toolmark-bench-outputs-{}", std::process::id()));
+    let mut shares = Vec::with_capacity(runs);
+    for run in 1..=runs {
+        let result =
+            simulate(Job::default_job(), &mut CpuEngine, &|_, _| {}).map_err(|e| e.to_string())?;
+        crate::io::outputs::prepare_output_dir(&dir).map_err(|e| e.to_string())?;
+        let started = Instant::now();
+        crate::io::outputs::write_outputs(&dir, &result).map_err(|e| e.to_string())?;
+        let output_s = started.elapsed().as_secs_f64();
+        let t = result.timings;
+        let total = t.prepare_s + t.removal_s + t.analysis_s + output_s;
+        shares.push(output_s / total);
+        println!(
+            "| {run} | {:.3} | {:.3} | {:.3} | {output_s:.3} | {total:.3} | {:.0} % |",
+            t.prepare_s,
+            t.removal_s,
+            t.analysis_s,
+            100.0 * output_s / total
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    shares.sort_by(f64::total_cmp);
+    println!(
+        "(output: every file, the summary and report included; median share {:.0} %)",
+        100.0 * shares[runs / 2]
+    );
+    Ok(())
+}
+
 fn median_seconds(runs: usize, mut f: impl FnMut() -> Result<(), String>) -> Result<f64, String> {
     let mut times = Vec::with_capacity(runs);
     for _ in 0..runs {

@@ -97,8 +97,26 @@ impl RadialBands {
         // Rows are smoothed ROWS_PER_TASK at a time, their values interleaved ring by
         // ring, so each window's weights run over all of them at once: every row's sum
         // is still taken in ring order (the same value as alone), the rows side by side.
+        // A window whose rings are all zero in the tile (a central feature's map away
+        // from the axis) is +0 without the sums, as the sums would give: +0 plus
+        // products of weights and zeros.
         let smooth = |tile: &[[f64; ROWS_PER_TASK]], out: &mut [f64]| {
+            let nonzero = |ring: &[f64; ROWS_PER_TASK]| ring.iter().any(|v| *v != 0.0);
+            let live = match (
+                tile.iter().position(nonzero),
+                tile.iter().rposition(nonzero),
+            ) {
+                (Some(first), Some(last)) => first..last + 1,
+                _ => 0..0,
+            };
             for (k, (from, weights)) in windows.iter().enumerate() {
+                let span = *from..from + weights.len();
+                if totals[k] > 1e-12 && (span.end <= live.start || span.start >= live.end) {
+                    for row in 0..ROWS_PER_TASK {
+                        out[row * points + k] = 0.0;
+                    }
+                    continue;
+                }
                 let mut sums = [0.0; ROWS_PER_TASK];
                 for (w, values) in weights.iter().zip(&tile[*from..]) {
                     for (sum, v) in sums.iter_mut().zip(values) {

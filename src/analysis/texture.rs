@@ -319,20 +319,58 @@ impl Zernike {
     }
 
     fn at(&self, rho: f64, theta: f64) -> f64 {
-        self.at_point(&ZernikePoint::new(rho, theta))
+        let point = ZernikePoint::new(rho, theta);
+        self.radial_at(&point.rho_powers) * self.angular_at(&point)
     }
 
-    fn at_point(&self, point: &ZernikePoint) -> f64 {
-        let radial = self.radial.iter().fold(0.0, |sum, &(c, power)| {
-            sum + c * point.rho_powers[power as usize]
-        });
+    /// The normalised radial factor, √(n + 1) or √(2(n + 1)) times R(ρ), from ρ's powers.
+    fn radial_at(&self, rho_powers: &[f64; 5]) -> f64 {
+        let radial = self
+            .radial
+            .iter()
+            .fold(0.0, |sum, &(c, power)| sum + c * rho_powers[power as usize]);
+        self.norm * radial
+    }
+
+    /// The angular factor: cos |m|θ (m > 0), sin |m|θ (m < 0), or 1 (m = 0; the
+    /// product with 1 is the radial factor itself, bit for bit).
+    fn angular_at(&self, point: &ZernikePoint) -> f64 {
         let k = self.frequency as usize;
         match self.m {
-            0 => self.norm * radial,
-            m if m > 0 => self.norm * radial * point.cos[k],
-            _ => self.norm * radial * point.sin[k],
+            0 => 1.0,
+            m if m > 0 => point.cos[k],
+            _ => point.sin[k],
         }
     }
+}
+
+/// Number of Zernike terms fitted (Noll 1..=15: orders up to 4).
+const TERMS: usize = 15;
+
+/// The fitted polynomials, split into factors: the radial ones depend only on ρ (one
+/// ring of a field), the angular ones only on θ (one azimuth row), so a field's points
+/// take them from two small tables; every term is their product.
+struct ZernikeBasis([Zernike; TERMS]);
+
+impl ZernikeBasis {
+    fn new() -> Self {
+        ZernikeBasis(std::array::from_fn(|i| Zernike::new(i + 1)))
+    }
+
+    fn radial(&self, rho: f64) -> [f64; TERMS] {
+        let point = ZernikePoint::new(rho, 0.0);
+        std::array::from_fn(|i| self.0[i].radial_at(&point.rho_powers))
+    }
+
+    fn angular(&self, theta: f64) -> [f64; TERMS] {
+        let point = ZernikePoint::new(0.0, theta);
+        std::array::from_fn(|i| self.0[i].angular_at(&point))
+    }
+}
+
+/// Every term at one point from its radial and angular factors.
+fn terms_at(radial: &[f64; TERMS], angular: &[f64; TERMS]) -> [f64; TERMS] {
+    std::array::from_fn(|i| radial[i] * angular[i])
 }
 
 /// What every polynomial (to order 4) needs at a point: ρ^p as `powi` gives it, and
@@ -395,23 +433,32 @@ pub fn fit_zernike(
     values_nm: &[f64],
     weights: &[f64],
 ) -> Option<Vec<ZernikeTerm>> {
-    const TERMS: usize = 15;
-    let basis: Vec<Zernike> = (1..=TERMS).map(Zernike::new).collect();
-    let mut normal = vec![vec![0.0; TERMS]; TERMS];
-    let mut rhs = vec![0.0; TERMS];
-    let mut z = [0.0; TERMS];
-    for ((&(rho, theta), &v), &w) in points.iter().zip(values_nm).zip(weights) {
-        let point = ZernikePoint::new(rho, theta);
-        for (z, term) in z.iter_mut().zip(&basis) {
-            *z = term.at_point(&point);
-        }
+    let basis = ZernikeBasis::new();
+    let samples = points
+        .iter()
+        .zip(values_nm)
+        .zip(weights)
+        .map(|((&(rho, theta), &v), &w)| {
+            (terms_at(&basis.radial(rho), &basis.angular(theta)), v, w)
+        });
+    fit_terms(samples)
+}
+
+/// Least-squares coefficients from (every term's value, value, weight) per point: the
+/// normal equations summed in point order.
+fn fit_terms(samples: impl Iterator<Item = ([f64; TERMS], f64, f64)>) -> Option<Vec<ZernikeTerm>> {
+    let mut normal = [[0.0; TERMS]; TERMS];
+    let mut rhs = [0.0; TERMS];
+    for (z, v, w) in samples {
         for a in 0..TERMS {
-            rhs[a] += w * z[a] * v;
-            for b in 0..TERMS {
-                normal[a][b] += w * z[a] * z[b];
+            let wz = w * z[a];
+            rhs[a] += wz * v;
+            for (sum, zb) in normal[a].iter_mut().zip(&z) {
+                *sum += wz * zb;
             }
         }
     }
+    let normal: Vec<Vec<f64>> = normal.iter().map(|row| row.to_vec()).collect();
     let coefficients = crate::numeric::solve_linear(&normal, &rhs)?;
     Some(
         coefficients
@@ -499,39 +546,44 @@ pub fn analyse_texture(
 }
 
 /// Zernike terms over the disc of the outer radius (a subsample of at most ~200 000
-/// points keeps the fit cheap), and the RMS left after them.
+/// points keeps the fit cheap), and the RMS left after them. The radial factors are
+/// worked out once per ring and the angular ones once per row.
 fn zernike_of_field(grid: &PolarGrid, field: &DexelField) -> (Vec<ZernikeTerm>, Option<f64>) {
     let rings = grid.ring_count();
     let outer = grid.rings[rings - 1].radius_mm;
     let rows = grid.azimuths as usize;
     let samples = grid.sample_count();
     let stride = (samples / 200_000).max(1);
-    let mut points = Vec::new();
-    let mut values = Vec::new();
-    let mut w = Vec::new();
-    for sample in (0..samples).step_by(stride) {
+    let basis = ZernikeBasis::new();
+    let radial: Vec<[f64; TERMS]> = grid
+        .rings
+        .par_iter()
+        .map(|ring| basis.radial(ring.radius_mm / outer))
+        .collect();
+    let angular: Vec<[f64; TERMS]> = (0..rows)
+        .map(|row| basis.angular(TAU * row as f64 / rows as f64))
+        .collect();
+    let weights: Vec<f64> = (0..rings).map(|ring| grid.area_weight(ring)).collect();
+    // Per subsampled point: every term, the deviation (nm) and the area weight.
+    let point = |sample: usize| {
         let (row, ring) = (sample / rings, sample % rings);
-        let rho = grid.rings[ring].radius_mm / outer;
-        let theta = TAU * row as f64 / rows as f64;
-        points.push((rho, theta));
-        values.push(field.depth_mm[sample] * 1e6);
-        w.push(grid.area_weight(ring));
-    }
-    let Some(terms) = fit_zernike(&points, &values, &w) else {
+        let z = terms_at(&radial[ring], &angular[row]);
+        (z, field.depth_mm[sample] * 1e6, weights[ring])
+    };
+    let Some(terms) = fit_terms((0..samples).step_by(stride).map(point)) else {
         return (Vec::new(), None);
     };
-    let basis: Vec<(f64, Zernike)> = terms
-        .iter()
-        .map(|t| (t.coefficient_nm, Zernike::new(t.noll)))
-        .collect();
-    let total: f64 = w.iter().sum();
-    let residual = points
-        .par_iter()
-        .zip(&values)
-        .zip(&w)
-        .map(|((&(rho, theta), v), weight)| {
-            let point = ZernikePoint::new(rho, theta);
-            let model: f64 = basis.iter().map(|(c, z)| c * z.at_point(&point)).sum();
+    let coefficients: Vec<f64> = terms.iter().map(|t| t.coefficient_nm).collect();
+    let points = samples.div_ceil(stride);
+    let total: f64 = (0..samples)
+        .step_by(stride)
+        .map(|s| weights[s % rings])
+        .sum();
+    let residual = (0..points)
+        .into_par_iter()
+        .map(|i| {
+            let (z, v, weight) = point(i * stride);
+            let model: f64 = coefficients.iter().zip(&z).map(|(c, z)| c * z).sum();
             weight * (v - model).powi(2)
         })
         .collect::<Vec<f64>>()

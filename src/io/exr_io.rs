@@ -1,9 +1,12 @@
 //! OpenEXR input/output for named f32 channel maps with string metadata.
 //!
 //! Files hold one scan-line layer, every channel stored as 32-bit float with
-//! lossless PIZ compression (wavelet + Huffman: about the size of ZIP, written in
-//! half the time), so samples round-trip bit-exactly. Each attribute
-//! is stored as an EXR `string` attribute in the header.
+//! lossless RLE compression (byte planes, differences, runs), so samples round-trip
+//! bit-exactly. RLE files are about twice PIZ's or ZIP's size but written in a fifth
+//! of their time or less (the default job's `polar.exr`, 4 channels × 948 192 samples,
+//! one thread: RLE 0.023 s, 11.5 MB; PIZ 0.111 s, 5.65 MB; ZIP1 0.167 s, 5.04 MB),
+//! and PIZ compressed `polar.exr`'s 32 rows as one block on one thread. Each
+//! attribute is stored as an EXR `string` attribute in the header.
 
 use std::collections::{BTreeMap, HashSet};
 use std::fs::File;
@@ -39,11 +42,18 @@ impl ExrImage {
 
 /// Writes `image` to `path` atomically (temporary file, fsync, rename).
 pub fn write_exr(path: &Path, image: &ExrImage) -> io::Result<()> {
-    validate(image)?;
+    write_exr_owned(path, image.clone())
+}
+
+/// [`write_exr`] for an image the caller no longer needs: its samples go to the
+/// encoder without a copy.
+pub fn write_exr_owned(path: &Path, image: ExrImage) -> io::Result<()> {
+    validate(&image)?;
+    let (width, height) = (image.width, image.height);
     let channels = image
         .channels
-        .iter()
-        .map(|(name, samples)| AnyChannel::new(name.as_str(), FlatSamples::F32(samples.clone())))
+        .into_iter()
+        .map(|(name, samples)| AnyChannel::new(name.as_str(), FlatSamples::F32(samples)))
         .collect();
     let mut attributes = LayerAttributes::default();
     for (key, value) in &image.attributes {
@@ -53,12 +63,12 @@ pub fn write_exr(path: &Path, image: &ExrImage) -> io::Result<()> {
             .insert(Text::from(key.as_str()), AttributeValue::Text(value));
     }
     let encoding = Encoding {
-        compression: Compression::PIZ,
+        compression: Compression::RLE,
         blocks: Blocks::ScanLines,
         line_order: LineOrder::Increasing,
     };
     let layer = Layer::new(
-        (image.width, image.height),
+        (width, height),
         attributes,
         encoding,
         AnyChannels::sort(channels),
@@ -413,16 +423,24 @@ mod tests {
     }
 
     #[test]
-    fn smooth_data_is_compressed() {
+    fn runs_of_equal_samples_are_compressed() {
+        // What RLE compresses: a channel that is zero over most of the image (a central
+        // feature's map, `valid` outside the aperture). Each byte plane of a line is
+        // then one run: 2 bytes per 127 equal bytes, so well under a tenth of the raw
+        // 4 bytes per sample (the header adds ~1 KB).
         let file = TempFile::new("size");
+        let mut samples = vec![0.0f32; 256 * 256];
+        samples[128 * 256 + 128] = 1.5;
         let image = ExrImage {
             width: 256,
             height: 256,
-            channels: vec![("height_mm".to_string(), vec![0.25; 256 * 256])],
+            channels: vec![("protrusion_nm".to_string(), samples)],
             attributes: BTreeMap::new(),
         };
         write_exr(&file.0, &image).unwrap();
         let size = std::fs::metadata(&file.0).unwrap().len();
         assert!(size < 256 * 256 * 4 / 10, "{size} bytes");
+        let back = read_exr(&file.0).unwrap();
+        assert_eq!(back.channels, image.channels);
     }
 }

@@ -16,7 +16,7 @@
 
 use super::atomic::write_bytes_atomically;
 use super::colour::ColourMap;
-use super::exr_io::{ExrImage, write_exr};
+use super::exr_io::{ExrImage, write_exr_owned};
 use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
 use super::png_out::{FalseColourPlot, MapGeometry, write_map_png, write_png16_gray};
 use crate::analysis::Raster;
@@ -111,19 +111,21 @@ fn clear_outputs(dir: &Path) -> io::Result<Vec<PathBuf>> {
 }
 
 /// Writes all outputs of a run into `dir` and returns the paths written. Independent
-/// groups (the EXR files, the map PNGs, the centre zoom and tables, the texture figures
-/// for the summary) run side by side; the summary and report come last.
+/// groups run side by side: the top views and then the EXR files and map PNGs made
+/// from them, beside the centre zoom and tables and the texture figures for the
+/// summary; the summary and report come last.
 pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
     let started = Instant::now();
     std::fs::create_dir_all(dir)?;
-    let maps = top_views(result);
-    let attributes = common_attributes(result, &maps.deviation_nm);
-    let ((exrs, pngs), (centre, texture)) = rayon::join(
+    let ((maps, exrs, pngs), (centre, texture)) = rayon::join(
         || {
-            rayon::join(
+            let maps = top_views(result);
+            let attributes = common_attributes(result, &maps.deviation_nm);
+            let (exrs, pngs) = rayon::join(
                 || write_exrs(dir, result, &maps, &attributes),
                 || write_map_pngs(dir, result, &maps, &attributes),
-            )
+            );
+            (maps, exrs, pngs)
         },
         || {
             rayon::join(
@@ -171,9 +173,9 @@ fn write_exrs(
     if let Some(map) = &maps.cutting_diameter_mm {
         surface_channels.push(("cutting_diameter_mm".into(), map.values.clone()));
     }
-    write_exr(
+    write_exr_owned(
         &dir.join("surface.exr"),
-        &ExrImage {
+        ExrImage {
             width: pixels,
             height: pixels,
             channels: surface_channels,
@@ -204,9 +206,9 @@ fn write_exrs(
         "deviation_nm: nm along the outward normal, + = material left; scallop_nm: nm; protrusion_nm: nm above the surround inside the central feature; pass: revolution·4 + branch (0 direct, 1 mirrored past the axis, 2 flank; −1 = uncut)".into(),
     );
     if polar_exr_written(grid) {
-        write_exr(
+        write_exr_owned(
             &dir.join("polar.exr"),
-            &ExrImage {
+            ExrImage {
                 width: rings,
                 height: grid.azimuths as usize,
                 channels: polar_channels(result),
@@ -221,31 +223,68 @@ fn write_exrs(
         .collect())
 }
 
-/// The map PNGs: the 16-bit deviation (whose scale it returns), the false-colour
-/// deviation and scallop maps, and the milling cutting diameter.
+/// The map PNGs, side by side: the 16-bit deviation (whose scale it returns), the
+/// false-colour deviation and scallop maps, and the milling cutting diameter.
 fn write_map_pngs(
     dir: &Path,
     result: &RunResult,
     maps: &TopViews,
     attributes: &BTreeMap<String, String>,
 ) -> io::Result<(Png16Scale, Vec<PathBuf>)> {
-    let pixels = result.job.map_pixels as usize;
-    let png_scale =
-        write_deviation_png16(&dir.join("deviation.png"), &maps.deviation_nm, attributes)?;
+    let ((png_scale, colour), (scallop, diameter)) = rayon::join(
+        || {
+            rayon::join(
+                || {
+                    write_deviation_png16(
+                        &dir.join("deviation.png"),
+                        &maps.deviation_nm,
+                        attributes,
+                    )
+                },
+                || write_deviation_colour(dir, result, &maps.deviation_nm, attributes),
+            )
+        },
+        || {
+            rayon::join(
+                || write_scallop_colour(dir, result, &maps.scallop_nm, attributes),
+                || match &maps.cutting_diameter_mm {
+                    Some(map) => write_cutting_diameter(dir, result, map, attributes).map(Some),
+                    None => Ok(None),
+                },
+            )
+        },
+    );
+    let mut paths = vec![dir.join("deviation.png"), colour?, scallop?];
+    paths.extend(diameter?);
+    Ok((png_scale?, paths))
+}
+
+/// The geometry of a run's full top view.
+fn map_geometry(result: &RunResult, map: &Raster) -> MapGeometry {
+    MapGeometry::centred(map.half_width_mm, result.job.map_pixels as usize)
+}
+
+/// `deviation_colour.png`: diverging colours centred on the map's mean (white), so form
+/// shows even when the whole surface sits above nominal; the bar is labelled in true
+/// deviation values and spans at least ±1 nm, so a clean part is white rather than its
+/// numerical dust.
+fn write_deviation_colour(
+    dir: &Path,
+    result: &RunResult,
+    map: &Raster,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<PathBuf> {
     let stats = &result.deviation;
-    // Diverging colours centred on the map's mean (white), so form shows even when the
-    // whole surface sits above nominal; the bar is labelled in true deviation values and
-    // spans at least ±1 nm, so a clean part is white rather than its numerical dust.
-    let (low, high, mean) = valid_range(&maps.deviation_nm);
+    let (low, high, mean) = valid_range(map);
     // The colour bar spans 99.8 % of the pixels: a single pixel at the axis must not
     // wash out the rest of the map; the footer says how many lie beyond the bar's ends.
-    let (p_low, p_high) = percentiles(&maps.deviation_nm, 0.001);
+    let (p_low, p_high) = percentiles(map, 0.001);
     let half_range = (p_high - mean).max(mean - p_low).max(1.0);
-    let beyond = pixels_beyond(&maps.deviation_nm, mean - half_range, mean + half_range);
+    let beyond = pixels_beyond(map, mean - half_range, mean + half_range);
     let footer = format!(
         "map PV {:.2} nm  RMS {:.2} nm  white = mean {mean:.2} nm{},  all samples PV {:.1} nm  RMS {:.1} nm{}  {} engine",
         high - low,
-        raster_rms(&maps.deviation_nm),
+        raster_rms(map),
         match beyond {
             0 => String::new(),
             n => format!(" ({n} pixels beyond the bar, drawn at its ends)"),
@@ -255,90 +294,93 @@ fn write_map_pngs(
         finer_than_pixels(stats.pv_nm, f64::from(high - low)),
         result.engine.kind
     );
-    let geometry = MapGeometry::centred(maps.deviation_nm.half_width_mm, pixels);
+    let path = dir.join("deviation_colour.png");
     write_map_png(
-        &dir.join("deviation_colour.png"),
+        &path,
         &FalseColourPlot {
-            values: &maps.deviation_nm.values,
-            valid: &maps.deviation_nm.valid,
-            width: pixels as u32,
-            height: pixels as u32,
+            values: &map.values,
+            valid: &map.valid,
+            width: map.pixels as u32,
+            height: map.pixels as u32,
             range: (mean - half_range, mean + half_range),
             colour_map: ColourMap::Diverging,
             title: &format!("{}: deviation", result.job.name),
             unit_label: "deviation (nm)",
             footer: &footer,
         },
-        &geometry,
+        &map_geometry(result, map),
         &png_text(attributes),
     )?;
-    let (scallop_low, scallop_high, _) = valid_range(&maps.scallop_nm);
-    let scallop_footer = match &result.scallops.stats {
+    Ok(path)
+}
+
+/// `scallop_colour.png`: the scallop height's top view.
+fn write_scallop_colour(
+    dir: &Path,
+    result: &RunResult,
+    map: &Raster,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<PathBuf> {
+    let (low, high, _) = valid_range(map);
+    let footer = match &result.scallops.stats {
         Some(s) => format!(
-            "map {scallop_low:.1} to {scallop_high:.1} nm (pixel means),  cusps max {:.1} nm  mean {:.1} nm",
+            "map {low:.1} to {high:.1} nm (pixel means),  cusps max {:.1} nm  mean {:.1} nm",
             s.max_nm, s.mean_nm
         ),
         None => "scallops not resolved by the grid".to_string(),
     };
+    let path = dir.join("scallop_colour.png");
     write_map_png(
-        &dir.join("scallop_colour.png"),
+        &path,
         &FalseColourPlot {
-            values: &maps.scallop_nm.values,
-            valid: &maps.scallop_nm.valid,
-            width: pixels as u32,
-            height: pixels as u32,
-            range: (scallop_low, scallop_high),
+            values: &map.values,
+            valid: &map.valid,
+            width: map.pixels as u32,
+            height: map.pixels as u32,
+            range: (low, high),
             colour_map: ColourMap::Sequential,
             title: &format!("{}: scallop height", result.job.name),
             unit_label: "scallop (nm)",
-            footer: &scallop_footer,
+            footer: &footer,
         },
-        &geometry,
+        &map_geometry(result, map),
         &png_text(attributes),
     )?;
+    Ok(path)
+}
 
-    if let Some(map) = &maps.cutting_diameter_mm {
-        let (low, high, _) = valid_range(map);
-        let stats = cutting_diameter_stats(result);
-        write_map_png(
-            &dir.join("cutting_diameter.png"),
-            &FalseColourPlot {
-                values: &map.values,
-                valid: &map.valid,
-                width: pixels as u32,
-                height: pixels as u32,
-                range: (low, high),
-                colour_map: ColourMap::Sequential,
-                title: &format!("{}: effective cutting diameter", result.job.name),
-                unit_label: "diameter (mm)",
-                footer: &match stats.as_ref().and_then(|s| s.speed_max_m_per_min) {
-                    Some(v) => format!(
-                        "De {:.3}–{:.3} mm  max cutting speed {v:.1} m/min",
-                        stats.as_ref().map_or(0.0, |s| s.min_mm),
-                        stats.as_ref().map_or(0.0, |s| s.max_mm)
-                    ),
-                    None => format!(
-                        "De {:.3}–{:.3} mm  (0 = uncut)",
-                        stats.as_ref().map_or(0.0, |s| s.min_mm),
-                        stats.as_ref().map_or(0.0, |s| s.max_mm)
-                    ),
-                },
-            },
-            &geometry,
-            &png_text(attributes),
-        )?;
-    }
-    let names = [
-        "deviation.png",
-        "deviation_colour.png",
-        "scallop_colour.png",
-    ];
-    let diameter = maps
-        .cutting_diameter_mm
-        .as_ref()
-        .map(|_| "cutting_diameter.png");
-    let paths = names.into_iter().chain(diameter).map(|n| dir.join(n));
-    Ok((png_scale, paths.collect()))
+/// `cutting_diameter.png` (milling): the effective cutting diameter's top view.
+fn write_cutting_diameter(
+    dir: &Path,
+    result: &RunResult,
+    map: &Raster,
+    attributes: &BTreeMap<String, String>,
+) -> io::Result<PathBuf> {
+    let (low, high, _) = valid_range(map);
+    let stats = cutting_diameter_stats(result);
+    let (min_mm, max_mm) = stats.as_ref().map_or((0.0, 0.0), |s| (s.min_mm, s.max_mm));
+    let footer = match stats.as_ref().and_then(|s| s.speed_max_m_per_min) {
+        Some(v) => format!("De {min_mm:.3}–{max_mm:.3} mm  max cutting speed {v:.1} m/min"),
+        None => format!("De {min_mm:.3}–{max_mm:.3} mm  (0 = uncut)"),
+    };
+    let path = dir.join("cutting_diameter.png");
+    write_map_png(
+        &path,
+        &FalseColourPlot {
+            values: &map.values,
+            valid: &map.valid,
+            width: map.pixels as u32,
+            height: map.pixels as u32,
+            range: (low, high),
+            colour_map: ColourMap::Sequential,
+            title: &format!("{}: effective cutting diameter", result.job.name),
+            unit_label: "diameter (mm)",
+            footer: &footer,
+        },
+        &map_geometry(result, map),
+        &png_text(attributes),
+    )?;
+    Ok(path)
 }
 
 /// The centre zoom and profile, `radial_profile.csv` and `job.resolved.toml`.
@@ -557,9 +599,16 @@ fn percentiles(map: &Raster, tail: f64) -> (f32, f32) {
     if values.is_empty() {
         return (0.0, 0.0);
     }
-    values.sort_by(f32::total_cmp);
-    let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
-    (at(tail), at(1.0 - tail))
+    // Each quantile is the value a full sort would put at its index: a selection finds
+    // it without sorting (the upper one among the values above the lower one's place).
+    let index = |q: f64| ((values.len() - 1) as f64 * q).round() as usize;
+    let (low, high) = (index(tail), index(1.0 - tail));
+    let (_, &mut low_value, above) = values.select_nth_unstable_by(low, f32::total_cmp);
+    let high_value = match high.checked_sub(low + 1) {
+        Some(offset) => *above.select_nth_unstable_by(offset, f32::total_cmp).1,
+        None => low_value,
+    };
+    (low_value, high_value)
 }
 
 /// Valid pixels outside [low, high].
@@ -794,25 +843,36 @@ fn write_deviation_png16(
     Ok(scale)
 }
 
+/// Profile rows formatted by one worker (the text joined in ring order).
+const CSV_ROWS_PER_TASK: usize = 2048;
+
 fn radial_profile_csv(result: &RunResult) -> String {
-    let mut csv = String::from(
-        "# toolmark radial profile; deviation along the outward normal, + = material left\nradius_mm,arc_length_mm,height_mm,deviation_nm,mean_deviation_nm,min_deviation_nm,max_deviation_nm,scallop_nm\n",
-    );
-    for p in &result.profile {
-        let _ = writeln!(
-            csv,
-            "{:.9},{:.9},{:.9},{:.6},{:.6},{:.6},{:.6},{:.6}",
-            p.radius_mm,
-            p.arc_length_mm,
-            p.height_mm,
-            p.deviation_nm,
-            p.mean_nm,
-            p.min_nm,
-            p.max_nm,
-            p.scallop_nm
-        );
-    }
-    csv
+    let header = "# toolmark radial profile; deviation along the outward normal, + = material left\nradius_mm,arc_length_mm,height_mm,deviation_nm,mean_deviation_nm,min_deviation_nm,max_deviation_nm,scallop_nm\n";
+    let chunks: Vec<String> = result
+        .profile
+        .par_chunks(CSV_ROWS_PER_TASK)
+        .map(|points| {
+            let mut csv = String::new();
+            for p in points {
+                let _ = writeln!(
+                    csv,
+                    "{:.9},{:.9},{:.9},{:.6},{:.6},{:.6},{:.6},{:.6}",
+                    p.radius_mm,
+                    p.arc_length_mm,
+                    p.height_mm,
+                    p.deviation_nm,
+                    p.mean_nm,
+                    p.min_nm,
+                    p.max_nm,
+                    p.scallop_nm
+                );
+            }
+            csv
+        })
+        .collect();
+    std::iter::once(header)
+        .chain(chunks.iter().map(String::as_str))
+        .collect()
 }
 
 fn summary_json(
@@ -1010,4 +1070,44 @@ fn circle_miss_of_axis_mm(circle: &crate::geometry::cup_wheel::CuttingCircle) ->
             p.x.hypot(p.y)
         })
         .fold(f64::INFINITY, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The selection must give what a full sort puts at each quantile's index (the
+    /// definition, written here as a plain sort), with ties, negative values and
+    /// invalid pixels left out.
+    #[test]
+    fn percentiles_are_the_sorted_valid_values_at_the_quantile_indices() {
+        for n in [1usize, 2, 3, 10, 1001, 4096] {
+            let values: Vec<f32> = (0..n)
+                .map(|i| ((i * 7919) % 1009) as f32 * 0.37 - 100.0)
+                .collect();
+            let valid: Vec<bool> = (0..n).map(|i| n < 3 || i % 5 != 2).collect();
+            let raster = Raster {
+                pixels: 1,
+                pitch_mm: 1.0,
+                half_width_mm: 0.5,
+                values: values.clone(),
+                valid: valid.clone(),
+            };
+            let mut sorted: Vec<f32> = values
+                .iter()
+                .zip(&valid)
+                .filter(|(_, v)| **v)
+                .map(|(x, _)| *x)
+                .collect();
+            sorted.sort_by(f32::total_cmp);
+            for tail in [0.001, 0.25, 0.5] {
+                let at = |q: f64| sorted[((sorted.len() - 1) as f64 * q).round() as usize];
+                assert_eq!(
+                    percentiles(&raster, tail),
+                    (at(tail), at(1.0 - tail)),
+                    "n = {n}, tail = {tail}"
+                );
+            }
+        }
+    }
 }
