@@ -467,11 +467,11 @@ fn gpu_diagnosis_agrees_with_the_cpu_one() {
 #[test]
 fn fitted_effects_change_the_job_as_the_fit_says() {
     // The fragment the diagnosis writes, added to the job, reproduces the fitted model.
-    // (A drift: a nose-radius error on this sphere moves the marks as a lateral scale
-    // does, which the diagnosis fits beside it, so its σ is too wide to accept here.)
+    // (A centre height: on this sphere a drift's print is also a decentre's — the
+    // diagnosis calls those two ambiguous — and a nose-radius error's a lateral scale's.)
     let m = measure(
         &sphere(),
-        "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 0.0002\n",
+        "[[effects]]\nkind = \"centre_height\"\nheight_mm = 0.003\n",
         &model(PROFILE),
     );
     let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
@@ -481,9 +481,9 @@ fn fitted_effects_change_the_job_as_the_fit_says() {
         panic!("a turning job")
     };
     // The table holds six significant digits.
-    let (value, _) = accepted(&outcome, "axial_drift")[0];
+    let (value, _) = accepted(&outcome, "centre_height")[0];
     assert!(
-        (t.effects.axial_drift_mm * 1e6 / value - 1.0).abs() < 1e-5,
+        (t.effects.centre_height_mm * 1e3 / value - 1.0).abs() < 1e-5,
         "{fragment}"
     );
 }
