@@ -165,7 +165,12 @@ fn single_turning_effects_are_ranked_first_sized_and_removed() {
         let outcome = run(&sphere(), &m, &mut CpuEngine, &options);
         let d = &outcome.diagnosis;
         println!("{effect}: {}", d.verdict.sentence);
-        assert_eq!(d.verdict.status, "effects_found");
+        let evidence: Vec<(&str, f64)> = d
+            .candidates
+            .iter()
+            .map(|c| (c.effect.as_str(), c.delta_bic))
+            .collect();
+        assert_eq!(d.verdict.status, "effects_found", "{evidence:?}");
         assert_eq!(d.candidates[0].effect, effect, "ranked first");
         assert_eq!(d.accepted[0].effect, effect, "accepted first");
         let (value, _) = accepted(&outcome, effect)[0];

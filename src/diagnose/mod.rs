@@ -529,8 +529,9 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
     tied
 }
 
-/// Candidates the data cannot tell from the best: nearly the same evidence (within 5 %,
-/// or 2 of ΔBIC) and nearly the same change to the residual (correlation above 0.95).
+/// Candidates the data cannot tell from the best: evidence within 2 of its ΔBIC (the
+/// conventional "not worth more than a bare mention") and nearly the same change to
+/// the residual (correlation above 0.98).
 fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<String> {
     let Some((best, best_evidence)) = singles.first() else {
         return Vec::new();
@@ -562,9 +563,7 @@ fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<Strin
                 .map(|(a, b)| a * b)
                 .sum::<f64>()
                 / (norm(&reference) * norm(&other)).max(1e-300);
-            *best_evidence > 0.0
-                && (best_evidence - evidence).abs() < (0.05 * best_evidence.abs()).max(2.0)
-                && cos > 0.95
+            *best_evidence > 0.0 && (best_evidence - evidence).abs() < 2.0 && cos > 0.98
         })
         .map(|(f, _)| f.set[f.set.len() - 1].label())
         .collect()
