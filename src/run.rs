@@ -185,12 +185,9 @@ fn turning_scenes(
             .correction
             .apply(poses, &job.surface, &groundwork.meridian);
     }
-    let max_x_mm = passes
-        .iter()
-        .flat_map(|p| p.poses.iter())
-        .map(|pose| pose.x_mm.abs())
-        .fold(0.0, f64::max);
-    let extra_reach = turning.effects.extra_reach_mm(&edge, max_x_mm);
+    let extra_reach = turning
+        .effects
+        .extra_reach_mm(&edge, crate::effects::max_abs_x_mm(&passes));
     // Effects first: error motion is synchronous with the program's own spindle angle,
     // which turns with the part when the program is looked at along another azimuth.
     turning.effects.apply_to_passes(&mut passes);

@@ -57,8 +57,9 @@ pub fn screen_rate(
     let explained = |k: f64| project(candidate, &points, k).1;
     let rates = rate_grid(candidate, revolutions, line);
     let scores: Vec<f64> = rates.iter().map(|&k| explained(k)).collect();
+    let peaks = local_maxima(&scores);
     let mut best = (0.0, f64::NEG_INFINITY);
-    for i in local_maxima(&scores).into_iter().take(REFINED) {
+    for &i in peaks.iter().take(REFINED) {
         let k = if matches!(candidate, Candidate::TiltErrorMotion { .. }) {
             rates[i]
         } else {
@@ -81,7 +82,7 @@ pub fn screen_rate(
     // Rates the sampling cannot tell apart (aliases on a map's pixel grid explain the
     // same): the lowest of those within 2 % of the best, the simplest cause.
     let mut lowest = best;
-    for i in local_maxima(&scores).into_iter().take(4 * REFINED) {
+    for &i in peaks.iter().take(4 * REFINED) {
         if rates[i] < lowest.0 && scores[i] >= 0.98 * best.1 {
             lowest = (rates[i], scores[i]);
         }

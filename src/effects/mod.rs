@@ -53,7 +53,9 @@ use glam::{DQuat, DVec2, DVec3};
 use std::f64::consts::TAU;
 
 mod motion;
-pub use motion::{MAX_CYCLES_PER_REV, SpindleHarmonic, Vibration, VibrationDirection};
+pub use motion::{
+    MAX_CYCLES_PER_REV, SpindleHarmonic, Vibration, VibrationDirection, max_abs_x_mm,
+};
 
 /// Samples of a harmonic waviness table over ψ ∈ [−90°, 90°] (0.045° apart).
 pub const WAVINESS_SAMPLES: usize = 4001;
@@ -137,20 +139,7 @@ impl TurningEffects {
                 pose.x_mm += self.x_decentre_mm;
             }
         }
-        let span = |poses: &PoseTable| poses.end_angle_rad() - poses.start_angle_rad;
-        let total: f64 = passes.iter().map(span).sum();
-        if self.axial_drift_mm != 0.0 && total > 0.0 {
-            let mut before = 0.0;
-            for poses in passes.iter_mut() {
-                let step = poses.step_rad();
-                let pass_span = span(poses);
-                for (i, pose) in poses.poses.iter_mut().enumerate() {
-                    pose.z_mm += self.axial_drift_mm * (before + step * i as f64) / total;
-                }
-                before += pass_span;
-            }
-        }
-        self.apply_motions(passes, wear);
+        self.apply_timed(passes, wear);
     }
 
     /// How much further than nominal any part of the tool can reach (for reach tests),

@@ -110,27 +110,38 @@ impl TurningEffects {
         )
     }
 
-    /// The moving effects applied to tables `prepare_motions` refined (program order):
-    /// vibration and error motion at each node's clocks, the error motion's tilt at the
-    /// node's X as the machine runs it, and the wear displacement prepared.
-    pub(super) fn apply_motions(&self, passes: &mut [PoseTable], wear: Option<Vec<Vec<DVec2>>>) {
-        if !self.has_motion() {
+    /// The effects that run with machining time, applied to tables `prepare_motions`
+    /// refined (program order): the drift so far, then vibration and error motion at
+    /// each node's clocks (the tilt at the node's X as the machine runs it) and the wear
+    /// displacement prepared.
+    pub(super) fn apply_timed(&self, passes: &mut [PoseTable], wear: Option<Vec<Vec<DVec2>>>) {
+        let span = |poses: &PoseTable| poses.end_angle_rad() - poses.start_angle_rad;
+        let total: f64 = passes.iter().map(span).sum();
+        let drifts = self.axial_drift_mm != 0.0 && total > 0.0;
+        let moves = self.has_motion();
+        if !drifts && !moves {
             return;
         }
         let mut before = 0.0;
         for (p, poses) in passes.iter_mut().enumerate() {
             let step = poses.step_rad();
             let start = poses.start_angle_rad;
+            let pass_span = span(poses);
             for (i, pose) in poses.poses.iter_mut().enumerate() {
                 let turned = before + step * i as f64;
-                let spindle = start + step * i as f64;
-                let (dx, dz) = self.vibration_at(turned);
-                let part_up = self.axial_at(spindle) + pose.x_mm * self.tilt_at(spindle);
-                let worn = wear.as_ref().map_or(DVec2::ZERO, |w| w[p][i]);
-                pose.x_mm += dx + worn.x;
-                pose.z_mm += dz - part_up + worn.y;
+                if drifts {
+                    pose.z_mm += self.axial_drift_mm * turned / total;
+                }
+                if moves {
+                    let spindle = start + step * i as f64;
+                    let (dx, dz) = self.vibration_at(turned);
+                    let part_up = self.axial_at(spindle) + pose.x_mm * self.tilt_at(spindle);
+                    let worn = wear.as_ref().map_or(DVec2::ZERO, |w| w[p][i]);
+                    pose.x_mm += dx + worn.x;
+                    pose.z_mm += dz - part_up + worn.y;
+                }
             }
-            before += poses.end_angle_rad() - poses.start_angle_rad;
+            before += pass_span;
         }
     }
 
@@ -205,7 +216,8 @@ impl TurningEffects {
     }
 }
 
-fn max_abs_x_mm(passes: &[PoseTable]) -> f64 {
+/// The farthest any pose's nose centre lies from the axis (mm).
+pub fn max_abs_x_mm(passes: &[PoseTable]) -> f64 {
     passes
         .iter()
         .flat_map(|p| p.poses.iter())
