@@ -259,6 +259,44 @@ fn write_map_pngs(
     Ok((png_scale?, paths))
 }
 
+/// What a full top view's PNG shows besides its pixels.
+struct Legend<'a> {
+    name: &'a str,
+    range: (f32, f32),
+    colour_map: ColourMap,
+    title: String,
+    unit_label: &'a str,
+    footer: String,
+}
+
+/// Writes one of the run's full top views as the false-colour PNG `dir/<legend.name>`.
+fn write_top_view(
+    dir: &Path,
+    result: &RunResult,
+    map: &Raster,
+    attributes: &BTreeMap<String, String>,
+    legend: Legend,
+) -> io::Result<PathBuf> {
+    let path = dir.join(legend.name);
+    write_map_png(
+        &path,
+        &FalseColourPlot {
+            values: &map.values,
+            valid: &map.valid,
+            width: map.pixels as u32,
+            height: map.pixels as u32,
+            range: legend.range,
+            colour_map: legend.colour_map,
+            title: &legend.title,
+            unit_label: legend.unit_label,
+            footer: &legend.footer,
+        },
+        &map_geometry(result, map),
+        &png_text(attributes),
+    )?;
+    Ok(path)
+}
+
 /// The geometry of a run's full top view.
 fn map_geometry(result: &RunResult, map: &Raster) -> MapGeometry {
     MapGeometry::centred(map.half_width_mm, result.job.map_pixels as usize)
@@ -294,24 +332,20 @@ fn write_deviation_colour(
         finer_than_pixels(stats.pv_nm, f64::from(high - low)),
         result.engine.kind
     );
-    let path = dir.join("deviation_colour.png");
-    write_map_png(
-        &path,
-        &FalseColourPlot {
-            values: &map.values,
-            valid: &map.valid,
-            width: map.pixels as u32,
-            height: map.pixels as u32,
+    write_top_view(
+        dir,
+        result,
+        map,
+        attributes,
+        Legend {
+            name: "deviation_colour.png",
             range: (mean - half_range, mean + half_range),
             colour_map: ColourMap::Diverging,
-            title: &format!("{}: deviation", result.job.name),
+            title: format!("{}: deviation", result.job.name),
             unit_label: "deviation (nm)",
-            footer: &footer,
+            footer,
         },
-        &map_geometry(result, map),
-        &png_text(attributes),
-    )?;
-    Ok(path)
+    )
 }
 
 /// `scallop_colour.png`: the scallop height's top view.
@@ -329,24 +363,20 @@ fn write_scallop_colour(
         ),
         None => "scallops not resolved by the grid".to_string(),
     };
-    let path = dir.join("scallop_colour.png");
-    write_map_png(
-        &path,
-        &FalseColourPlot {
-            values: &map.values,
-            valid: &map.valid,
-            width: map.pixels as u32,
-            height: map.pixels as u32,
+    write_top_view(
+        dir,
+        result,
+        map,
+        attributes,
+        Legend {
+            name: "scallop_colour.png",
             range: (low, high),
             colour_map: ColourMap::Sequential,
-            title: &format!("{}: scallop height", result.job.name),
+            title: format!("{}: scallop height", result.job.name),
             unit_label: "scallop (nm)",
-            footer: &footer,
+            footer,
         },
-        &map_geometry(result, map),
-        &png_text(attributes),
-    )?;
-    Ok(path)
+    )
 }
 
 /// `cutting_diameter.png` (milling): the effective cutting diameter's top view.
@@ -363,24 +393,20 @@ fn write_cutting_diameter(
         Some(v) => format!("De {min_mm:.3}–{max_mm:.3} mm  max cutting speed {v:.1} m/min"),
         None => format!("De {min_mm:.3}–{max_mm:.3} mm  (0 = uncut)"),
     };
-    let path = dir.join("cutting_diameter.png");
-    write_map_png(
-        &path,
-        &FalseColourPlot {
-            values: &map.values,
-            valid: &map.valid,
-            width: map.pixels as u32,
-            height: map.pixels as u32,
+    write_top_view(
+        dir,
+        result,
+        map,
+        attributes,
+        Legend {
+            name: "cutting_diameter.png",
             range: (low, high),
             colour_map: ColourMap::Sequential,
-            title: &format!("{}: effective cutting diameter", result.job.name),
+            title: format!("{}: effective cutting diameter", result.job.name),
             unit_label: "diameter (mm)",
-            footer: &footer,
+            footer,
         },
-        &map_geometry(result, map),
-        &png_text(attributes),
-    )?;
-    Ok(path)
+    )
 }
 
 /// The centre zoom and profile, `radial_profile.csv` and `job.resolved.toml`.
