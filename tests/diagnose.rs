@@ -546,3 +546,27 @@ fn wear_on_a_sphere_is_never_claimed_as_another_effect() {
         d.verdict.status
     );
 }
+
+#[test]
+fn wear_beside_a_drift_is_found_as_the_pair_not_as_one_waviness() {
+    // A drift of 200 nm (a cone in r: the cut's clock) and a wear of 150 nm (power:
+    // its length cut) on the sphere, made by the independent section model. One edge
+    // waviness of half a cycle over the used edge imitates both at once and fits best
+    // alone; the pair must win: both accepted, each within 10 % of the truth, nothing
+    // else claimed.
+    let m = measure(
+        &sphere(),
+        "[[effects]]\nkind = \"tool_wear\"\nrecession_mm = 0.00015\n\n[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 0.0002\n",
+        &model(PROFILE),
+    );
+    let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
+    let d = &outcome.diagnosis;
+    println!("{}: {}", d.verdict.status, d.verdict.sentence);
+    let mut kinds: Vec<&str> = d.accepted.iter().map(|a| a.effect.as_str()).collect();
+    kinds.sort_unstable();
+    assert_eq!(kinds, ["axial_drift", "tool_wear"], "{}", d.verdict.sentence);
+    let (drift, _) = accepted(&outcome, "axial_drift")[0];
+    let (wear, _) = accepted(&outcome, "tool_wear")[0];
+    assert!((drift / 200.0 - 1.0).abs() < 0.1, "drift {drift} nm against 200");
+    assert!((wear / 150.0 - 1.0).abs() < 0.1, "wear {wear} nm against 150");
+}

@@ -501,12 +501,18 @@ impl<'a, 'e> Problem<'a, 'e> {
         let others: Vec<usize> = (0..start.len())
             .filter(|j| !scan.contains(j) && !scale_member.contains(j))
             .collect();
-        let mut values = start;
-        for &j in scan {
-            values = self.scan(set, &parameters, &values, j, &others)?;
+        let mut best: Option<Fit> = None;
+        for mut values in scan_starts(set, start, scan) {
+            for &j in scan {
+                values = self.scan(set, &parameters, &values, j, &others)?;
+            }
+            let (values, jacobian) = self.levenberg_marquardt(set, &parameters, values, &[])?;
+            let fit = self.finish(set, parameters.clone(), values, &jacobian, &[])?;
+            if best.as_ref().is_none_or(|b| fit.objective < b.objective) {
+                best = Some(fit);
+            }
         }
-        let (values, jacobian) = self.levenberg_marquardt(set, &parameters, values, &[])?;
-        let fit = self.finish(set, parameters.clone(), values, &jacobian, &[])?;
+        let fit = best.expect("at least one start");
         // A component whose uncertainty exceeds its whole range is not seen by this
         // measurement (runout across the feed on a profile along it): it goes back to
         // zero, stays there, and is reported as not seen (σ = ∞).
@@ -915,6 +921,23 @@ fn scan_values(origin: f64, scale: f64, bound: f64) -> Vec<f64> {
     values.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * bound);
     values.retain(|v| *v != origin);
     values
+}
+
+/// Where a fit's scans start: at `start`, and — where the set fits the lateral scale
+/// and `start` has it away from 1 — again at the unit scale. On a surface with its form
+/// the scale bends the form (a stretched sphere has more power), so a scale fitted
+/// beside one effect can hold what a new one explains, and held there along the scan
+/// it hides it.
+fn scan_starts(set: &[Candidate], start: Vec<f64>, scan: &[usize]) -> Vec<Vec<f64>> {
+    let scale = member_parameters(set, |c| *c == Candidate::LateralScale);
+    if scan.is_empty() || scale.iter().all(|&j| start[j] == 0.0) {
+        return vec![start];
+    }
+    let mut unit = start.clone();
+    for &j in &scale {
+        unit[j] = 0.0;
+    }
+    vec![start, unit]
 }
 
 /// The parameters whose Jacobian column is not (numerically) zero: those the data sees.

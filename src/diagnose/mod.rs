@@ -513,10 +513,11 @@ fn shrink_step(model: &str, residual: &[f64], radii: &[f64], zones: &Zones) -> S
 /// accepted: acting on one of two causes that leave the same print is a coin toss
 /// that may make the next part worse. Returns the tied labels, the first first.
 fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&str)) -> Vec<String> {
-    let (Some(_), Some((best, _))) = (&found.accepted, found.singles.first()) else {
+    let (Some(accepted), Some((best, _))) = (&found.accepted, found.singles.first()) else {
         return Vec::new();
     };
-    if rivals.is_empty() {
+    let best_kind = best.set[best.set.len() - 1].kind();
+    if rivals.is_empty() || accepted.effects().iter().all(|c| c.kind() != best_kind) {
         return Vec::new();
     }
     let mut tied = vec![best.set[best.set.len() - 1].label()];
@@ -530,8 +531,8 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
 }
 
 /// Candidates the data cannot tell from the best: evidence within 2 of its ΔBIC (the
-/// conventional "not worth more than a bare mention") and nearly the same change to
-/// the residual (correlation above 0.98).
+/// conventional "not worth more than a bare mention") and mostly the same change to
+/// the residual (correlation above 0.9: four fifths of each change's energy shared).
 fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<String> {
     let Some((best, best_evidence)) = singles.first() else {
         return Vec::new();
@@ -563,7 +564,7 @@ fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<Strin
                 .map(|(a, b)| a * b)
                 .sum::<f64>()
                 / (norm(&reference) * norm(&other)).max(1e-300);
-            *best_evidence > 0.0 && (best_evidence - evidence).abs() < 2.0 && cos > 0.98
+            *best_evidence > 0.0 && (best_evidence - evidence).abs() < 2.0 && cos > 0.9
         })
         .map(|(f, _)| f.set[f.set.len() - 1].label())
         .collect()

@@ -24,6 +24,12 @@ const MAX_WAVINESS_ORDERS: usize = 3;
 const TRIES_PER_ROUND: usize = 3;
 /// Least share of the residual's RMS an accepted effect removes.
 const MIN_REDUCTION: f64 = 0.1;
+/// Strongest runners-up, after the single greedy selection began with, that are each
+/// given a partner to see whether two effects explain better what one imitates.
+const RIVALS: usize = 2;
+/// A runner-up is given a partner when alone it adds at least this share of the
+/// evidence of the single the selection began with.
+const RIVAL_SHARE: f64 = 0.5;
 
 /// What the search found.
 #[derive(Default)]
@@ -170,8 +176,127 @@ pub fn search<'a>(
         found.steps.push(reduced.clone());
         current = reduced;
     }
+    if let Some(pair) = rival_pair(problem, &mut found, &current, job, folds, options, log)? {
+        found.steps = vec![pair.clone()];
+        current = pair;
+    }
     found.accepted = (!current.effect_members().is_empty()).then_some(current);
     Ok(found)
+}
+
+/// Greedy selection commits to the single that fits best, and a flexible effect (an
+/// edge waviness of a fraction of a cycle over the edge the part used) can fit best by
+/// imitating two set-up effects at once. The strongest runners-up are each given the
+/// partner a greedy round would give them; the best such pair replaces the accepted set
+/// when it beats it on BIC (its parameters paid for) by more than the evidence
+/// threshold, both its members are fits, the partner removes a tenth of what the
+/// runner-up leaves, and the pair predicts the data it was not fitted on.
+fn rival_pair<'a>(
+    problem: &mut Problem<'a, '_>,
+    found: &mut Search,
+    current: &Fit,
+    job: &Job,
+    folds: &'a [Fold],
+    options: &Options,
+    log: &dyn Fn(&str),
+) -> Result<Option<Fit>, DiagnoseError> {
+    let Some(first) = current.effects().first().copied() else {
+        return Ok(None);
+    };
+    let Some(first_evidence) = found
+        .singles
+        .iter()
+        .find(|(f, _)| f.set.last().is_some_and(|c| c.kind() == first.kind()))
+        .map(|(_, e)| *e)
+    else {
+        return Ok(None);
+    };
+    let rivals: Vec<Fit> = found
+        .singles
+        .iter()
+        .filter(|(f, e)| {
+            let kind = f.set.last().map(Candidate::kind);
+            *e >= RIVAL_SHARE * first_evidence
+                && current.effects().iter().all(|c| Some(c.kind()) != kind)
+        })
+        .take(RIVALS)
+        .map(|(f, _)| f.clone())
+        .collect();
+    let fitted = problem.measurement;
+    let mut best: Option<(Fit, f64, Fit)> = None;
+    for rival in &rivals {
+        problem.shift = rival.frame;
+        problem.clear_cache();
+        for pair in greedy_round(problem, &found.singles, rival, job, fitted, log)? {
+            let gain = evidence(
+                current.objective,
+                current.values.len(),
+                &pair,
+                current.effective_points,
+            );
+            if best.as_ref().is_none_or(|(_, g, _)| gain > *g) {
+                best = Some((pair, gain, rival.clone()));
+            }
+        }
+    }
+    problem.shift = current.frame;
+    problem.clear_cache();
+    let Some((mut pair, gain, rival)) = best else {
+        return Ok(None);
+    };
+    let label = labels(&pair.set);
+    if gain <= options.min_evidence {
+        log(&format!(
+            "the best pair of runners-up, {label}, adds ΔBIC {gain:.1} over {}: kept",
+            labels(&current.set)
+        ));
+        return Ok(None);
+    }
+    let members = pair.effect_members();
+    if let Some(why) = members
+        .iter()
+        .find_map(|&m| not_a_fit(&pair, m))
+        .or_else(|| too_small(rival.objective, pair.objective))
+    {
+        log(&format!(
+            "{label} (instead of {}): {why}",
+            labels(&current.set)
+        ));
+        found.refused.push((label, why));
+        return Ok(None);
+    }
+    log(&format!(
+        "{label} explains more than {} (ΔBIC {gain:.1}): checking that each predicts data it was not fitted on",
+        labels(&current.set)
+    ));
+    // The runner-up alone, then its partner beside it, as the greedy rounds judge.
+    let trials = [
+        (rival.set.clone(), rival.values.clone(), rival.frame.start),
+        (pair.set.clone(), pair.values.clone(), pair.frame.start),
+    ];
+    let mut passed = true;
+    for (set, values, axis) in trials {
+        let judged = set[set.len() - 1];
+        let validation = cross_validate(problem, folds, &set, &values, axis)?;
+        passed &= validation.passed;
+        if validation.passed {
+            let position = pair.set.iter().position(|c| *c == judged);
+            widen_sigmas(
+                &mut pair,
+                position.expect("the pair holds both"),
+                &validation.spread,
+            );
+        } else {
+            found
+                .refused
+                .push((judged.label(), validation.reason.clone()));
+        }
+        found.validations.push(validation);
+        if !passed {
+            break;
+        }
+    }
+    Ok(passed.then_some(pair))
 }
 
 /// Why member `member` of a fit is not a fit at all, if it is not: a value at its search
