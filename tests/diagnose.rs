@@ -564,9 +564,20 @@ fn wear_beside_a_drift_is_found_as_the_pair_not_as_one_waviness() {
     println!("{}: {}", d.verdict.status, d.verdict.sentence);
     let mut kinds: Vec<&str> = d.accepted.iter().map(|a| a.effect.as_str()).collect();
     kinds.sort_unstable();
-    assert_eq!(kinds, ["axial_drift", "tool_wear"], "{}", d.verdict.sentence);
+    assert_eq!(
+        kinds,
+        ["axial_drift", "tool_wear"],
+        "{}",
+        d.verdict.sentence
+    );
     let (drift, _) = accepted(&outcome, "axial_drift")[0];
     let (wear, _) = accepted(&outcome, "tool_wear")[0];
-    assert!((drift / 200.0 - 1.0).abs() < 0.1, "drift {drift} nm against 200");
-    assert!((wear / 150.0 - 1.0).abs() < 0.1, "wear {wear} nm against 150");
+    assert!(
+        (drift / 200.0 - 1.0).abs() < 0.1,
+        "drift {drift} nm against 200"
+    );
+    assert!(
+        (wear / 150.0 - 1.0).abs() < 0.1,
+        "wear {wear} nm against 150"
+    );
 }

@@ -40,6 +40,8 @@ pub struct CaseScore {
     pub parameters_within_bound: bool,
     /// Every truth effect within twice the fit's stated σ of the truth.
     pub parameters_within_2_sigma: bool,
+    /// Per truth effect: the fit's distance from the truth in its stated σ.
+    pub sigma_ratios: Vec<f64>,
     /// How far from the truth the diagnosis put the spindle axis (µm; in the plane for
     /// a map).
     pub axis_error_um: f64,
@@ -313,7 +315,7 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
             .collect();
         Some((values, sigmas, row["order"].as_f64()))
     };
-    let mut errors = Vec::new();
+    let (mut errors, mut sigma_ratios) = (Vec::new(), Vec::new());
     let (mut within, mut bound, mut covered) = (true, true, true);
     for t in &truth.effects {
         match fitted(&t.effect) {
@@ -321,12 +323,14 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
                 let line = truth.measurement.kind == crate::synth::MeasurementKind::Profile;
                 let (error, sigma_ratio) = parameter_error(t, &values, &sigmas, order, line);
                 errors.push(error);
+                sigma_ratios.push(sigma_ratio);
                 within &= error <= 0.1;
                 bound &= error <= 0.1 || sigma_ratio <= 2.0;
                 covered &= sigma_ratio <= 2.0;
             }
             None => {
                 errors.push(f64::INFINITY);
+                sigma_ratios.push(f64::INFINITY);
                 (within, bound, covered) = (false, false, false);
             }
         }
@@ -361,6 +365,7 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
         kind: truth.kind.clone(),
         status,
         parameters_within_2_sigma: covered && effect_case,
+        sigma_ratios,
         axis_error_um,
         lateral_scale: 1.0 / registration["lateral_scale"].as_f64().unwrap_or(f64::NAN),
         lateral_scale_truth: truth.measurement.lateral_scale,
@@ -531,15 +536,16 @@ pub fn scores_markdown(s: &Scores) -> String {
         );
     }
     out += &confusion_markdown(s);
-    out += "\n| case | truth | status | ranked first | accepted | parameter error | axis error (µm) | lateral scale (truth) | RMS before → after (nm) | s |\n|---|---|---|---|---|---|---|---|---|---|\n";
+    out += "\n| case | truth | status | ranked first | accepted | parameter error | error / σ | axis error (µm) | lateral scale (truth) | RMS before → after (nm) | s |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
     for c in &s.cases {
         let errors: Vec<String> = c
             .parameter_errors
             .iter()
             .map(|e| format!("{:.1} %", 100.0 * e))
             .collect();
+        let ratios: Vec<String> = c.sigma_ratios.iter().map(|r| format!("{r:.1}")).collect();
         out += &format!(
-            "| {} | {} | {} | {} | {} | {} | {:.1} | {:.4} ({:.4}) | {:.1} → {:.1} | {:.1} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {:.1} | {:.4} ({:.4}) | {:.1} → {:.1} | {:.1} |\n",
             c.case,
             if c.truth.is_empty() {
                 "—".into()
@@ -554,6 +560,7 @@ pub fn scores_markdown(s: &Scores) -> String {
                 c.accepted.join(" + ")
             },
             errors.join(", "),
+            ratios.join(", "),
             c.axis_error_um,
             c.lateral_scale,
             c.lateral_scale_truth,
