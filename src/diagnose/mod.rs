@@ -530,17 +530,15 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
     tied
 }
 
-/// Ties (see [`indistinguishable`]): evidence within this of the best's ΔBIC, or within
-/// this share of it, and the two changes to the residual correlated above this.
-const TIE_EVIDENCE: f64 = 2.0;
-const TIE_SHARE: f64 = 0.1;
+/// Ties (see [`indistinguishable`]): evidence within this of the best's ΔBIC, and the
+/// two changes to the residual correlated above this.
+const TIE_EVIDENCE: f64 = 6.0;
 const TIE_CORRELATION: f64 = 0.9;
 
-/// Candidates the data cannot tell from the best: evidence within 2 of its ΔBIC (the
-/// conventional "not worth more than a bare mention") or within a tenth of it (the
-/// evidence counts the residual's effective points, themselves known only to tens of
-/// percent), and mostly the same change to the residual (correlation above 0.9: four
-/// fifths of each change's energy shared).
+/// Candidates the data cannot tell from the best: evidence within 6 of its ΔBIC (short
+/// of the conventional "strong" preference, Kass & Raftery 1995) and mostly the same
+/// change to the residual (correlation above 0.9: four fifths of each change's energy
+/// shared).
 fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<String> {
     let Some((best, best_evidence)) = singles.first() else {
         return Vec::new();
@@ -573,7 +571,7 @@ fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<Strin
                 .sum::<f64>()
                 / (norm(&reference) * norm(&other)).max(1e-300);
             *best_evidence > 0.0
-                && (best_evidence - evidence).abs() < TIE_EVIDENCE.max(TIE_SHARE * best_evidence)
+                && (best_evidence - evidence).abs() < TIE_EVIDENCE
                 && cos > TIE_CORRELATION
         })
         .map(|(f, _)| f.set[f.set.len() - 1].label())

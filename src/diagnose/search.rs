@@ -184,9 +184,9 @@ pub fn search<'a>(
     Ok(found)
 }
 
-/// Greedy selection commits to the single that fits best, and a flexible effect (an
-/// edge waviness of a fraction of a cycle over the edge the part used) can fit best by
-/// imitating two set-up effects at once. The strongest runners-up are each given the
+/// Greedy selection commits to the single that fits best, and a flexible effect (two
+/// or more parameters: an edge waviness of a fraction of a cycle over the edge the part
+/// used) can fit best by imitating two set-up effects at once. The strongest runners-up are each given the
 /// partner a greedy round would give them; the best such pair replaces the accepted set
 /// when it beats it on BIC (its parameters paid for) by more than the evidence
 /// threshold, both its members are fits, the partner removes a tenth of what the
@@ -200,7 +200,8 @@ fn rival_pair<'a>(
     options: &Options,
     log: &dyn Fn(&str),
 ) -> Result<Option<Fit>, DiagnoseError> {
-    let Some(first) = current.effects().first().copied() else {
+    // Only an effect of two or more parameters has the freedom to imitate two.
+    let Some(first) = current.effects().first().copied().filter(|c| width(c) >= 2) else {
         return Ok(None);
     };
     let Some(first_evidence) = found
