@@ -516,11 +516,11 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
     let (Some(accepted), Some((best, _))) = (&found.accepted, found.singles.first()) else {
         return Vec::new();
     };
-    let best_kind = best.set[best.set.len() - 1].kind();
-    if rivals.is_empty() || accepted.effects().iter().all(|c| c.kind() != best_kind) {
+    let best = best.set[best.set.len() - 1];
+    if rivals.is_empty() || accepted.effects().iter().all(|c| c.kind() != best.kind()) {
         return Vec::new();
     }
-    let mut tied = vec![best.set[best.set.len() - 1].label()];
+    let mut tied = vec![best.label()];
     tied.extend(rivals.iter().cloned());
     log(&format!(
         "{} cannot be told apart on this measurement: nothing accepted",

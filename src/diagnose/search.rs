@@ -147,17 +147,8 @@ pub fn search<'a>(
             log(&format!(
                 "{label}: checking that it predicts data it was not fitted on"
             ));
-            let validation =
-                cross_validate(problem, folds, &fit.set, &fit.values, fit.frame.start)?;
-            let passed = validation.passed;
-            if passed {
-                widen_sigmas(&mut fit, member, &validation.spread);
-            } else {
-                log(&format!("{label}: not accepted — {}", validation.reason));
-                found.refused.push((label, validation.reason.clone()));
-            }
-            found.validations.push(validation);
-            if passed {
+            if let Some(spread) = predicts_unseen(problem, folds, &mut found, &fit, log)? {
+                widen_sigmas(&mut fit, member, &spread);
                 taken = Some(fit);
                 break;
             }
@@ -186,8 +177,8 @@ pub fn search<'a>(
 
 /// Greedy selection commits to the single that fits best, and a flexible effect (two
 /// or more parameters: an edge waviness of a fraction of a cycle over the edge the part
-/// used) can fit best by imitating two set-up effects at once. The strongest runners-up are each given the
-/// partner a greedy round would give them; the best such pair replaces the accepted set
+/// used) can fit best by imitating two set-up effects at once. The strongest
+/// runners-up are each given the partner a greedy round would give them; the best such pair replaces the accepted set
 /// when it beats it on BIC (its parameters paid for) by more than the evidence
 /// threshold, both its members are fits, the partner removes a tenth of what the
 /// runner-up leaves, and the pair predicts the data it was not fitted on.
@@ -270,34 +261,39 @@ fn rival_pair<'a>(
         "{label} explains more than {} (ΔBIC {gain:.1}): checking that each predicts data it was not fitted on",
         labels(&current.set)
     ));
-    // The runner-up alone, then its partner beside it, as the greedy rounds judge.
-    let trials = [
-        (rival.set.clone(), rival.values.clone(), rival.frame.start),
-        (pair.set.clone(), pair.values.clone(), pair.frame.start),
-    ];
-    let mut passed = true;
-    for (set, values, axis) in trials {
-        let judged = set[set.len() - 1];
-        let validation = cross_validate(problem, folds, &set, &values, axis)?;
-        passed &= validation.passed;
-        if validation.passed {
-            let position = pair.set.iter().position(|c| *c == judged);
-            widen_sigmas(
-                &mut pair,
-                position.expect("the pair holds both"),
-                &validation.spread,
-            );
-        } else {
-            found
-                .refused
-                .push((judged.label(), validation.reason.clone()));
-        }
-        found.validations.push(validation);
-        if !passed {
-            break;
-        }
+    // The runner-up alone, then its partner beside it (the pair's last member), as the
+    // greedy rounds judge them.
+    let Some(rival_spread) = predicts_unseen(problem, folds, found, &rival, log)? else {
+        return Ok(None);
+    };
+    let Some(partner_spread) = predicts_unseen(problem, folds, found, &pair, log)? else {
+        return Ok(None);
+    };
+    widen_sigmas(&mut pair, rival.set.len() - 1, &rival_spread);
+    let partner = pair.set.len() - 1;
+    widen_sigmas(&mut pair, partner, &partner_spread);
+    Ok(Some(pair))
+}
+
+/// Whether the last member of `fit` predicts the data it was not fitted on; the
+/// validation, and a failure's reason, are recorded in `found`. Returns the folds'
+/// spread of its values (a floor for its σ) when it passed.
+fn predicts_unseen(
+    problem: &mut Problem,
+    folds: &[Fold],
+    found: &mut Search,
+    fit: &Fit,
+    log: &dyn Fn(&str),
+) -> Result<Option<Vec<f64>>, DiagnoseError> {
+    let validation = cross_validate(problem, folds, &fit.set, &fit.values, fit.frame.start)?;
+    let spread = validation.passed.then(|| validation.spread.clone());
+    if !validation.passed {
+        let label = fit.set[fit.set.len() - 1].label();
+        log(&format!("{label}: not accepted — {}", validation.reason));
+        found.refused.push((label, validation.reason.clone()));
     }
-    Ok(passed.then_some(pair))
+    found.validations.push(validation);
+    Ok(spread)
 }
 
 /// Why member `member` of a fit is not a fit at all, if it is not: a value at its search

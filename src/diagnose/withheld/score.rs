@@ -316,7 +316,7 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
         Some((values, sigmas, row["order"].as_f64()))
     };
     let (mut errors, mut sigma_ratios) = (Vec::new(), Vec::new());
-    let (mut within, mut bound, mut covered) = (true, true, true);
+    let (mut within, mut bound) = (true, true);
     for t in &truth.effects {
         match fitted(&t.effect) {
             Some((values, sigmas, order)) => {
@@ -326,12 +326,11 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
                 sigma_ratios.push(sigma_ratio);
                 within &= error <= 0.1;
                 bound &= error <= 0.1 || sigma_ratio <= 2.0;
-                covered &= sigma_ratio <= 2.0;
             }
             None => {
                 errors.push(f64::INFINITY);
                 sigma_ratios.push(f64::INFINITY);
-                (within, bound, covered) = (false, false, false);
+                (within, bound) = (false, false);
             }
         }
     }
@@ -364,7 +363,7 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
         process: truth.process.clone(),
         kind: truth.kind.clone(),
         status,
-        parameters_within_2_sigma: covered && effect_case,
+        parameters_within_2_sigma: effect_case && sigma_ratios.iter().all(|r| *r <= 2.0),
         sigma_ratios,
         axis_error_um,
         lateral_scale: 1.0 / registration["lateral_scale"].as_f64().unwrap_or(f64::NAN),
