@@ -581,3 +581,83 @@ fn wear_beside_a_drift_is_found_as_the_pair_not_as_one_waviness() {
         "wear {wear} nm against 150"
     );
 }
+
+/// A white-light diameter of the suite's R20 sphere (8 µm/rev, 0.5 mm nose, 0.5 µm
+/// pixels, azimuth not told) whose axis lies 63 µm from the file's zero: the even marks
+/// repeat every half feed (with the line half a turn round), so they alone place it
+/// only up to 16 teeth of a comb; the +5 µm centre height's cone, at the axis, tells
+/// which — the issue's case the old search placed one mark off (taking a tilt instead)
+/// and never found.
+const WHITE_LIGHT_LINE: &str = r#"kind = "profile"
+from_mm = -0.85
+to_mm = 0.95
+spacing_um = 0.5
+white_noise_nm = 1.5
+pink_noise_nm = 1.5
+tilt_urad = [40.0, 0.0]
+decentre_um = [63.0, 0.0]
+seed = 5
+"#;
+
+/// A stylus diameter (2 µm tip) of an R5 sphere turned at 2 µm/rev with a 0.2 mm nose
+/// (marks 2.5 nm high: the form alone placed it), its axis 27 µm from the file's zero;
+/// the tool 5 µm below centre leaves a boss of the 3 µm stock, 10 µm across — the
+/// issue's case that came back as +14.97 µm (a cone) from a scan growing from zero.
+const FINE_FEED_LINE: &str = r#"kind = "profile"
+from_mm = -0.45
+to_mm = 0.45
+spacing_um = 0.5
+stylus_tip_um = 2.0
+white_noise_nm = 1.0
+pink_noise_nm = 1.0
+decentre_um = [27.0, 0.0]
+seed = 3
+"#;
+
+#[test]
+fn a_centre_height_is_found_where_the_marks_cannot_place_the_axis() {
+    let options = Options {
+        only: vec!["centre_height".into(), "x_decentre".into()],
+        ..Options::default()
+    };
+    for (base, measurement, truth_um, axis_um) in [
+        (
+            withheld::WHITE_LIGHT_SPHERE.job,
+            WHITE_LIGHT_LINE,
+            5.0,
+            63.0,
+        ),
+        (withheld::FINE_FEED_SPHERE.job, FINE_FEED_LINE, -5.0, 27.0),
+    ] {
+        let effect = format!(
+            "[[effects]]\nkind = \"centre_height\"\nheight_mm = {}\n",
+            truth_um * 1e-3
+        );
+        let m = measure(base, &effect, &model(measurement));
+        let outcome = run(base, &m, &mut CpuEngine, &options);
+        let d = &outcome.diagnosis;
+        let (h, sigma) = accepted(&outcome, "centre_height")[0];
+        let axis = d.registration.axis_x_mm * 1e3;
+        let axis_sigma = d.registration.axis_x_sigma_mm * 1e3;
+        println!(
+            "truth {truth_um} µm at {axis_um} µm: {h:.3} ± {sigma:.3} µm, axis {axis:.2} ± {axis_sigma:.2} µm"
+        );
+        // The sign (cone or boss) and the size within 2 %, the truth within 2σ; the axis
+        // within a micrometre (a fifth of the boss or cone's radius), inside its 2σ plus
+        // the synthesis's point spacing.
+        assert!(
+            (h - truth_um).abs() < 0.02 * truth_um.abs(),
+            "{h} µm for {truth_um}"
+        );
+        assert!(
+            (h - truth_um).abs() <= 2.0 * sigma,
+            "{h} ± {sigma} µm for {truth_um}"
+        );
+        assert!((axis - axis_um).abs() < 1.0, "axis {axis} µm for {axis_um}");
+        assert!(
+            (axis - axis_um).abs() <= 2.0 * axis_sigma + 0.5,
+            "axis {axis} ± {axis_sigma} µm"
+        );
+        assert_residual_shrinks_fivefold(d, "centre_height");
+    }
+}

@@ -25,6 +25,8 @@ use std::rc::Rc;
 const GOLDEN_STEPS: usize = 10;
 /// Simulations a problem keeps for re-registration.
 const SIMULATIONS_KEPT: usize = 32;
+/// Doublings of the step a σ's profile takes beyond ±σ (up to 16σ).
+const PROFILE_DOUBLINGS: usize = 4;
 
 pub struct Problem<'a, 'e> {
     pub measurement: &'a Measurement,
@@ -234,8 +236,8 @@ pub(super) fn register_trial(
     // Placed about its own axis (no shift) at the stretch: its distances from the axis
     // scaled.
     let stretched = m.placed(Frame {
-        shift_mm: glam::DVec2::ZERO,
         scale: stretch,
+        ..Frame::IDENTITY
     });
     register(&stretched, sim, terms, Some(shift))
 }
@@ -439,6 +441,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let frame = Frame {
             shift_mm: e.registered.shift_mm / stretch,
             scale: stretch,
+            mirrored: e.registered.mirrored,
         };
         let Some(clock) = sim.clock_and_slope(self.measurement, frame) else {
             return Ok(None);
@@ -459,6 +462,26 @@ impl<'a, 'e> Problem<'a, 'e> {
                 )
                 .collect(),
         ))
+    }
+
+    /// One σ of a line's axis position in `fit` (mm, in the placed measurement's frame):
+    /// see [`super::register::axis_sigma_mm`].
+    pub fn axis_sigma_mm(&mut self, fit: &Fit) -> Result<f64, ForwardError> {
+        let sim = self.simulation(&fit.set, &fit.values)?;
+        let stretch = stretch_of(&fit.set, &fit.values);
+        let stretched = self.measurement.placed(Frame {
+            scale: stretch,
+            ..Frame::IDENTITY
+        });
+        let sigma = super::register::axis_sigma_mm(
+            &stretched,
+            &sim,
+            self.terms,
+            fit.frame,
+            &fit.evaluation.registered,
+            fit.correlation_length,
+        );
+        Ok(sigma / stretch)
     }
 
     /// Makes room for `coming` simulations among those kept.
@@ -512,22 +535,66 @@ impl<'a, 'e> Problem<'a, 'e> {
                 best = Some(fit);
             }
         }
-        let fit = best.expect("at least one start");
+        let mut fit = best.expect("at least one start");
         // A component whose uncertainty exceeds its whole range is not seen by this
         // measurement (runout across the feed on a profile along it): it goes back to
         // zero, stays there, and is reported as not seen (σ = ∞).
         let unseen: Vec<usize> = (0..fit.values.len())
             .filter(|&j| fit.sigmas[j].is_nan() || fit.sigmas[j] > parameters[j].bound)
             .collect();
-        if unseen.is_empty() || unseen.len() == fit.values.len() {
-            return Ok(fit);
+        if !unseen.is_empty() && unseen.len() < fit.values.len() {
+            let mut values = fit.values.clone();
+            for &j in &unseen {
+                values[j] = 0.0;
+            }
+            let (values, jacobian) = self.levenberg_marquardt(set, &parameters, values, &unseen)?;
+            fit = self.finish(set, parameters, values, &jacobian, &unseen)?;
         }
-        let mut values = fit.values.clone();
-        for &j in &unseen {
-            values[j] = 0.0;
+        self.widen_to_profile(&mut fit)?;
+        Ok(fit)
+    }
+
+    /// Widens each effect parameter's σ to the half-width of the interval over which
+    /// Σr² rises by less than one effective point's variance (Δχ² = 1, the residual's
+    /// variance inflated by its correlation length), stepped out from ±σ by doubling
+    /// (at most [`PROFILE_DOUBLINGS`] times) and read off a parabola through the first
+    /// step that rises more. Where the residual is not the parabola the Jacobian
+    /// assumes — a boss's edge moving between samples leaves it flat for a while, then
+    /// steep — this is the honest width; where it is, it changes nothing.
+    fn widen_to_profile(&mut self, fit: &mut Fit) -> Result<(), ForwardError> {
+        let used = fit.evaluation.registered.used.max(1) as f64;
+        let k = fit.values.len() as f64;
+        let variance =
+            self.rss(&fit.evaluation) / (used - k - 4.0).max(1.0) * fit.correlation_length.max(1.0);
+        let rss0 = self.rss(&fit.evaluation);
+        let effects = member_parameters(&fit.set, |c| !c.is_registration());
+        for j in effects {
+            let sigma = fit.sigmas[j];
+            if !(sigma.is_finite() && sigma > 0.0) || fit.at_bound[j] {
+                continue;
+            }
+            let bound = fit.parameters[j].bound;
+            let mut width: f64 = 0.0;
+            for side in [1.0, -1.0] {
+                let mut delta = sigma;
+                let mut reached = delta;
+                for doubling in 0..=PROFILE_DOUBLINGS {
+                    delta = sigma * (1 << doubling) as f64;
+                    let mut trial = fit.values.clone();
+                    trial[j] = (fit.values[j] + side * delta).clamp(-bound, bound);
+                    let e = self.evaluate(&fit.set, &trial)?;
+                    let rise = self.rss(&e) - rss0;
+                    reached = delta;
+                    if rise >= variance {
+                        reached = delta * (variance / rise).sqrt();
+                        break;
+                    }
+                }
+                width = width.max(reached);
+            }
+            fit.sigmas[j] = sigma.max(width);
         }
-        let (values, jacobian) = self.levenberg_marquardt(set, &parameters, values, &unseen)?;
-        self.finish(set, parameters, values, &jacobian, &unseen)
+        Ok(())
     }
 
     /// Fits `set` from `start` by Levenberg–Marquardt with the parameters `held` kept
@@ -616,14 +683,14 @@ impl<'a, 'e> Problem<'a, 'e> {
                 best = trial;
             }
         }
-        // Golden-section search between the best value's neighbours: features that
-        // move in steps (a centre cylinder's edge between samples) leave the residual
-        // too rough for derivatives there.
+        // Golden-section search between the neighbours of the best value on each side
+        // of the origin (a cone and a cylinder, a larger and a smaller radius, are
+        // different shapes: the coarse scan can rank the wrong side first): features
+        // that move in steps (a centre cylinder's edge between samples) leave the
+        // residual too rough for derivatives there.
         tried.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let centre = best.1[j];
-        let below = tried.iter().rev().find(|t| t.0 < centre).map(|t| t.0);
-        let above = tried.iter().find(|t| t.0 > centre).map(|t| t.0);
-        if let (Some(a), Some(b)) = (below, above) {
+        for k in best_on_each_side(&tried, origin, best.0) {
+            let (a, b) = (tried[k - 1].0, tried[k + 1].0);
             let bracket = try_golden_section(|v| at(self, v).map(|t| t.0), a, b, GOLDEN_STEPS)?;
             // Re-evaluated for their values (the simulations are cached).
             for (v, _) in bracket.inner {
@@ -768,7 +835,8 @@ impl<'a, 'e> Problem<'a, 'e> {
             .count() as f64;
         let free = observable(jacobian, frozen);
         let residual = self.residual(&evaluation);
-        let sigmas_free = uncertainties(jacobian, &free, &residual, tau);
+        let line = self.measurement.is_line();
+        let sigmas_free = uncertainties(jacobian, &free, &residual, tau, line);
         let mut sigmas = vec![f64::INFINITY; values.len()];
         for (&j, s) in free.iter().zip(sigmas_free) {
             sigmas[j] = s;
@@ -904,6 +972,39 @@ fn step(parameters: &[Parameter], values: &[f64], j: usize) -> f64 {
 /// 3; golden section then refines between the best value's neighbours).
 const SCAN_MULTIPLES: [f64; 9] = [0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
 
+/// Of the values a scan tried (sorted by value, with their Σr²), the lowest inside the
+/// range on each side of `origin` (the origin itself counts on both): the indices to
+/// bracket, best first, one per distinct index. The other side's is bracketed only
+/// where it takes at least [`OTHER_SIDE`] of the drop from the origin's Σr² to the
+/// scan's `lowest`: a shape that comes near is refined, noise on the far side is not.
+fn best_on_each_side(tried: &[(f64, f64)], origin: f64, lowest: f64) -> Vec<usize> {
+    let on_side = |keep: &dyn Fn(f64) -> bool| {
+        (1..tried.len().saturating_sub(1))
+            .filter(|&k| keep(tried[k].0))
+            .min_by(|&a, &b| tried[a].1.total_cmp(&tried[b].1))
+    };
+    let at_origin = tried
+        .iter()
+        .find(|t| t.0 == origin)
+        .map_or(f64::INFINITY, |t| t.1);
+    let mut sides: Vec<usize> = [on_side(&|v| v >= origin), on_side(&|v| v <= origin)]
+        .into_iter()
+        .flatten()
+        .collect();
+    sides.sort_by(|&a, &b| tried[a].1.total_cmp(&tried[b].1));
+    sides.dedup();
+    let drop = at_origin - lowest;
+    sides
+        .into_iter()
+        .enumerate()
+        .filter(|&(i, k)| i == 0 || at_origin - tried[k].1 >= OTHER_SIDE * drop)
+        .map(|(_, k)| k)
+        .collect()
+}
+
+/// Share of the best side's drop in Σr² the other side must take to be refined too.
+const OTHER_SIDE: f64 = 0.25;
+
 /// The values a global scan of one parameter tries around `origin`: both signs, every
 /// multiple of `scale` within the bound, and the bound itself on each side.
 fn scan_values(origin: f64, scale: f64, bound: f64) -> Vec<f64> {
@@ -949,19 +1050,21 @@ fn observable(jacobian: &[Vec<f64>], frozen: &[usize]) -> Vec<usize> {
         .collect()
 }
 
-/// One-σ uncertainties of the `free` parameters: the larger of the Jacobian's — the
-/// residual's variance inflated by its correlation length `tau` (points) — and a block
+/// One-σ uncertainties of the `free` parameters: the largest of the Jacobian's — the
+/// residual's variance inflated by its correlation length `tau` (points) — a block
 /// sandwich estimate, (JᵀJ)⁻¹ (Σ_b g_b g_bᵀ) (JᵀJ)⁻¹ with g_b = J_bᵀ r_b over blocks of
 /// 5 τ points, which also carries structure the noise model ignores (model error,
-/// correlated residuals); then scaled by t₀.₉₇₅(ν)/1.96 with ν the residual's effective
-/// points less the parameters, so that ±2σ stays a 95 % interval when a long-correlated
-/// residual (1/f noise, form error) leaves only a few independent points. ∞ when JᵀJ is
-/// singular.
+/// correlated residuals), and, along a `line` (points in order), the autocovariance
+/// estimate [`line_hac_variances`]; then scaled by t₀.₉₇₅(ν)/1.96 with ν the residual's
+/// effective points less the parameters, so that ±2σ stays a 95 % interval when a
+/// long-correlated residual (1/f noise, form error) leaves only a few independent
+/// points. ∞ when JᵀJ is singular.
 pub(super) fn uncertainties(
     jacobian: &[Vec<f64>],
     free: &[usize],
     residual: &[f64],
     tau: f64,
+    line: bool,
 ) -> Vec<f64> {
     let k = free.len();
     let n = residual.len();
@@ -986,6 +1089,11 @@ pub(super) fn uncertainties(
             }
         }
     }
+    let hac = if line {
+        line_hac_variances(jacobian, free, &inverse, residual)
+    } else {
+        vec![0.0; k]
+    };
     (0..k)
         .map(|a| {
             let jacobian_sigma = (inverse[a][a] * variance).max(0.0).sqrt();
@@ -993,7 +1101,57 @@ pub(super) fn uncertainties(
                 .flat_map(|b| (0..k).map(move |c| (b, c)))
                 .map(|(b, c)| inverse[a][b] * meat[b][c] * inverse[c][a])
                 .sum();
-            few_points * jacobian_sigma.max(sandwich.max(0.0).sqrt())
+            few_points
+                * jacobian_sigma
+                    .max(sandwich.max(0.0).sqrt())
+                    .max(hac[a].sqrt())
+        })
+        .collect()
+}
+
+/// Longest lag of the autocovariance estimate, as a share of the points: 1/f noise
+/// and model error correlate over much of a profile.
+const HAC_LAG_SHARE: f64 = 0.25;
+
+/// Per free parameter, the variance of its least-squares estimate when the residual is
+/// a stationary correlated noise along the line: wᵀ C w, with w the estimator's
+/// weights ((JᵀJ)⁻¹Jᵀ) and C the residual's autocovariance, estimated up to lags of
+/// [`HAC_LAG_SHARE`] of the points and tapered (Bartlett: 1 − ℓ/L, which keeps the
+/// estimate non-negative). Unlike a correlation length, this weighs the noise at the
+/// wavelengths the parameter's signature has: a cone's or a power's long waves see
+/// the 1/f part's long waves.
+fn line_hac_variances(
+    jacobian: &[Vec<f64>],
+    free: &[usize],
+    inverse: &[Vec<f64>],
+    residual: &[f64],
+) -> Vec<f64> {
+    let n = residual.len();
+    let lags = ((HAC_LAG_SHARE * n as f64) as usize).clamp(1, n.max(1));
+    let lagged = |a: &[f64], b: &[f64], lag: usize| -> f64 {
+        a[..n - lag].iter().zip(&b[lag..]).map(|(x, y)| x * y).sum()
+    };
+    let covariance: Vec<f64> = (0..lags)
+        .map(|lag| lagged(residual, residual, lag) / n as f64)
+        .collect();
+    (0..free.len())
+        .map(|a| {
+            let weights: Vec<f64> = (0..n)
+                .map(|i| {
+                    free.iter()
+                        .enumerate()
+                        .map(|(b, &column)| inverse[a][b] * jacobian[column][i])
+                        .sum()
+                })
+                .collect();
+            (0..lags)
+                .map(|lag| {
+                    let taper = 1.0 - lag as f64 / lags as f64;
+                    let twice = if lag == 0 { 1.0 } else { 2.0 };
+                    twice * taper * covariance[lag] * lagged(&weights, &weights, lag)
+                })
+                .sum::<f64>()
+                .max(0.0)
         })
         .collect()
 }

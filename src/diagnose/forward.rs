@@ -59,30 +59,48 @@ impl From<EngineError> for ForwardError {
 }
 
 /// Where the part's axis lies in the measurement's frame and the instrument's lateral
-/// scale: a measured point `p` lies on the part at `(p − shift_mm)·scale`.
+/// scale: a measured point `p` lies on the part at `(p − shift_mm)·scale`, or at its
+/// opposite when `mirrored` (a turned line read half a turn round: the same line through
+/// the axis, run the other way).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Frame {
     pub shift_mm: DVec2,
     /// True lateral distance per distance in the file (1: the instrument is calibrated).
     pub scale: f64,
+    pub mirrored: bool,
 }
 
 impl Frame {
     pub const IDENTITY: Frame = Frame {
         shift_mm: DVec2::ZERO,
         scale: 1.0,
+        mirrored: false,
     };
 
     pub fn at(shift_mm: DVec2) -> Frame {
         Frame {
             shift_mm,
-            scale: 1.0,
+            ..Frame::IDENTITY
+        }
+    }
+
+    /// The same frame, run the other way along the line when `mirrored`.
+    pub fn mirrored(self, mirrored: bool) -> Frame {
+        Frame { mirrored, ..self }
+    }
+
+    /// The scale with the frame's direction: negative when mirrored.
+    pub fn signed_scale(&self) -> f64 {
+        if self.mirrored {
+            -self.scale
+        } else {
+            self.scale
         }
     }
 
     /// A measured point's position on the part.
     pub fn to_part(&self, p: DVec2) -> DVec2 {
-        (p - self.shift_mm) * self.scale
+        (p - self.shift_mm) * self.signed_scale()
     }
 }
 
@@ -422,20 +440,19 @@ impl Trace {
     }
 
     /// The traced heights at positions `along` of a line whose frame is `(s0, scale)`:
-    /// each point lies at `(along − s0)·scale` on the trace. Ascending positions are
-    /// walked, not searched.
+    /// each point lies at `(along − s0)·scale` on the trace (a negative scale reads it
+    /// the other way). Ordered positions are walked, not searched.
     pub fn sample(&self, along: &[f64], s0: f64, scale: f64) -> Vec<f64> {
         let (x, z) = (&self.x, &self.z);
-        let mut k = 0;
-        let mut last = f64::NEG_INFINITY;
+        let first = along.first().map_or(0.0, |s| (s - s0) * scale);
+        let mut k = x.partition_point(|v| *v <= first).saturating_sub(1);
         along
             .iter()
             .map(|s| {
                 let u = (s - s0) * scale;
-                if u < last {
-                    k = x.partition_point(|v| *v <= u).saturating_sub(1);
+                while k > 0 && x[k] > u {
+                    k -= 1;
                 }
-                last = u;
                 while k + 1 < x.len() && x[k + 1] <= u {
                     k += 1;
                 }
@@ -509,7 +526,7 @@ impl SimulatedSurface {
         match &self.trace {
             Some(trace) => {
                 let s0 = frame.shift_mm.dot(measurement.line_direction());
-                trace.sample(&measurement.along_mm, s0, frame.scale)
+                trace.sample(&measurement.along_mm, s0, frame.signed_scale())
             }
             None => measurement
                 .xy_mm

@@ -66,6 +66,9 @@ pub struct Located {
     /// The next best placements, each a different local minimum (mark alignment or
     /// azimuth), with their residual RMS: how clearly the best one wins.
     pub alternatives: Vec<Placement>,
+    /// A line's mark spacing (mm) where the profile resolves the marks that placed it;
+    /// None where the form alone did.
+    pub marks_mm: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -387,6 +390,7 @@ fn locate_line(
         azimuth_fitted: turning,
         rms_mm: best.rms_mm,
         alternatives: placements[1..].iter().map(|p| p.0).collect(),
+        marks_mm: marks,
     })
 }
 
@@ -520,6 +524,7 @@ fn placement(m: &Measurement, fit: &LineFit, azimuth_rad: f64) -> Placement {
         frame: Frame {
             shift_mm: fit.along * m.line_direction(),
             scale: fit.scale,
+            mirrored: false,
         },
         azimuth_rad,
         rms_mm: fit.objective.sqrt(),
@@ -897,7 +902,7 @@ fn placement_sigmas(
         .collect();
     let tau = correlation_length(m, &registered.residual_mm);
     let free: Vec<usize> = (0..jacobian.len()).collect();
-    uncertainties(&jacobian, &free, &residual, tau)[terms.width..].to_vec()
+    uncertainties(&jacobian, &free, &residual, tau, m.is_line())[terms.width..].to_vec()
 }
 
 /// A map's axis anywhere in its field: the registration's grid search over the field
@@ -934,6 +939,8 @@ fn locate_map(
             half_width_mm: reach,
             step_mm: step,
             refine: 3,
+            mirrored: false,
+            comb: None,
         })
     } else {
         None
@@ -966,6 +973,7 @@ fn locate_map(
         azimuth_fitted: false,
         rms_mm: (final_fit.rss / final_fit.used.max(1) as f64).sqrt(),
         alternatives: Vec::new(),
+        marks_mm: None,
     })
 }
 

@@ -142,6 +142,7 @@ impl Measurement {
     /// The points placed on the part by `frame`: each at `(p − shift)·scale`, so the axis
     /// sits at the origin and lateral distances are true ones.
     pub fn placed(&self, frame: super::forward::Frame) -> Measurement {
+        debug_assert!(!frame.mirrored, "a placed measurement keeps its direction");
         let shift_here = match self.shape {
             Shape::Line { .. } => DVec2::new(frame.shift_mm.dot(self.line_direction()), 0.0),
             Shape::Raster { .. } => frame.shift_mm,

@@ -35,8 +35,9 @@ use candidates::{Candidate, NotDiagnosable, candidates_for};
 use fit::{AzimuthPrior, Fit, Problem, width};
 use forward::{ForwardError, ForwardModel};
 use glam::DVec2;
+use locate::Located;
 use measurement::{Measurement, Shape};
-use register::{Registered, ShiftSearch, Terms};
+use register::{Comb, Registered, ShiftSearch, Terms};
 use report::*;
 use search::Search;
 use std::rc::Rc;
@@ -156,21 +157,21 @@ pub fn diagnose(
     let fitted = on_part;
     let calibration = calibration_mask(&fitted, options.calibrate_on_mm)?;
     let period = mark_period_mm(job, &fitted);
-    let folds = validate::folds(
-        &fitted,
-        DVec2::ZERO,
-        calibration.as_deref().map(Vec::as_slice),
-    );
+    let folds = validate::Folds {
+        measurement: &fitted,
+        calibration: calibration.clone(),
+    };
     let mut model = ForwardModel::new(job, &fitted, engine)?;
     if located.azimuth_fitted {
         model.set_azimuth(located.azimuth_rad);
     }
     log("simulating the job as given and registering it");
+    let comb = axis_comb(job, &fitted, &located, period).filter(|_| options.terms.shift);
     let mut problem = Problem::new(
         &fitted,
         model,
         options.terms,
-        local_search(DVec2::ZERO, period),
+        local_search(DVec2::ZERO, period, comb),
     );
     problem.calibrate_on(calibration.clone());
     let spiral = located.azimuth_fitted && fitted.is_line();
@@ -312,10 +313,19 @@ pub fn diagnose(
         &found.refused,
     );
     let final_fit = accepted.unwrap_or(&base);
-    let turn_deg =
-        fit::spiral_turn_deg(&final_fit.set, &final_fit.values, problem.model.base_job());
+    let half_turn = if final_fit.evaluation.registered.mirrored {
+        180.0
+    } else {
+        0.0
+    };
+    let turn_deg = half_turn
+        + fit::spiral_turn_deg(&final_fit.set, &final_fit.values, problem.model.base_job());
     let (stretch, stretch_sigma) = fit::fitted_stretch(final_fit);
-    let located = located.with_fitted_scale(stretch, stretch_sigma);
+    let mut located = located.with_fitted_scale(stretch, stretch_sigma);
+    if fitted.is_line() && options.terms.shift && check.fits {
+        // The axis where the final model put it, with what the fits left open.
+        located.sigma_shift_mm[0] = problem.axis_sigma_mm(final_fit)? / located.frame.scale;
+    }
     let registration = RegistrationInfo::new(
         term_names(options.terms),
         &located,
@@ -402,15 +412,42 @@ fn mark_period_mm(job: &Job, m: &Measurement) -> f64 {
         .min(m.extent_mm() / 8.0)
 }
 
-/// A fit's search for the axis: within half a mark period of where the last
-/// registration put it.
-fn local_search(start: DVec2, period: f64) -> ShiftSearch {
+/// A fit's search for the axis: within an eighth of a mark period of where the last
+/// registration put it, and of each tooth of `comb`.
+fn local_search(start: DVec2, period: f64, comb: Option<Comb>) -> ShiftSearch {
     ShiftSearch {
         start,
         half_width_mm: 0.125 * period,
         step_mm: 0.03125 * period,
         refine: 1,
+        mirrored: false,
+        comb,
     }
+}
+
+/// Most teeth of an axis comb on each side.
+const MAX_TEETH: usize = 100;
+
+/// The axis positions along a turned line that the placement could not tell apart
+/// (see [`Comb`]), searched by every fit: where the profile resolves the marks, every
+/// half mark (odd ones read half a turn round); where it does not, the form alone
+/// placed it, and every quarter period. Within the slack the simulation keeps around
+/// the points, less the local search.
+fn axis_comb(job: &Job, fitted: &Measurement, located: &Located, period: f64) -> Option<Comb> {
+    if !fitted.is_line() || job.process.turning().is_none() {
+        return None;
+    }
+    let (step_mm, mirror_odd) = match located.marks_mm {
+        Some(mark) => (0.5 * mark, true),
+        None => (0.25 * period, false),
+    };
+    let room = forward::shift_room_mm(fitted) - 0.5 * period;
+    let teeth = ((room / step_mm).floor().max(0.0) as usize).min(MAX_TEETH);
+    (teeth > 0).then_some(Comb {
+        step_mm,
+        teeth,
+        mirror_odd,
+    })
 }
 
 /// Keeps the points on the part; refuses a measurement mostly off it.

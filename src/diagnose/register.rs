@@ -21,7 +21,8 @@ pub struct Terms {
 }
 
 /// Where to look for the axis: a square (line: a segment) of half-width `half_width_mm`
-/// around `start`, scanned every `step_mm` then refined.
+/// around `start`, scanned every `step_mm` then refined; on a line, also around each
+/// tooth of `comb`.
 #[derive(Debug, Clone, Copy)]
 pub struct ShiftSearch {
     pub start: DVec2,
@@ -29,7 +30,35 @@ pub struct ShiftSearch {
     pub step_mm: f64,
     /// How many of the scan's lowest local minima are refined.
     pub refine: usize,
+    /// The line is read half a turn round at `start` (a tooth of a comb chosen before).
+    pub mirrored: bool,
+    /// Other axis positions along a line that the data's marks cannot tell from `start`.
+    pub comb: Option<Comb>,
 }
+
+/// The axis positions along a turned line that its marks cannot tell apart: `start`
+/// moved by whole multiples of `step_mm` up to `teeth` each way. On a spiral of even
+/// feed f the marks repeat a whole feed along the line, and half a feed along with the
+/// line read half a turn round (`mirror_odd`: odd teeth run the other way along the
+/// same line through the axis). Only the form and what lies at the axis — where an
+/// effect the job lacks (a centre height's cone or boss) shows — tell them apart.
+#[derive(Debug, Clone, Copy)]
+pub struct Comb {
+    pub step_mm: f64,
+    pub teeth: usize,
+    pub mirror_odd: bool,
+}
+
+impl Comb {
+    /// The `n`-th tooth: its offset along the line (mm) and whether it is read the other
+    /// way from the start.
+    fn tooth(&self, n: i64) -> (f64, bool) {
+        (n as f64 * self.step_mm, self.mirror_odd && n % 2 != 0)
+    }
+}
+
+/// Points a comb's teeth are screened on.
+const COMB_POINTS: usize = 1500;
 
 /// What registration removed, in report units.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
@@ -47,6 +76,8 @@ pub struct Registration {
 pub struct Registered {
     pub registration: Registration,
     pub shift_mm: DVec2,
+    /// The line is read half a turn round (a tooth of the search's comb).
+    pub mirrored: bool,
     /// measured − (simulated + removed terms) per point (mm); NaN where the simulation
     /// has no data.
     pub residual_mm: Vec<f64>,
@@ -67,16 +98,127 @@ pub fn register(
 ) -> Registered {
     let Some(search) = search.filter(|_| terms.shift) else {
         let shift = search.map_or(DVec2::ZERO, |s| s.start);
-        return fit_linear(m, &sim.sample(m, Frame::at(shift)), shift, terms.power);
+        let mirrored = search.is_some_and(|s| s.mirrored);
+        let frame = Frame::at(shift).mirrored(mirrored);
+        return Registered {
+            mirrored,
+            ..fit_linear(m, &sim.sample(m, frame), shift, terms.power)
+        };
     };
+    match search.comb.filter(|_| m.is_line()) {
+        Some(comb) => register_on_comb(m, sim, terms, search, comb),
+        None => register_near(m, sim, terms, search, search.mirrored),
+    }
+}
+
+/// Registers at the best tooth of `comb`: every tooth judged on a subsample by the
+/// residual it leaves (Σr², the fits' own measure, not the trimmed one the local
+/// search uses: what tells teeth apart is often a few points at the axis), the best
+/// searched locally on all points.
+fn register_on_comb(
+    m: &Measurement,
+    sim: &SimulatedSurface,
+    terms: Terms,
+    search: ShiftSearch,
+    comb: Comb,
+) -> Registered {
+    let direction = m.line_direction();
+    let coarse = every_nth(m, (m.len() / COMB_POINTS).max(1));
+    let teeth = comb.teeth as i64;
+    let scored: Vec<(f64, usize, i64)> = (-teeth..=teeth)
+        .map(|n| {
+            let (along, odd) = comb.tooth(n);
+            let shift = search.start + along * direction;
+            let frame = Frame::at(shift).mirrored(search.mirrored != odd);
+            let (rss, used) = line_rss(&coarse, &sim.sample(&coarse, frame), shift, terms.power);
+            (rss, used, n)
+        })
+        .collect();
+    let most = scored.iter().map(|s| s.1).max().unwrap_or(0);
+    let best = scored
+        .into_iter()
+        .filter(|s| s.1 == most)
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map_or(0, |s| s.2);
+    let (along, odd) = comb.tooth(best);
+    let at = ShiftSearch {
+        start: search.start + along * direction,
+        ..search
+    };
+    register_near(m, sim, terms, at, search.mirrored != odd)
+}
+
+/// One σ of a line's axis position in the registration `best` (mm): the Σr² curvature
+/// about it (linear terms re-solved at each shift), the residual's variance inflated by
+/// its correlation length `tau` (points); widened, where the search has a comb, by the
+/// spread of its teeth weighted by their likelihood against the best, exp(−Δχ²/2) — the
+/// teeth the data cannot tell apart count in full.
+pub fn axis_sigma_mm(
+    m: &Measurement,
+    sim: &SimulatedSurface,
+    terms: Terms,
+    search: ShiftSearch,
+    best: &Registered,
+    tau: f64,
+) -> f64 {
+    let direction = m.line_direction();
+    let variance = best.rss / best.used.max(1) as f64 * tau.max(1.0);
+    let rss_at = |along: f64| {
+        let shift = best.shift_mm + along * direction;
+        let frame = Frame::at(shift).mirrored(best.mirrored);
+        let r = fit_linear(m, &sim.sample(m, frame), shift, terms.power);
+        if r.used < best.used {
+            f64::INFINITY
+        } else {
+            r.rss
+        }
+    };
+    let h = search.step_mm;
+    let curvature = (rss_at(h) + rss_at(-h) - 2.0 * best.rss) / (h * h);
+    let local = if curvature > 0.0 && curvature.is_finite() {
+        (2.0 * variance / curvature).sqrt()
+    } else {
+        f64::INFINITY
+    };
+    let Some(comb) = search.comb else {
+        return local;
+    };
+    let teeth = comb.teeth as i64;
+    let (mut weight, mut spread) = (0.0, 0.0);
+    for n in -teeth..=teeth {
+        let (along, odd) = comb.tooth(n);
+        let at = ShiftSearch {
+            start: search.start + along * direction,
+            ..search
+        };
+        let r = register_near(m, sim, terms, at, search.mirrored != odd);
+        if r.used < best.used {
+            continue;
+        }
+        let w = (-(r.rss - best.rss).max(0.0) / (2.0 * variance)).exp();
+        let d = (r.shift_mm - best.shift_mm).dot(direction);
+        weight += w;
+        spread += w * d * d;
+    }
+    let aliases = if weight > 0.0 { spread / weight } else { 0.0 };
+    (local * local + aliases).sqrt()
+}
+
+/// Registers with the axis searched near `search.start`, the line read `mirrored`.
+fn register_near(
+    m: &Measurement,
+    sim: &SimulatedSurface,
+    terms: Terms,
+    search: ShiftSearch,
+    mirrored: bool,
+) -> Registered {
     let direction = match m.shape {
         super::measurement::Shape::Line { azimuth_rad } => Some(DVec2::from_angle(azimuth_rad)),
         super::measurement::Shape::Raster { .. } => None,
     };
     // A subsample keeps the scan cheap (a map's scan is two-dimensional).
     let scanned = if direction.is_some() { 4000 } else { 1500 };
-    let stride = (m.len() / scanned).max(1);
-    let coarse = m.subset(|i| i % stride == 0);
+    let coarse = every_nth(m, (m.len() / scanned).max(1));
     // A map's shift may not move its points off the simulated region (judging the rest
     // alone would favour losing the hard ones); a profile may lose its ends at the rim.
     let kept = |points: &Measurement| match direction {
@@ -86,16 +228,17 @@ pub fn register(
     // The axis is judged on the bulk of the points: the worst 5 % (an unmodelled local
     // feature, spikes) do not steer it.
     let objective = |points: &Measurement, shift: DVec2| {
-        let r = fit_linear(
-            points,
-            &sim.sample(points, Frame::at(shift)),
-            shift,
-            terms.power,
-        );
-        if r.used < kept(points) {
+        let simulated = sim.sample(points, Frame::at(shift).mirrored(mirrored));
+        let (value, used) = if points.is_line() {
+            line_trimmed(points, &simulated, shift, terms.power, 0.95)
+        } else {
+            let r = fit_linear(points, &simulated, shift, terms.power);
+            (trimmed_mean_square(&r.residual_mm, 0.95), r.used)
+        };
+        if used < kept(points) {
             return f64::INFINITY;
         }
-        trimmed_mean_square(&r.residual_mm, 0.95)
+        value
     };
     let steps = (search.half_width_mm / search.step_mm).ceil().max(1.0) as i64;
     let offsets: Vec<f64> = (-steps..=steps)
@@ -155,7 +298,20 @@ pub fn register(
         }
     };
     let shift = best.map_or(search.start, |b| b.1);
-    fit_linear(m, &sim.sample(m, Frame::at(shift)), shift, terms.power)
+    let frame = Frame::at(shift).mirrored(mirrored);
+    Registered {
+        mirrored,
+        ..fit_linear(m, &sim.sample(m, frame), shift, terms.power)
+    }
+}
+
+/// Every `stride`-th point of `m` (`m` itself when 1, not a copy).
+fn every_nth(m: &Measurement, stride: usize) -> std::borrow::Cow<'_, Measurement> {
+    if stride <= 1 {
+        std::borrow::Cow::Borrowed(m)
+    } else {
+        std::borrow::Cow::Owned(m.subset(|i| i % stride == 0))
+    }
 }
 
 /// Mean of the smallest `keep` share of the squared finite values.
@@ -224,11 +380,112 @@ pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool)
             axis_at_um: (shift * 1e3).to_array(),
         },
         shift_mm: shift,
+        mirrored: false,
         residual_mm,
         model_mm,
         rss,
         used: terms.used.len(),
     }
+}
+
+/// A line's registration at `shift` in one pass over the points: the least-squares
+/// piston, tilt (and power) of measured − simulated — the terms [`fit_linear`] removes,
+/// without keeping its residual — with Σ(measured − simulated)² and the points used.
+struct LineFit {
+    origin: f64,
+    coefficients: [f64; 3],
+    explained: f64,
+    squares: f64,
+    used: usize,
+}
+
+impl LineFit {
+    fn new(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool) -> Self {
+        let width = if power { 3 } else { 2 };
+        let origin = shift.dot(m.line_direction());
+        let (mut normal, mut rhs) = (vec![vec![0.0; width]; width], vec![0.0; width]);
+        let (mut squares, mut used) = (0.0, 0);
+        for (i, s) in simulated.iter().enumerate() {
+            if !s.is_finite() {
+                continue;
+            }
+            let row = Self::row(m, i, origin, shift);
+            let t = m.height_mm[i] - s;
+            for p in 0..width {
+                rhs[p] += row[p] * t;
+                for q in 0..width {
+                    normal[p][q] += row[p] * row[q];
+                }
+            }
+            squares += t * t;
+            used += 1;
+        }
+        let fitted = solve_linear(&normal, &rhs).unwrap_or_else(|| vec![0.0; width]);
+        let mut coefficients = [0.0; 3];
+        coefficients[..width].copy_from_slice(&fitted);
+        Self {
+            origin,
+            coefficients,
+            explained: fitted.iter().zip(&rhs).map(|(c, b)| c * b).sum(),
+            squares,
+            used,
+        }
+    }
+
+    fn row(m: &Measurement, i: usize, origin: f64, shift: DVec2) -> [f64; 3] {
+        [
+            1.0,
+            m.along_mm[i] - origin,
+            (m.xy_mm[i] - shift).length_squared(),
+        ]
+    }
+
+    /// Σr² after the terms are removed.
+    fn rss(&self) -> f64 {
+        (self.squares - self.explained).max(0.0)
+    }
+
+    /// The squared residuals of the points used.
+    fn squared_residuals(&self, m: &Measurement, simulated: &[f64], shift: DVec2) -> Vec<f64> {
+        simulated
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.is_finite())
+            .map(|(i, s)| {
+                let row = Self::row(m, i, self.origin, shift);
+                let model: f64 = row.iter().zip(&self.coefficients).map(|(r, c)| r * c).sum();
+                (m.height_mm[i] - s - model).powi(2)
+            })
+            .collect()
+    }
+}
+
+/// Σr² a line's registration at `shift` leaves, and the points it used.
+fn line_rss(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool) -> (f64, usize) {
+    let fit = LineFit::new(m, simulated, shift, power);
+    (fit.rss(), fit.used)
+}
+
+/// Mean of the smallest `keep` share of a line registration's squared residuals at
+/// `shift` ([`trimmed_mean_square`] of [`fit_linear`]'s residual), and the points used.
+fn line_trimmed(
+    m: &Measurement,
+    simulated: &[f64],
+    shift: DVec2,
+    power: bool,
+    keep: f64,
+) -> (f64, usize) {
+    let fit = LineFit::new(m, simulated, shift, power);
+    let mut squares = fit.squared_residuals(m, simulated, shift);
+    if squares.is_empty() {
+        return (f64::INFINITY, 0);
+    }
+    let count = ((squares.len() as f64 * keep) as usize).clamp(1, squares.len());
+    squares.select_nth_unstable_by(count - 1, f64::total_cmp);
+    (
+        squares[..count].iter().sum::<f64>() / count as f64,
+        fit.used,
+    )
 }
 
 /// The linear terms registration removes (piston, tilt, optionally power), on

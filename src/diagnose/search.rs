@@ -11,7 +11,7 @@ use super::fit::{Fit, Problem, bic, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
 use super::register::ShiftSearch;
-use super::validate::{Fold, Validation, cross_validate};
+use super::validate::{Folds, Validation, cross_validate};
 use super::zones;
 use super::{DiagnoseError, Options};
 use crate::io::job::Job;
@@ -63,7 +63,7 @@ pub fn search<'a>(
     base: &Fit,
     candidates: &[Candidate],
     job: &Job,
-    folds: &'a [Fold],
+    folds: &'a Folds<'a>,
     period_mm: f64,
     options: &Options,
     log: &dyn Fn(&str),
@@ -187,7 +187,7 @@ fn rival_pair<'a>(
     found: &mut Search,
     current: &Fit,
     job: &Job,
-    folds: &'a [Fold],
+    folds: &'a Folds<'a>,
     options: &Options,
     log: &dyn Fn(&str),
 ) -> Result<Option<Fit>, DiagnoseError> {
@@ -280,12 +280,18 @@ fn rival_pair<'a>(
 /// spread of its values (a floor for its σ) when it passed.
 fn predicts_unseen(
     problem: &mut Problem,
-    folds: &[Fold],
+    folds: &Folds,
     found: &mut Search,
     fit: &Fit,
     log: &dyn Fn(&str),
 ) -> Result<Option<Vec<f64>>, DiagnoseError> {
-    let validation = cross_validate(problem, folds, &fit.set, &fit.values, fit.frame.start)?;
+    let validation = cross_validate(
+        problem,
+        folds,
+        &fit.set,
+        &fit.values,
+        &fit.evaluation.registered,
+    )?;
     let spread = validation.passed.then(|| validation.spread.clone());
     if !validation.passed {
         let label = fit.set[fit.set.len() - 1].label();
@@ -424,7 +430,8 @@ fn drop_redundant(
 /// whole mark periods — or, on a turned spiral of even feed, by half a mark with the
 /// spiral half a turn round: the single fit is registered again over ±2.5 marks, as it
 /// is and (where the spiral's azimuth is fitted) half a turn round, and refitted where
-/// that puts the axis if it moved; the better of the two fits is kept.
+/// that puts the axis if it moved; the better of the two fits is kept. (A turned line
+/// searches those placements in every trial: its registration has an axis comb.)
 #[allow(clippy::too_many_arguments)]
 fn refit_if_axis_moves(
     problem: &mut Problem,
@@ -436,7 +443,8 @@ fn refit_if_axis_moves(
     fitted: &Measurement,
     log: &dyn Fn(&str),
 ) -> Result<Fit, DiagnoseError> {
-    if !problem.terms.shift {
+    // A comb searches every such placement in each trial already.
+    if !problem.terms.shift || problem.shift.comb.is_some() {
         return Ok(fit);
     }
     let wide = ShiftSearch {
@@ -444,6 +452,8 @@ fn refit_if_axis_moves(
         half_width_mm: 2.5 * period_mm,
         step_mm: 0.125 * period_mm,
         refine: 3,
+        mirrored: false,
+        comb: None,
     };
     let spiral = fit.set.iter().position(|c| *c == Candidate::SpiralAzimuth);
     let turns: &[f64] = if spiral.is_some() {
@@ -477,7 +487,7 @@ fn refit_if_axis_moves(
         "{} moves the axis: registering again and refitting it",
         c.label()
     ));
-    problem.shift = super::local_search(shift, period_mm);
+    problem.shift = super::local_search(shift, period_mm, problem.shift.comb);
     problem.clear_cache();
     let refit = problem.fit(&fit.set, values, &[])?;
     let refit = match fit_new(problem, &base.set, &base.values, c, job, fitted)? {

@@ -22,6 +22,7 @@ use super::candidates::Candidate;
 use super::fit::{Problem, member_parameters, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
+use super::register::Registered;
 use super::zones::rms;
 use glam::DVec2;
 use std::rc::Rc;
@@ -37,6 +38,26 @@ const MIN_SHARE: f64 = 0.15;
 pub struct Fold {
     pub name: String,
     pub held: Vec<bool>,
+}
+
+/// The points folds are cut from: the fitted measurement (placed on the part) and the
+/// calibration's part of it when some are held out of the whole fit. Folds are cut
+/// about the axis where each fit's registration put it (a fit may move it by whole
+/// marks from where the nominal placement did).
+pub struct Folds<'a> {
+    pub measurement: &'a Measurement,
+    pub calibration: Option<Rc<Vec<bool>>>,
+}
+
+impl Folds<'_> {
+    /// The folds about the axis at `axis_mm`.
+    pub fn around(&self, axis_mm: DVec2) -> Vec<Fold> {
+        folds(
+            self.measurement,
+            axis_mm,
+            self.calibration.as_deref().map(Vec::as_slice),
+        )
+    }
 }
 
 /// The folds of `m` (placed on the part, its axis at `axis_mm`), cut from the points of
@@ -130,21 +151,24 @@ pub struct Validation {
 }
 
 /// Cross-validates the last member of `set` (the others are those already accepted)
-/// at `values` (the whole data's fit), on `folds`, the axis held at `axis_mm`.
+/// at `values` (the whole data's fit), on the folds about the axis where that fit's
+/// registration put it (`registered`), the axis held there.
 pub fn cross_validate(
     problem: &mut Problem,
-    folds: &[Fold],
+    folds: &Folds,
     set: &[Candidate],
     values: &[f64],
-    axis_mm: DVec2,
+    registered: &Registered,
 ) -> Result<Validation, ForwardError> {
     let member = set.len() - 1;
     let base_set = &set[..member];
     let saved = (problem.terms, problem.shift);
     problem.terms.shift = false;
-    problem.shift.start = axis_mm;
+    problem.shift.start = registered.shift_mm;
+    problem.shift.mirrored = registered.mirrored;
     problem.clear_cache();
-    let outcome = judge_folds(problem, folds, (set, values), base_set);
+    let folds = folds.around(registered.shift_mm);
+    let outcome = judge_folds(problem, &folds, (set, values), base_set);
     problem.judge_on(None);
     (problem.terms, problem.shift) = saved;
     problem.clear_cache();

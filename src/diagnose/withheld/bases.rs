@@ -395,8 +395,92 @@ dropout_fraction = 0.01
     files: varying_feed_program,
 };
 
+/// A convex sphere R5 turned at 2 µm/rev with a 0.2 mm nose: marks 2.5 nm high, which a
+/// 2 µm stylus tip barely resolves, so the form and what lies at the centre place the
+/// trace; a diameter whose axis sits up to 40 µm either side of the instrument's zero.
+pub const FINE_FEED_SPHERE: Base = Base {
+    name: "turned convex sphere R5, Ø1 mm, 2 µm/rev, 0.2 mm nose, stylus diameter (2 µm tip) with the axis up to 40 µm from its zero",
+    process: "turning",
+    job: r#"version = 1
+name = "fine-feed sphere"
+[surface]
+kind = "sphere"
+form = "convex"
+radius_mm = 5.0
+aperture_diameter_mm = 1.0
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.2
+included_angle_deg = 120.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.002
+stock_allowance_mm = 0.003
+[grid]
+pitch_um = 0.25
+azimuths = 8
+"#,
+    measurement: r#"kind = "profile"
+from_mm = -0.45
+to_mm = 0.45
+spacing_um = 0.5
+stylus_tip_um = 2.0
+white_noise_nm = 1.0
+pink_noise_nm = 1.0
+dropout_fraction = 0.01
+"#,
+    format: "csv",
+    axis_along_um: [-40.0, 40.0],
+    azimuth_stated: true,
+    remove_power: false,
+    files: no_files,
+};
+
+/// A convex sphere R20 turned at 8 µm/rev with a 0.5 mm nose, measured as a white-light
+/// line of 0.5 µm pixels across the axis, which lies up to 100 µm from the file's zero:
+/// even marks that repeat every half feed (with the line half a turn round), so the
+/// marks alone cannot say which of them the axis is at.
+pub const WHITE_LIGHT_SPHERE: Base = Base {
+    name: "turned convex sphere R20, Ø2 mm, 8 µm/rev, 0.5 mm nose, white-light diameter of 0.5 µm pixels, the axis 0–100 µm from its zero, azimuth not told",
+    process: "turning",
+    job: r#"version = 1
+name = "white-light sphere"
+[surface]
+kind = "sphere"
+form = "convex"
+radius_mm = 20.0
+aperture_diameter_mm = 2.0
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.5
+included_angle_deg = 120.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.008
+stock_allowance_mm = 0.003
+[grid]
+pitch_um = 0.5
+azimuths = 8
+"#,
+    measurement: r#"kind = "profile"
+from_mm = -0.85
+to_mm = 0.95
+spacing_um = 0.5
+white_noise_nm = 1.5
+pink_noise_nm = 1.5
+dropout_fraction = 0.01
+"#,
+    format: "csv",
+    axis_along_um: [0.0, 100.0],
+    azimuth_stated: false,
+    remove_power: false,
+    files: no_files,
+};
+
 /// Every base, for the suite's README.
-pub(super) const BASES: [&Base; 10] = [
+pub(super) const BASES: [&Base; 12] = [
     &TURNING_SPHERE,
     &GENERATED_SPHERE,
     &BALL_MILLED_SPHERE,
@@ -407,4 +491,6 @@ pub(super) const BASES: [&Base; 10] = [
     &TURNING_FORM_MAP,
     &BULL_NOSE_FLAT_MAP,
     &SPIRAL_VARYING_FEED,
+    &FINE_FEED_SPHERE,
+    &WHITE_LIGHT_SPHERE,
 ];

@@ -30,8 +30,8 @@ mod bases;
 mod score;
 use bases::*;
 pub use bases::{
-    BALL_FEED_MARKS_FLAT, Base, GENERATED_SPHERE, SPIRAL_VARYING_FEED, TURNING_CENTRE_MAP,
-    TURNING_SPHERE,
+    BALL_FEED_MARKS_FLAT, Base, FINE_FEED_SPHERE, GENERATED_SPHERE, SPIRAL_VARYING_FEED,
+    TURNING_CENTRE_MAP, TURNING_SPHERE, WHITE_LIGHT_SPHERE,
 };
 pub use score::{CaseScore, Scores, score, scores_markdown};
 
@@ -149,6 +149,7 @@ fn suite() -> Vec<Spec> {
     let (fm, fs) = (&BALL_FEED_MARKS_FLAT, &BALL_FEED_MARKS_SPHERE);
     let (cm, im, tm) = (&TURNING_CENTRE_MAP, &TURNING_FORM_MAP, &BULL_NOSE_FLAT_MAP);
     let v = &SPIRAL_VARYING_FEED;
+    let (ff, wl) = (&FINE_FEED_SPHERE, &WHITE_LIGHT_SPHERE);
     let wave = |order: f64| EdgeWaviness { order };
     let shake = |cycles: f64| Vibration {
         cycles,
@@ -266,6 +267,20 @@ fn suite() -> Vec<Spec> {
         // up to 36 nm high; alone and beside the nose-radius error it resembles.
         single(t, SpringBack, &[40.0, 0.9]),
         pair(t, (SpringBack, &[40.0, 0.9]), (NoseRadiusError, &[5.0])),
+        // Where the marks cannot place the trace (issue 13): a fine feed whose marks the
+        // tip barely resolves, and even marks read by a white-light line; each with the
+        // centre's feature that alone fixes the axis, a form effect and a control; and
+        // an edge waviness of two orders.
+        single(ff, CentreHeight, &[-5.0]),
+        single(ff, CentreHeight, &[3.0]),
+        single(ff, XDecentre, &[2.0]),
+        control(ff),
+        single(wl, CentreHeight, &[5.0]),
+        single(wl, CentreHeight, &[-3.0]),
+        single(wl, NoseRadiusError, &[10.0]),
+        single(wl, AxialDrift, &[150.0]),
+        pair(wl, (wave(12.0), &[40.0, 0.0]), (wave(33.0), &[0.0, 25.0])),
+        control(wl),
     ]
 }
 
