@@ -6,7 +6,7 @@
 use super::measurement::Measurement;
 use super::register::{Registered, fit_linear};
 use super::zones::{pv, rms};
-use crate::analysis::profile_stats::dominant_period_mm;
+use crate::analysis::profile_stats::{dominant_period_mm, periodic_share};
 use glam::DVec2;
 
 /// PV and RMS of one surface (nm).
@@ -103,11 +103,20 @@ pub fn compare(
 const BAND_MARKS: f64 = 6.0;
 const MIN_BAND_MARKS: f64 = 4.0;
 
+/// The share of a band's measured variance its marks must hold (the sinusoid at the
+/// found period) for the band's spacing to count: where the marks sink into the noise
+/// (a stylus wider than the marks, nanometre marks under nanometres of noise) the
+/// periodogram's peak is the noise's and its "spacing" anything in the search range.
+/// White noise alone over n points gives about 2/n per frequency (0.06 at the fewest
+/// points a band takes, 32).
+const MIN_MARK_SHARE: f64 = 0.25;
+
 /// The local mark spacing of the measurement and of the model at the same points, in
 /// bands of about eight marks of radius on each side of the axis, from two marks out
 /// (the centre's last revolution is special). Each band's spacing is the dominant
 /// period within a factor 1.6 of the process's own spacing there, found the same way
-/// in both.
+/// in both; a band whose measured marks are lost in the noise ([`MIN_MARK_SHARE`]) is
+/// left out.
 fn spacing_bands(
     m: &Measurement,
     model: &[f64],
@@ -153,7 +162,9 @@ fn spacing_bands(
                 let period = |y: &[f64]| {
                     dominant_period_mm(&xs, &detrended_line(&xs, y), marks_mm / 1.6, 1.6 * marks_mm)
                 };
-                if let (Some(pm), Some(ps)) = (period(&ym), period(&ys)) {
+                let detectable =
+                    |p: &f64| periodic_share(&xs, &detrended_line(&xs, &ym), *p) >= MIN_MARK_SHARE;
+                if let (Some(pm), Some(ps)) = (period(&ym).filter(detectable), period(&ys)) {
                     bands.push(SpacingBand {
                         radius_mm: 0.5 * (from + to),
                         from_mm: from,
@@ -226,5 +237,29 @@ mod tests {
             );
             assert_eq!(b.measured_um, b.simulated_um);
         }
+    }
+
+    /// Marks lost in the noise (the measurement a pseudo-random noise, the model marks
+    /// every 14 µm) give no band: a spacing read from noise is not a spacing.
+    #[test]
+    fn marks_lost_in_the_noise_give_no_band() {
+        let x: Vec<f64> = (0..1201).map(|i| -0.6 + i as f64 * 0.001).collect();
+        let model: Vec<f64> = x
+            .iter()
+            .map(|s| 3e-4 * (std::f64::consts::TAU * s.abs() / 0.014).cos())
+            .collect();
+        let mut state = 7u64;
+        let noise: Vec<f64> = x
+            .iter()
+            .map(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 1e-6
+            })
+            .collect();
+        let m = Measurement::line(&x, &noise, 0.0, 0.0, Instrument::default());
+        let laid_out = |_: f64, _: f64| Some(0.014);
+        assert!(spacing_bands(&m, &model, &laid_out).is_empty());
     }
 }

@@ -69,6 +69,9 @@ pub struct Located {
     /// A line's mark spacing (mm) where the profile resolves the marks that placed it;
     /// None where the form alone did.
     pub marks_mm: Option<f64>,
+    /// A line: where along it (the measurement's own positions, mm) the axis was
+    /// searched — every place that keeps the points on the part.
+    pub axis_range_mm: Option<(f64, f64)>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -391,6 +394,7 @@ fn locate_line(
         rms_mm: best.rms_mm,
         alternatives: placements[1..].iter().map(|p| p.0).collect(),
         marks_mm: marks,
+        axis_range_mm: Some((a_min, a_max)),
     })
 }
 
@@ -974,6 +978,7 @@ fn locate_map(
         rms_mm: (final_fit.rss / final_fit.used.max(1) as f64).sqrt(),
         alternatives: Vec::new(),
         marks_mm: None,
+        axis_range_mm: None,
     })
 }
 

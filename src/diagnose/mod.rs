@@ -161,12 +161,13 @@ pub fn diagnose(
         measurement: &fitted,
         calibration: calibration.clone(),
     };
-    let mut model = ForwardModel::new(job, &fitted, engine)?;
+    let comb = axis_comb(job, measurement, &located, period).filter(|_| options.terms.shift);
+    let room = forward::shift_room_mm(&fitted).max(comb_reach_mm(comb) + 0.5 * period);
+    let mut model = ForwardModel::around(job, &fitted, room, engine)?;
     if located.azimuth_fitted {
         model.set_azimuth(located.azimuth_rad);
     }
     log("simulating the job as given and registering it");
-    let comb = axis_comb(job, &fitted, &located, period).filter(|_| options.terms.shift);
     let mut problem = Problem::new(
         &fitted,
         model,
@@ -312,7 +313,18 @@ pub fn diagnose(
         held.as_ref(),
         &found.refused,
     );
-    let final_fit = accepted.unwrap_or(&base);
+    // Where the data lies: as the final model places it — or, when rivals tie, as the
+    // best of them does (they explain the same residual and place the axis alike; the
+    // job as given, without what they explain, may not).
+    let final_fit = accepted
+        .or_else(|| {
+            found
+                .singles
+                .first()
+                .map(|s| &s.0)
+                .filter(|_| !ambiguous.is_empty())
+        })
+        .unwrap_or(&base);
     let half_turn = if final_fit.evaluation.registered.mirrored {
         180.0
     } else {
@@ -333,7 +345,7 @@ pub fn diagnose(
         measurement,
         &fitted,
         nominal.registration,
-        after.registered.registration,
+        final_fit.evaluation.registered.registration,
     );
     let diagnosis = Diagnosis {
         schema: SCHEMA,
@@ -426,28 +438,35 @@ fn local_search(start: DVec2, period: f64, comb: Option<Comb>) -> ShiftSearch {
 }
 
 /// Most teeth of an axis comb on each side.
-const MAX_TEETH: usize = 100;
+const MAX_TEETH: usize = 400;
 
 /// The axis positions along a turned line that the placement could not tell apart
 /// (see [`Comb`]), searched by every fit: where the profile resolves the marks, every
 /// half mark (odd ones read half a turn round); where it does not, the form alone
-/// placed it, and every quarter period. Within the slack the simulation keeps around
-/// the points, less the local search.
-fn axis_comb(job: &Job, fitted: &Measurement, located: &Located, period: f64) -> Option<Comb> {
-    if !fitted.is_line() || job.process.turning().is_none() {
-        return None;
-    }
+/// placed it, and every quarter period. Across the whole range where the placement
+/// searched the axis (`Located::axis_range_mm`, here in the placed frame).
+fn axis_comb(job: &Job, m: &Measurement, located: &Located, period: f64) -> Option<Comb> {
+    let (lo, hi) = located.axis_range_mm?;
+    job.process.turning()?;
     let (step_mm, mirror_odd) = match located.marks_mm {
         Some(mark) => (0.5 * mark, true),
         None => (0.25 * period, false),
     };
-    let room = forward::shift_room_mm(fitted) - 0.5 * period;
-    let teeth = ((room / step_mm).floor().max(0.0) as usize).min(MAX_TEETH);
-    (teeth > 0).then_some(Comb {
+    let at = located.frame.shift_mm.dot(m.line_direction());
+    let scale = located.frame.scale;
+    let teeth = |reach: f64| ((reach * scale / step_mm).floor().max(0.0) as usize).min(MAX_TEETH);
+    let comb = Comb {
         step_mm,
-        teeth,
+        below: teeth(at - lo),
+        above: teeth(hi - at),
         mirror_odd,
-    })
+    };
+    (comb.below + comb.above > 0).then_some(comb)
+}
+
+/// How far from the placed axis the comb's teeth reach (mm), for the simulated region.
+fn comb_reach_mm(comb: Option<Comb>) -> f64 {
+    comb.map_or(0.0, |c| c.step_mm * c.below.max(c.above) as f64)
 }
 
 /// Keeps the points on the part; refuses a measurement mostly off it.

@@ -37,15 +37,17 @@ pub struct ShiftSearch {
 }
 
 /// The axis positions along a turned line that its marks cannot tell apart: `start`
-/// moved by whole multiples of `step_mm` up to `teeth` each way. On a spiral of even
-/// feed f the marks repeat a whole feed along the line, and half a feed along with the
-/// line read half a turn round (`mirror_odd`: odd teeth run the other way along the
-/// same line through the axis). Only the form and what lies at the axis — where an
-/// effect the job lacks (a centre height's cone or boss) shows — tell them apart.
+/// moved by whole multiples of `step_mm`, from `below` teeth back to `above` teeth on.
+/// On a spiral of even feed f the marks repeat a whole feed along the line, and half a
+/// feed along with the line read half a turn round (`mirror_odd`: odd teeth run the
+/// other way along the same line through the axis). Only the form and what lies at the
+/// axis — where an effect the job lacks (a centre height's cone or boss) shows — tell
+/// them apart.
 #[derive(Debug, Clone, Copy)]
 pub struct Comb {
     pub step_mm: f64,
-    pub teeth: usize,
+    pub below: usize,
+    pub above: usize,
     pub mirror_odd: bool,
 }
 
@@ -54,6 +56,11 @@ impl Comb {
     /// way from the start.
     fn tooth(&self, n: i64) -> (f64, bool) {
         (n as f64 * self.step_mm, self.mirror_odd && n % 2 != 0)
+    }
+
+    /// The teeth, in order.
+    fn numbers(&self) -> std::ops::RangeInclusive<i64> {
+        -(self.below as i64)..=self.above as i64
     }
 }
 
@@ -113,8 +120,11 @@ pub fn register(
 
 /// Registers at the best tooth of `comb`: every tooth judged on a subsample by the
 /// residual it leaves (Σr², the fits' own measure, not the trimmed one the local
-/// search uses: what tells teeth apart is often a few points at the axis), the best
-/// searched locally on all points.
+/// search uses: what tells teeth apart is often a few points at the axis) over the
+/// points all of them keep on the simulated part — teeth that lose more points past the
+/// rim than the best-covered one are not placements the part allows (judging them on
+/// fewer points moved a centre height's boss by a quarter of a point spacing) — the
+/// best searched locally on all points.
 fn register_on_comb(
     m: &Measurement,
     sim: &SimulatedSurface,
@@ -124,22 +134,33 @@ fn register_on_comb(
 ) -> Registered {
     let direction = m.line_direction();
     let coarse = every_nth(m, (m.len() / COMB_POINTS).max(1));
-    let teeth = comb.teeth as i64;
-    let scored: Vec<(f64, usize, i64)> = (-teeth..=teeth)
+    let teeth: Vec<(i64, DVec2, Vec<f64>)> = comb
+        .numbers()
         .map(|n| {
             let (along, odd) = comb.tooth(n);
             let shift = search.start + along * direction;
             let frame = Frame::at(shift).mirrored(search.mirrored != odd);
-            let (rss, used) = line_rss(&coarse, &sim.sample(&coarse, frame), shift, terms.power);
-            (rss, used, n)
+            (n, shift, sim.sample(&coarse, frame))
         })
         .collect();
-    let most = scored.iter().map(|s| s.1).max().unwrap_or(0);
-    let best = scored
-        .into_iter()
-        .filter(|s| s.1 == most)
+    let lost = |t: &(i64, DVec2, Vec<f64>)| t.2.iter().filter(|v| !v.is_finite()).count();
+    let fewest = teeth.iter().map(lost).min().unwrap_or(0);
+    let judged: Vec<&(i64, DVec2, Vec<f64>)> = teeth.iter().filter(|t| lost(t) == fewest).collect();
+    let everywhere: Vec<bool> = (0..coarse.len())
+        .map(|i| judged.iter().all(|t| t.2[i].is_finite()))
+        .collect();
+    let best = judged
+        .iter()
+        .map(|(n, shift, simulated)| {
+            let common: Vec<f64> = simulated
+                .iter()
+                .zip(&everywhere)
+                .map(|(v, keep)| if *keep { *v } else { f64::NAN })
+                .collect();
+            (line_rss(&coarse, &common, *shift, terms.power).0, *n)
+        })
         .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map_or(0, |s| s.2);
+        .map_or(0, |s| s.1);
     let (along, odd) = comb.tooth(best);
     let at = ShiftSearch {
         start: search.start + along * direction,
@@ -183,9 +204,8 @@ pub fn axis_sigma_mm(
     let Some(comb) = search.comb else {
         return local;
     };
-    let teeth = comb.teeth as i64;
     let (mut weight, mut spread) = (0.0, 0.0);
-    for n in -teeth..=teeth {
+    for n in comb.numbers() {
         let (along, odd) = comb.tooth(n);
         let at = ShiftSearch {
             start: search.start + along * direction,

@@ -270,7 +270,7 @@ fn suite() -> Vec<Spec> {
         // Where the marks cannot place the trace (issue 13): a fine feed whose marks the
         // tip barely resolves, and even marks read by a white-light line; each with the
         // centre's feature that alone fixes the axis, a form effect and a control; and
-        // an edge waviness of two orders.
+        // an edge waviness of two orders (the two singles 012 and 013 at once).
         single(ff, CentreHeight, &[-5.0]),
         single(ff, CentreHeight, &[3.0]),
         single(ff, XDecentre, &[2.0]),
@@ -279,7 +279,7 @@ fn suite() -> Vec<Spec> {
         single(wl, CentreHeight, &[-3.0]),
         single(wl, NoseRadiusError, &[10.0]),
         single(wl, AxialDrift, &[150.0]),
-        pair(wl, (wave(12.0), &[40.0, 0.0]), (wave(33.0), &[0.0, 25.0])),
+        pair(t, (wave(20.0), &[40.0, 0.0]), (wave(45.0), &[12.0, -21.0])),
         control(wl),
     ]
 }
