@@ -167,3 +167,64 @@ fn spring_back_lane_by_lane_on_centre_off_centre_and_xzb() {
 fn an_nc_program_with_its_own_node_spacing() {
     assert_same_bits("UPM cut 1021, ideal edge", example("upm_1021_ideal.toml"));
 }
+
+/// An edge off its circle (waviness) skips, on centre, every pass whose bound — the
+/// entry into the circle that holds the whole edge — lies above the lowest entry so
+/// far. Against a brute force written here (every reachable pass's entry, the running
+/// minimum, the first of equals kept): the same bits and the same pass at every sample.
+#[test]
+fn a_wavy_edge_skips_only_passes_that_cannot_cut() {
+    use toolmark::engine::cpu::pass_entry;
+    use toolmark::engine::scene::{Branch, PASS_ID_STRIDE};
+    let job = example_with(
+        "asphere_xz_with_errors.toml",
+        &[("aperture_diameter_mm = 20.0", "aperture_diameter_mm = 3.0")],
+        "",
+    );
+    let (mut samples, mut skipped_somewhere) = (0, false);
+    for scene in prepare_scenes(&job) {
+        let Scene::Turning(scene) = &scene else {
+            panic!("not a turning job");
+        };
+        assert!(!scene.edge.deviation.is_zero() && scene.edge_plane_y_mm == 0.0);
+        let edge = scene.edge.solver();
+        for azimuth in 0..scene.grid.azimuths {
+            let azimuth_rad = scene.grid.azimuth_rad(azimuth);
+            for ring in 0..scene.grid.ring_count() {
+                let mut best = (scene.stock_top_mm, toolmark::field::NO_PASS);
+                let mut reachable = 0;
+                for branch in Branch::ALL {
+                    let range = scene.rings[ring].revs[branch as usize];
+                    if range.is_empty() {
+                        continue;
+                    }
+                    let phase = scene.pass_phase(ring, azimuth_rad, branch);
+                    for rev in range.first..=range.last {
+                        let Some((node, t)) = scene.pass_position(rev, phase) else {
+                            continue;
+                        };
+                        reachable += 1;
+                        let pose = scene.poses.poses[node].lerp(scene.poses.poses[node + 1], t);
+                        if let Some(d) = pass_entry(scene, &edge, ring, pose, branch)
+                            && d < best.0
+                        {
+                            best = (d, rev * PASS_ID_STRIDE + branch as u32);
+                        }
+                    }
+                }
+                let (depth, pass) = sample_dexel(scene, ring, azimuth);
+                assert_eq!(
+                    (depth.to_bits(), pass),
+                    (best.0.to_bits(), best.1),
+                    "ring {ring} azimuth {azimuth}: pruned {depth} (pass {pass}), brute force {} (pass {})",
+                    best.0,
+                    best.1
+                );
+                skipped_somewhere |= reachable > 2;
+                samples += 1;
+            }
+        }
+    }
+    println!("{samples} samples identical to the brute force");
+    assert!(samples > 1000 && skipped_somewhere);
+}

@@ -30,6 +30,10 @@ pub struct ForwardModel<'e> {
     base: Job,
     /// The base job's meridian and programmed paths, computed once.
     groundwork: Groundwork,
+    /// The base job's grid, computed once: trial effects never change the surface,
+    /// aperture, pitch or rows (integrating an asphere's arc length ring by ring was
+    /// a third of a profile diagnosis).
+    grid: PolarGrid,
     engine: &'e mut dyn RemovalEngine,
     /// For a line: the two rows through the axis along it (its azimuth and opposite).
     line_rows: Option<(u32, u32)>,
@@ -186,8 +190,10 @@ impl<'e> ForwardModel<'e> {
             }
             _ => None,
         };
+        let groundwork = Groundwork::of(&base);
         Ok(Self {
-            groundwork: Groundwork::of(&base),
+            grid: job_grid(&base, &groundwork),
+            groundwork,
             base,
             engine,
             line_rows,
@@ -215,8 +221,10 @@ impl<'e> ForwardModel<'e> {
         base.aperture.inner_radius_mm = 0.0;
         base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(outer_radius_mm);
         base.azimuths = rows;
+        let groundwork = Groundwork::of(&base);
         Ok(Self {
-            groundwork: Groundwork::of(&base),
+            grid: job_grid(&base, &groundwork),
+            groundwork,
             base,
             engine,
             line_rows: None,
@@ -227,15 +235,6 @@ impl<'e> ForwardModel<'e> {
             prepare_s: 0.0,
             removal_s: 0.0,
         })
-    }
-
-    /// Simulates `factor` times finer (ring pitch, and the rows of a map).
-    pub fn refine(&mut self, factor: f64) {
-        self.base.pitch_mm /= factor;
-        if self.line_rows.is_none() {
-            let rows = (self.base.azimuths as f64 * factor).ceil() as u32;
-            self.base.azimuths = rows.next_multiple_of(4);
-        }
     }
 
     /// The job the model simulates (trimmed grid, the job's own effects).
@@ -269,7 +268,8 @@ impl<'e> ForwardModel<'e> {
     ) -> Result<SimulatedSurface, ForwardError> {
         let job = self.trial(modify);
         let started = Instant::now();
-        let scenes = scenes_on(&job, grid_for(&job, &self.groundwork), &self.groundwork);
+        let grid = grid_for(&job, &self.grid, &self.groundwork);
+        let scenes = scenes_on(&job, grid, &self.groundwork);
         self.prepare_s += started.elapsed().as_secs_f64();
         let started = Instant::now();
         let field = remove_all(&scenes, self.engine, &|_, _| {})?;
@@ -289,11 +289,11 @@ impl<'e> ForwardModel<'e> {
         }
         let started = Instant::now();
         let jobs: Vec<Job> = modifies.iter().map(|m| self.trial(*m)).collect();
-        let (groundwork, seen) = (&self.groundwork, self.seen());
+        let (groundwork, grid, seen) = (&self.groundwork, &self.grid, self.seen());
         let done: Vec<Result<SimulatedSurface, ForwardError>> = jobs
             .par_iter()
             .map(|job| {
-                let scenes = scenes_on(job, grid_for(job, groundwork), groundwork);
+                let scenes = scenes_on(job, grid_for(job, grid, groundwork), groundwork);
                 let field = remove_all(&scenes, &mut CpuEngine, &|_, _| {})?;
                 Ok(seen.surface(&scenes, &field))
             })
@@ -323,12 +323,13 @@ impl<'e> ForwardModel<'e> {
     }
 }
 
-/// The job's grid, with rings just inside and outside r = |h| where a turning tool is
-/// off centre by h: the uncut core below centre (the flank's cone above it) ends there,
-/// and with rings on both sides the simulated edge moves continuously with h, so a fit
-/// of h is not a staircase in ring steps.
-fn grid_for(job: &Job, groundwork: &Groundwork) -> PolarGrid {
-    let grid = job_grid(job, groundwork);
+/// The base job's grid (`grid`), with rings just inside and outside r = |h| where a
+/// turning tool is off centre by h: the uncut core below centre (the flank's cone above
+/// it) ends there, and with rings on both sides the simulated edge moves continuously
+/// with h, so a fit of h is not a staircase in ring steps.
+fn grid_for(job: &Job, grid: &PolarGrid, groundwork: &Groundwork) -> PolarGrid {
+    debug_assert!(grid.pitch_mm == job.pitch_mm && grid.azimuths == job.azimuths);
+    let grid = grid.clone();
     match &job.process {
         Process::Turning(t) if t.effects.centre_height_mm != 0.0 => {
             let h = t.effects.centre_height_mm.abs();
@@ -843,6 +844,7 @@ height_mm = 0.002
         let mut rows =
             ForwardModel::covering(&grid_job, 1.0, 8, Instrument::default(), &mut engine).unwrap();
         rows.base.aperture = turned.base_job().aperture;
+        rows.grid = job_grid(&rows.base, &rows.groundwork);
         let expected = rows.simulate(&|_| {}).unwrap().trace_along(3);
         assert_eq!(trace.x.len(), expected.x.len());
         let worst = trace

@@ -9,6 +9,7 @@ use super::forward::{Frame, SimulatedSurface};
 use super::measurement::Measurement;
 use crate::numeric::solve_linear;
 use glam::DVec2;
+use rayon::prelude::*;
 
 /// What registration may remove besides piston and tilt.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -134,9 +135,10 @@ fn register_on_comb(
 ) -> Registered {
     let direction = m.line_direction();
     let coarse = every_nth(m, (m.len() / COMB_POINTS).max(1));
-    let teeth: Vec<(i64, DVec2, Vec<f64>)> = comb
-        .numbers()
-        .map(|n| {
+    let numbers: Vec<i64> = comb.numbers().collect();
+    let teeth: Vec<(i64, DVec2, Vec<f64>)> = numbers
+        .par_iter()
+        .map(|&n| {
             let (along, odd) = comb.tooth(n);
             let shift = search.start + along * direction;
             let frame = Frame::at(shift).mirrored(search.mirrored != odd);
@@ -149,8 +151,8 @@ fn register_on_comb(
     let everywhere: Vec<bool> = (0..coarse.len())
         .map(|i| judged.iter().all(|t| t.2[i].is_finite()))
         .collect();
-    let best = judged
-        .iter()
+    let scores: Vec<(f64, i64)> = judged
+        .par_iter()
         .map(|(n, shift, simulated)| {
             let common: Vec<f64> = simulated
                 .iter()
@@ -159,6 +161,10 @@ fn register_on_comb(
                 .collect();
             (line_rss(&coarse, &common, *shift, terms.power).0, *n)
         })
+        .collect();
+    // The first of equal scores, in tooth order (as a serial scan).
+    let best = scores
+        .into_iter()
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .map_or(0, |s| s.1);
     let (along, odd) = comb.tooth(best);
@@ -423,7 +429,9 @@ impl LineFit {
     fn new(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool) -> Self {
         let width = if power { 3 } else { 2 };
         let origin = shift.dot(m.line_direction());
-        let (mut normal, mut rhs) = (vec![vec![0.0; width]; width], vec![0.0; width]);
+        // Fixed-size sums (the third row and column unused without power): this runs
+        // for every tooth of every trial's axis comb.
+        let (mut normal, mut rhs) = ([[0.0; 3]; 3], [0.0; 3]);
         let (mut squares, mut used) = (0.0, 0);
         for (i, s) in simulated.iter().enumerate() {
             if !s.is_finite() {
@@ -431,22 +439,27 @@ impl LineFit {
             }
             let row = Self::row(m, i, origin, shift);
             let t = m.height_mm[i] - s;
-            for p in 0..width {
+            for p in 0..3 {
                 rhs[p] += row[p] * t;
-                for q in 0..width {
+                for q in 0..3 {
                     normal[p][q] += row[p] * row[q];
                 }
             }
             squares += t * t;
             used += 1;
         }
-        let fitted = solve_linear(&normal, &rhs).unwrap_or_else(|| vec![0.0; width]);
+        let normal: Vec<Vec<f64>> = normal[..width]
+            .iter()
+            .map(|r| r[..width].to_vec())
+            .collect();
+        let rhs = &rhs[..width];
+        let fitted = solve_linear(&normal, rhs).unwrap_or_else(|| vec![0.0; width]);
         let mut coefficients = [0.0; 3];
         coefficients[..width].copy_from_slice(&fitted);
         Self {
             origin,
             coefficients,
-            explained: fitted.iter().zip(&rhs).map(|(c, b)| c * b).sum(),
+            explained: fitted.iter().zip(rhs).map(|(c, b)| c * b).sum(),
             squares,
             used,
         }

@@ -124,11 +124,21 @@ pub fn branch_dexel(
         return;
     }
     let phase = scene.pass_phase(ring_index, azimuth_rad, branch);
+    let pose_of = |rev: u32| {
+        let (node, t) = scene.pass_position(rev, phase)?;
+        Some(scene.poses.poses[node].lerp(scene.poses.poses[node + 1], t))
+    };
+    let limit = prune_limit(scene, edge, ring_index, branch, best.0, &pose_of);
     for rev in range.first..=range.last {
-        let Some((node, t)) = scene.pass_position(rev, phase) else {
+        let Some(pose) = pose_of(rev) else {
             continue;
         };
-        let pose = scene.poses.poses[node].lerp(scene.poses.poses[node + 1], t);
+        if let Some(limit) = limit
+            && bound_entry(scene, edge, ring_index, pose, branch)
+                .is_none_or(|bound| bound > limit.min(best.0) + PRUNE_MARGIN_MM)
+        {
+            continue;
+        }
         if let Some(depth) = pass_entry(scene, edge, ring_index, pose, branch) {
             let height = scene.spring_back.after(best.0, depth);
             if height < best.0 {
@@ -136,6 +146,59 @@ pub fn branch_dexel(
             }
         }
     }
+}
+
+/// How far a pass's bound must lie above the height to be skipped (mm): the bound and
+/// the entry are each correctly rounded, so an ulp of disorder must not skip a pass.
+const PRUNE_MARGIN_MM: f64 = 1e-12;
+
+/// Where an edge departs from its circle (waviness, a measured edge), its entry needs
+/// arctangents (~70 ns a pair); there, on centre and without spring-back (the surface
+/// is then the lowest entry), a pass whose [`EdgeSolver::entry_bound`] lies above the
+/// lowest entry found so far cannot change the sample and is skipped: the same bits,
+/// a few full entries per sample instead of every reachable pass. The limit to start
+/// from: the entry of the pass whose bound is lowest (`None`: no pruning here).
+fn prune_limit(
+    scene: &TurningScene,
+    edge: &EdgeSolver,
+    ring_index: usize,
+    branch: Branch,
+    height: f64,
+    pose_of: &dyn Fn(u32) -> Option<ToolPose>,
+) -> Option<f64> {
+    let prunable = edge.refinements > 0
+        && branch != Branch::Flank
+        && scene.edge_plane_y_mm == 0.0
+        && scene.spring_back == super::scene::SpringBack::NONE;
+    if !prunable {
+        return None;
+    }
+    let range = scene.rings[ring_index].revs[branch as usize];
+    let lowest = (range.first..=range.last)
+        .filter_map(|rev| {
+            let pose = pose_of(rev)?;
+            Some((bound_entry(scene, edge, ring_index, pose, branch)?, pose))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    let seeded = lowest.and_then(|(_, pose)| pass_entry(scene, edge, ring_index, pose, branch));
+    Some(seeded.map_or(height, |d| d.min(height)))
+}
+
+/// [`EdgeSolver::entry_bound`] for the dexel ray of ring `ring_index` at `pose` (on
+/// centre: the frame [`edge_entry`] uses).
+fn bound_entry(
+    scene: &TurningScene,
+    edge: &EdgeSolver,
+    ring_index: usize,
+    pose: ToolPose,
+    branch: Branch,
+) -> Option<f64> {
+    let ring = &scene.grid.rings[ring_index];
+    let sign = branch.x_sign();
+    let centre = DVec2::new(sign * pose.x_mm, pose.z_mm);
+    let tip = tip_direction(pose.b_rad) * DVec2::new(sign, 1.0);
+    let origin = DVec2::new(scene.rings[ring_index].lateral_mm, ring.height_mm);
+    edge.entry_bound(origin - centre, ring.normal, tip)
 }
 
 /// Entry of the dexel ray of ring `ring_index` into the tool at `pose` in `branch`.

@@ -161,6 +161,13 @@ impl EdgeModel {
             tip_offset_mm: self.tip_offset_mm(),
             cos_half_span: self.cos_half_span(),
             circle_radius_mm: self.nominal_radius_mm + self.radius_error_mm,
+            outer_radius_mm: self.nominal_radius_mm
+                + self.radius_error_mm
+                + self
+                    .deviation
+                    .values_mm
+                    .iter()
+                    .fold(0.0_f64, |m, &v| m.max(v)),
             refinements: if self.deviation.is_zero() {
                 0
             } else {
@@ -181,6 +188,8 @@ pub struct EdgeSolver<'a> {
     pub cos_half_span: f64,
     /// R + e: the circle of the edge without its radial deviation.
     pub circle_radius_mm: f64,
+    /// R + e + the deviation's outward maximum: a circle the whole edge lies within.
+    pub outer_radius_mm: f64,
     /// Hit-angle corrections: 0 for a circle, [`EDGE_REFINEMENTS`] otherwise.
     pub refinements: usize,
 }
@@ -218,6 +227,20 @@ impl EdgeSolver<'_> {
             d = circle_entry(w, direction, radius)?;
         }
         Some(d)
+    }
+}
+
+impl EdgeSolver<'_> {
+    /// A lower bound of [`EdgeSolver::entry`] (same arguments): the line's entry into
+    /// the circle that holds the whole edge, `None` where it misses that circle (and so
+    /// the edge). The edge lies within it, and a circle's entry only falls as its
+    /// radius grows; one square root, no arctangent.
+    pub fn entry_bound(&self, from_pivot: DVec2, direction: DVec2, tip: DVec2) -> Option<f64> {
+        circle_entry(
+            from_pivot + self.tip_offset_mm * tip,
+            direction,
+            self.outer_radius_mm,
+        )
     }
 }
 
