@@ -139,7 +139,7 @@ pub fn branch_dexel(
         {
             continue;
         }
-        if let Some(depth) = pass_entry(scene, edge, ring_index, pose, branch) {
+        if let Some(depth) = pass_entry_below(scene, edge, ring_index, pose, branch, best.0) {
             let height = scene.spring_back.after(best.0, depth);
             if height < best.0 {
                 *best = (height, rev * PASS_ID_STRIDE + branch as u32);
@@ -209,6 +209,20 @@ pub fn pass_entry(
     pose: ToolPose,
     branch: Branch,
 ) -> Option<f64> {
+    pass_entry_below(scene, edge, ring_index, pose, branch, f64::INFINITY)
+}
+
+/// As [`pass_entry`], but `None` may also mean an entry above `height` (where the pass
+/// cannot change the sample): an edge off its circle, off centre, is not entered along
+/// the refined ray when the circle holding the whole edge is entered above `height`.
+fn pass_entry_below(
+    scene: &TurningScene,
+    edge: &EdgeSolver,
+    ring_index: usize,
+    pose: ToolPose,
+    branch: Branch,
+    height: f64,
+) -> Option<f64> {
     let ring = &scene.grid.rings[ring_index];
     match branch {
         Branch::Flank => flank_entry(scene, ring, pose),
@@ -219,6 +233,7 @@ pub fn pass_entry(
             scene.rings[ring_index].lateral_mm,
             pose,
             branch.x_sign(),
+            height,
         ),
     }
 }
@@ -226,7 +241,9 @@ pub fn pass_entry(
 /// Entry of the dexel ray into the edge of one pass. The ray lives in the sample's
 /// meridional plane; the edge in the rake plane y = y₀, where the sample's radius r
 /// appears at lateral q = √(r² − y₀²). On centre the two planes coincide; off centre the
-/// ray's image is curved, so it is linearised at the sample and once more at the hit.
+/// ray's image is curved, so it is linearised at the sample and once more at the hit
+/// (where an edge off its circle is entered only if the circle holding it is entered
+/// below `height`: above it the pass cannot change the sample).
 fn edge_entry(
     scene: &TurningScene,
     edge: &EdgeSolver,
@@ -234,6 +251,7 @@ fn edge_entry(
     lateral: f64,
     pose: ToolPose,
     sign: f64,
+    height: f64,
 ) -> Option<f64> {
     let y0 = scene.edge_plane_y_mm;
     let centre = DVec2::new(sign * pose.x_mm, pose.z_mm);
@@ -258,6 +276,13 @@ fn edge_entry(
             let slope = DVec2::new(rho * n.x / q, n.y);
             // The line through the ray's image at d with the local slope, still in d.
             let from_pivot = origin - centre + DVec2::new(shift, d * n.y) - d * slope;
+            if edge.refinements > 0
+                && edge
+                    .entry_bound(from_pivot, slope, tip)
+                    .is_none_or(|bound| bound > height + PRUNE_MARGIN_MM)
+            {
+                return None;
+            }
             d = edge.entry(from_pivot, slope, tip, sign)?;
         }
     }
