@@ -155,15 +155,14 @@ fn spacing_bands(
                 let x: Vec<f64> = picked.iter().map(|&i| m.along_mm[i].abs()).collect();
                 let order: Vec<usize> = sorted_order(&x);
                 let xs: Vec<f64> = order.iter().map(|&k| x[k]).collect();
+                // Each series with the band's share of the form removed.
                 let series = |values: &[f64]| -> Vec<f64> {
-                    order.iter().map(|&k| values[picked[k]]).collect()
+                    let y: Vec<f64> = order.iter().map(|&k| values[picked[k]]).collect();
+                    detrended_line(&xs, &y)
                 };
                 let (ym, ys) = (series(&m.height_mm), series(model));
-                let period = |y: &[f64]| {
-                    dominant_period_mm(&xs, &detrended_line(&xs, y), marks_mm / 1.6, 1.6 * marks_mm)
-                };
-                let detectable =
-                    |p: &f64| periodic_share(&xs, &detrended_line(&xs, &ym), *p) >= MIN_MARK_SHARE;
+                let period = |y: &[f64]| dominant_period_mm(&xs, y, marks_mm / 1.6, 1.6 * marks_mm);
+                let detectable = |p: &f64| periodic_share(&xs, &ym, *p) >= MIN_MARK_SHARE;
                 if let (Some(pm), Some(ps)) = (period(&ym).filter(detectable), period(&ys)) {
                     bands.push(SpacingBand {
                         radius_mm: 0.5 * (from + to),

@@ -194,11 +194,18 @@ fn bound_entry(
     branch: Branch,
 ) -> Option<f64> {
     let ring = &scene.grid.rings[ring_index];
-    let sign = branch.x_sign();
-    let centre = DVec2::new(sign * pose.x_mm, pose.z_mm);
-    let tip = tip_direction(pose.b_rad) * DVec2::new(sign, 1.0);
+    let (centre, tip) = nose_in_branch(pose, branch.x_sign());
     let origin = DVec2::new(scene.rings[ring_index].lateral_mm, ring.height_mm);
     edge.entry_bound(origin - centre, ring.normal, tip)
+}
+
+/// A pass's nose centre and tip direction in the frame of the branch of x-sign `sign`
+/// (−1: the mirrored branch, the machine's mirror image).
+fn nose_in_branch(pose: ToolPose, sign: f64) -> (DVec2, DVec2) {
+    (
+        DVec2::new(sign * pose.x_mm, pose.z_mm),
+        tip_direction(pose.b_rad) * DVec2::new(sign, 1.0),
+    )
 }
 
 /// Entry of the dexel ray of ring `ring_index` into the tool at `pose` in `branch`.
@@ -254,8 +261,7 @@ fn edge_entry(
     height: f64,
 ) -> Option<f64> {
     let y0 = scene.edge_plane_y_mm;
-    let centre = DVec2::new(sign * pose.x_mm, pose.z_mm);
-    let tip = tip_direction(pose.b_rad) * DVec2::new(sign, 1.0);
+    let (centre, tip) = nose_in_branch(pose, sign);
     let (r, n) = (ring.radius_mm, ring.normal);
     let origin = DVec2::new(lateral, ring.height_mm);
     let direction = if y0 == 0.0 {
