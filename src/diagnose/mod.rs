@@ -335,8 +335,8 @@ pub fn diagnose(
     let (stretch, stretch_sigma) = fit::fitted_stretch(final_fit);
     let mut located = located.with_fitted_scale(stretch, stretch_sigma);
     if fitted.is_line() && options.terms.shift && check.fits {
-        // The axis where the final model put it, with what the fits left open.
-        located.sigma_shift_mm[0] = problem.axis_sigma_mm(final_fit)? / located.frame.scale;
+        located.sigma_shift_mm[0] =
+            line_axis_sigma_mm(&mut problem, final_fit, &located, measurement)?;
     }
     let registration = RegistrationInfo::new(
         term_names(options.terms),
@@ -439,6 +439,27 @@ fn local_search(start: DVec2, period: f64, comb: Option<Comb>) -> ShiftSearch {
 
 /// Most teeth of an axis comb on each side.
 const MAX_TEETH: usize = 400;
+
+/// One σ of a line's axis where the final model put it: what its fit left open (the
+/// azimuth held; the comb's aliases in). On a radius whose marks placed it, the marks
+/// let the azimuth trade with the axis, which that fit cannot see: there the
+/// placement's own σ (the azimuth free) and the final fit's move from the placement
+/// (the marks alone against the whole model: model error) are added in quadrature — a
+/// move of half a mark or more is to another tooth of the comb, already in its σ.
+fn line_axis_sigma_mm(
+    problem: &mut fit::Problem,
+    final_fit: &fit::Fit,
+    located: &Located,
+    m: &Measurement,
+) -> Result<f64, DiagnoseError> {
+    let held = problem.axis_sigma_mm(final_fit)? / located.frame.scale;
+    let Some(mark) = located.marks_mm.filter(|_| !located.crosses_axis(m)) else {
+        return Ok(held);
+    };
+    let moved = final_fit.evaluation.registered.shift_mm.length() / located.frame.scale;
+    let moved = if moved < 0.5 * mark { moved } else { 0.0 };
+    Ok((held * held + located.sigma_shift_mm[0].powi(2) + moved * moved).sqrt())
+}
 
 /// The axis positions along a turned line that the placement could not tell apart
 /// (see [`Comb`]), searched by every fit: where the profile resolves the marks, every
