@@ -336,27 +336,35 @@ fn an_x3p_whose_checksum_does_not_match_is_said_on_the_console() {
     let dir = temp("x3p-md5");
     let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/measured/sample.x3p");
     let bytes = std::fs::read(&source).unwrap();
-    let archive = toolmark::io::zip::ZipArchive::parse(&bytes).unwrap();
-    let main = String::from_utf8(archive.read("main.xml").unwrap().unwrap()).unwrap();
+    let mut archive = zip::ZipArchive::new(std::io::Cursor::new(&bytes)).unwrap();
+    let mut entries: Vec<(String, Vec<u8>)> = Vec::new();
+    for k in 0..archive.len() {
+        let mut entry = archive.by_index(k).unwrap();
+        let mut data = Vec::new();
+        std::io::Read::read_to_end(&mut entry, &mut data).unwrap();
+        entries.push((entry.name().unwrap().into_owned(), data));
+    }
+    let main = entries.iter().find(|(n, _)| n == "main.xml").unwrap();
+    let main = String::from_utf8(main.1.clone()).unwrap();
     let start = main
         .find("<MD5ChecksumPointData>")
         .expect("the sample declares it")
         + "<MD5ChecksumPointData>".len();
     let mut corrupted = main.clone();
     corrupted.replace_range(start..start + 32, &"0".repeat(32));
-    let mut entries: Vec<(String, Vec<u8>)> = Vec::new();
-    for name in archive.entries.iter().map(|e| e.name.clone()) {
-        let data = archive.read(&name).unwrap().unwrap();
+    let mut zip = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
+    for (name, data) in &entries {
         let data = if name == "main.xml" {
-            corrupted.clone().into_bytes()
+            corrupted.as_bytes()
         } else {
             data
         };
-        entries.push((name, data));
+        zip.start_file(name, zip::write::SimpleFileOptions::default())
+            .unwrap();
+        std::io::Write::write_all(&mut zip, data).unwrap();
     }
-    let refs: Vec<(&str, &[u8])> = entries.iter().map(|(n, d)| (n.as_str(), &d[..])).collect();
     let path = dir.join("corrupted.x3p");
-    std::fs::write(&path, toolmark::io::zip::write_zip(&refs).unwrap()).unwrap();
+    std::fs::write(&path, zip.finish().unwrap().into_inner()).unwrap();
     let read = read_measured(&path, &ReadOptions::default()).unwrap();
     assert!(
         read.info()

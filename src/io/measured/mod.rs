@@ -30,8 +30,8 @@
 //! are a map; anything else is refused.
 //!
 //! Each format's own rules are in its module: `profile.rs` (columns), `xyz.rs`,
-//! `csv_grid.rs` and `metadata.rs` (`# key = value` sampling lines), `x3p.rs` (with
-//! `xml.rs`, and `crate::io::zip` / `crate::io::md5`), `gsf.rs`, `exr_map.rs`. Maps are
+//! `csv_grid.rs` and `metadata.rs` (`# key = value` sampling lines), `x3p.rs` (over the
+//! `zip`, `roxmltree` and `md-5` crates), `gsf.rs`, `exr_map.rs`. Maps are
 //! row-major with row j at y = y0 + j·dy in every format (the file's first row is j = 0).
 //! Writers go through `crate::io::atomic`, so a failed write leaves any old file intact.
 
@@ -43,7 +43,6 @@ mod metadata;
 mod profile;
 mod text;
 mod x3p;
-mod xml;
 mod xyz;
 
 use std::fmt;
@@ -805,15 +804,18 @@ mod tests {
             match case % 3 {
                 // Damage one entry of a zip and zip it again (past the CRC check).
                 0 if bytes.starts_with(ZIP_MAGIC) => {
-                    let archive = crate::io::zip::ZipArchive::parse(original).unwrap();
-                    let mut entries: Vec<(String, Vec<u8>)> = (archive.entries.iter())
-                        .map(|e| (e.name.clone(), archive.read_entry(e).unwrap()))
+                    let mut archive = x3p::Archive::parse(original).unwrap();
+                    let mut entries: Vec<(String, Vec<u8>)> = (archive.names().into_iter())
+                        .map(|n| {
+                            let data = archive.read(&n).unwrap().unwrap();
+                            (n, data)
+                        })
                         .collect();
                     let k = next(entries.len());
                     damage(&mut entries[k].1, &mut next);
                     let refs: Vec<(&str, &[u8])> =
                         entries.iter().map(|(n, d)| (n.as_str(), &d[..])).collect();
-                    bytes = crate::io::zip::write_zip(&refs).unwrap();
+                    bytes = x3p::write_archive(&refs).unwrap();
                 }
                 0 | 1 => damage(&mut bytes, &mut next),
                 _ => {

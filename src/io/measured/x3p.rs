@@ -14,16 +14,22 @@
 //!
 //! Written: SUR maps and PRF profiles, CX/CY incremental in metres, CZ DataType D in
 //! metres (NaN = invalid), `md5checksum.hex` holding the MD5 of `main.xml`.
+//!
+//! The codecs are crates: `zip` (the container; deflate only), `roxmltree` (main.xml)
+//! and `md-5` (the checksums). This module only adapts them: entry lookup, size and
+//! memory bounds, and errors that say which entry or line is wrong.
 
+use std::io::{Cursor, Read, Write};
 use std::path::Path;
 
-use super::xml::{self, Element};
+use md5::{Digest, Md5};
+use zip::CompressionMethod;
+use zip::result::ZipError;
+
 use super::{
     Axis, FileUnit, HeightMap, HeightProfile, LengthUnit, MeasuredError, MeasuredSurface, ReadInfo,
     ReadOptions, error, fail, in_file, resolve_pixel, resolve_unit,
 };
-use crate::io::md5::md5_hex;
-use crate::io::zip::{ZipArchive, ZipError, write_zip};
 
 const FORMAT: &str = "X3P (ISO 25178-72)";
 
@@ -134,15 +140,15 @@ fn size_at(dimension: &Element, key: &str) -> Result<usize, MeasuredError> {
 }
 
 pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<MeasuredSurface, MeasuredError> {
-    let zip_error = |e: ZipError| error(None, format!("X3P archive: {e}"));
-    let archive = ZipArchive::parse(bytes).map_err(|e| {
+    let zip_error = |e: String| error(None, format!("X3P archive: {e}"));
+    let mut archive = Archive::parse(bytes).map_err(|e| {
         error(
             None,
             format!("not a readable zip archive (an X3P file is one): {e}"),
         )
     })?;
     let Some(main) = archive.read("main.xml").map_err(zip_error)? else {
-        let names: Vec<&str> = archive.entries.iter().map(|e| e.name.as_str()).collect();
+        let names = archive.names();
         return fail(
             None,
             format!(
@@ -152,7 +158,7 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<MeasuredSurfac
         );
     };
     let text = String::from_utf8_lossy(main.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&main));
-    let root = xml::parse(&text).map_err(|e| error(None, e))?;
+    let root = parse_xml(&text).map_err(|e| error(None, e))?;
     if root.name != "ISO5436_2" {
         return fail(
             None,
@@ -406,6 +412,174 @@ fn check_md5(declared: Option<&str>, data: &[u8], what: &str, notes: &mut Vec<St
     }
 }
 
+/// The MD5 digest of `data` as 32 lower-case hex digits, as X3P files declare it.
+fn md5_hex(data: &[u8]) -> String {
+    Md5::digest(data)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------
+// The zip container
+
+/// An X3P archive read from memory with the `zip` crate.
+pub(super) struct Archive<'a>(zip::ZipArchive<Cursor<&'a [u8]>>);
+
+impl<'a> Archive<'a> {
+    pub(super) fn parse(bytes: &'a [u8]) -> Result<Archive<'a>, String> {
+        zip::ZipArchive::new(Cursor::new(bytes))
+            .map(Archive)
+            .map_err(|e| e.to_string())
+    }
+
+    /// The entries' names, in the central directory's order.
+    pub(super) fn names(&self) -> Vec<String> {
+        (self.0.file_names())
+            .map(|n| n.map_or_else(|e| format!("(unreadable name: {e})"), |n| n.into_owned()))
+            .collect()
+    }
+
+    /// The contents of `name` (exactly, else ignoring ASCII case as openGPS does; a
+    /// leading `./` dropped), checked against its declared size and CRC-32; `None` if
+    /// the archive has no such entry.
+    pub(super) fn read(&mut self, name: &str) -> Result<Option<Vec<u8>>, String> {
+        let name = name.trim_start_matches("./");
+        let index = self.0.index_for_name(name).or_else(|| {
+            (0..self.0.len()).find(|&i| {
+                (self.0.name_for_index(i))
+                    .and_then(Result::ok)
+                    .is_some_and(|n| n.eq_ignore_ascii_case(name))
+            })
+        });
+        let Some(index) = index else {
+            return Ok(None);
+        };
+        let mut entry = self.0.by_index(index).map_err(|e| match e {
+            ZipError::UnsupportedArchive(ZipError::PASSWORD_REQUIRED) => {
+                format!("`{name}` is encrypted (not supported)")
+            }
+            e => format!("`{name}`: {e}"),
+        })?;
+        let method = entry.compression();
+        if ![CompressionMethod::Stored, CompressionMethod::Deflated].contains(&method) {
+            return Err(format!(
+                "`{name}`: compression method {method} is not supported (only stored and deflate)"
+            ));
+        }
+        let size = entry.size();
+        let stored_crc = entry.crc32();
+        let mut data = Vec::new();
+        // At most the declared size (plus one byte, to tell a longer entry): the
+        // declared size bounds the memory a damaged or hostile entry can take.
+        let read = (&mut entry)
+            .take(size.saturating_add(1))
+            .read_to_end(&mut data);
+        match read {
+            // The zip crate reports a CRC-32 mismatch only as this error's text (pinned
+            // by the tests: a stored entry with one byte changed).
+            Err(e) if e.to_string() == "Invalid checksum" => Err(format!(
+                "`{name}`: CRC-32 mismatch (the archive stores {stored_crc:08x}): the archive is corrupted"
+            )),
+            Err(e) => Err(format!("`{name}`: cannot read: {e}")),
+            Ok(n) if n as u64 != size => Err(format!(
+                "`{name}`: {n} bytes where the directory says {size}"
+            )),
+            Ok(_) => Ok(Some(data)),
+        }
+    }
+}
+
+/// A zip archive holding `files` (name, contents) in order, each deflated, with a fixed
+/// timestamp (1980-01-01 00:00) so that equal inputs give equal bytes.
+pub(super) fn write_archive(files: &[(&str, &[u8])]) -> Result<Vec<u8>, String> {
+    let mut zip = zip::ZipWriter::new(Cursor::new(Vec::new()));
+    for &(name, data) in files {
+        let options = zip::write::SimpleFileOptions::default()
+            .compression_method(CompressionMethod::Deflated)
+            .last_modified_time(zip::DateTime::default())
+            .large_file(data.len() >= u32::MAX as usize);
+        (zip.start_file(name, options))
+            .and_then(|()| zip.write_all(data).map_err(ZipError::from))
+            .map_err(|e| format!("cannot write `{name}` into the X3P archive: {e}"))?;
+    }
+    zip.finish()
+        .map(Cursor::into_inner)
+        .map_err(|e| format!("cannot finish the X3P archive: {e}"))
+}
+
+// ---------------------------------------------------------------------------------------
+// main.xml
+
+/// An element of main.xml: its local name (`p:ISO5436_2` → `ISO5436_2`), its own text
+/// (not its children's, entities decoded, CDATA included) and its child elements.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct Element {
+    name: String,
+    text: String,
+    children: Vec<Element>,
+}
+
+impl Element {
+    fn child(&self, name: &str) -> Option<&Element> {
+        self.children.iter().find(|c| c.name == name)
+    }
+
+    /// The element at a path of child names, e.g. `["Record1", "FeatureType"]`.
+    fn at(&self, path: &[&str]) -> Option<&Element> {
+        path.iter().try_fold(self, |e, name| e.child(name))
+    }
+
+    /// Trimmed text of the element at `path`.
+    fn text_at(&self, path: &[&str]) -> Option<&str> {
+        self.at(path).map(|e| e.text.trim())
+    }
+}
+
+/// Deeper documents are refused (X3P needs 4 levels).
+const MAX_DEPTH: usize = 64;
+
+/// Parses main.xml (with roxmltree: well-formed XML with its namespaces declared) into
+/// its root element; errors say what is wrong and at which line.
+fn parse_xml(doc: &str) -> Result<Element, String> {
+    let line_of = |at: usize| doc[..at].matches('\n').count() + 1;
+    // roxmltree expands the entities a DTD's internal subset declares (up to 255
+    // references each, nested): a few kB could grow to gigabytes. The X3P schema
+    // declares none; a bare DOCTYPE is skipped.
+    if let Some(at) = doc.find("<!ENTITY") {
+        return Err(format!(
+            "main.xml line {}: entity declarations (a DOCTYPE internal subset) are not supported",
+            line_of(at)
+        ));
+    }
+    let options = roxmltree::ParsingOptions {
+        allow_dtd: true,
+        ..Default::default()
+    };
+    let document = roxmltree::Document::parse_with_options(doc, options)
+        .map_err(|e| format!("main.xml is not well-formed XML: {e}"))?;
+    element(document.root_element(), 0)
+}
+
+fn element(node: roxmltree::Node, depth: usize) -> Result<Element, String> {
+    if depth >= MAX_DEPTH {
+        let line = node.document().text_pos_at(node.range().start).row;
+        return Err(format!("main.xml line {line}: elements nested too deeply"));
+    }
+    let mut e = Element {
+        name: node.tag_name().name().to_string(),
+        ..Default::default()
+    };
+    for child in node.children() {
+        if child.is_element() {
+            e.children.push(element(child, depth + 1)?);
+        } else if child.is_text() {
+            e.text += child.text().unwrap_or("");
+        }
+    }
+    Ok(e)
+}
+
 // ---------------------------------------------------------------------------------------
 // Writing
 
@@ -466,12 +640,12 @@ fn write(path: &Path, layout: &Layout, height_mm: &[f64]) -> Result<(), Measured
         .collect();
     let main = main_xml(layout, &md5_hex(&data));
     let checksum = format!("{} *main.xml\n", md5_hex(main.as_bytes()));
-    let written = write_zip(&[
+    let written = write_archive(&[
         ("main.xml", main.as_bytes()),
         ("bindata/data.bin", &data),
         ("md5checksum.hex", checksum.as_bytes()),
     ])
-    .map_err(|e| error(None, e.to_string()))
+    .map_err(|e| error(None, e))
     .and_then(|zip| {
         crate::io::atomic::write_bytes_atomically(path, &zip)
             .map_err(|e| error(None, e.to_string()))
@@ -569,6 +743,123 @@ fn utc_now() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Bytes deflate cannot shrink (xorshift).
+    fn noise(n: usize) -> Vec<u8> {
+        let mut state = 0x9E37_79B9_u32;
+        (0..n)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 17;
+                state ^= state << 5;
+                (state >> 24) as u8
+            })
+            .collect()
+    }
+
+    #[test]
+    fn archives_round_trip_and_entries_are_found_as_opengps_finds_them() {
+        let text = "repetitive text ".repeat(100);
+        let noise = noise(200);
+        let files: [(&str, &[u8]); 3] = [
+            ("main.xml", text.as_bytes()),
+            ("bindata/data.bin", &noise),
+            ("empty", b""),
+        ];
+        let bytes = write_archive(&files).unwrap();
+        // Equal inputs, equal bytes (the timestamp is fixed).
+        assert_eq!(bytes, write_archive(&files).unwrap());
+        let mut archive = Archive::parse(&bytes).unwrap();
+        assert_eq!(archive.names(), ["main.xml", "bindata/data.bin", "empty"]);
+        for (name, data) in files {
+            assert_eq!(archive.read(name).unwrap().unwrap(), data, "{name}");
+        }
+        for name in ["MAIN.XML", "./main.xml"] {
+            assert_eq!(archive.read(name).unwrap().unwrap(), text.as_bytes());
+        }
+        assert_eq!(archive.read("missing").unwrap(), None);
+        assert!(Archive::parse(b"not a zip").is_err());
+        assert!(Archive::parse(&bytes[..bytes.len() - 5]).is_err());
+        // The data of the first entry damaged: reading it fails, naming it.
+        let mut damaged = bytes.clone();
+        let at = 30 + "main.xml".len();
+        damaged[at..at + 8].fill(0xA5);
+        let mut archive = Archive::parse(&damaged).unwrap();
+        let e = archive.read("main.xml").unwrap_err();
+        assert!(e.contains("`main.xml`"), "{e}");
+        assert_eq!(archive.read("empty").unwrap().unwrap(), b"");
+        // A stored entry with one byte changed fails its CRC-32, and says so.
+        let mut zip = zip::ZipWriter::new(Cursor::new(Vec::new()));
+        let stored =
+            zip::write::SimpleFileOptions::default().compression_method(CompressionMethod::Stored);
+        zip.start_file("main.xml", stored).unwrap();
+        zip.write_all(b"<a>stored</a>").unwrap();
+        let mut bytes = zip.finish().unwrap().into_inner();
+        let at = bytes.windows(6).position(|w| w == b"stored").unwrap();
+        bytes[at] = b'S';
+        let e = Archive::parse(&bytes)
+            .unwrap()
+            .read("main.xml")
+            .unwrap_err();
+        assert!(e.starts_with("`main.xml`: CRC-32 mismatch"), "{e}");
+    }
+
+    #[test]
+    fn main_xml_keeps_local_names_and_own_text() {
+        let doc = r#"<?xml version="1.0" encoding="UTF-8"?>
+<!-- a comment <Record1> that is not one -->
+<!DOCTYPE p:ISO5436_2>
+<p:ISO5436_2 xmlns:p="http://www.opengps.eu/2008/ISO5436_2" note='a > b'>
+  <Record1>
+    <FeatureType> SUR </FeatureType>
+    <p:Axes><CX><Increment>1.5e-6</Increment></CX></p:Axes>
+  </Record1>
+  <Record3><DataList><Datum>1</Datum><Datum/><Datum>&lt;3&#x41;&#66;</Datum>
+  <Datum><![CDATA[x<y]]></Datum><Datum>1<!-- split -->2</Datum></DataList></Record3>
+</p:ISO5436_2>
+"#;
+        let root = parse_xml(doc).unwrap();
+        assert_eq!(root.name, "ISO5436_2");
+        assert_eq!(root.text_at(&["Record1", "FeatureType"]), Some("SUR"));
+        let inc = root.text_at(&["Record1", "Axes", "CX", "Increment"]);
+        assert_eq!(inc, Some("1.5e-6"));
+        let data: Vec<&str> = (root.at(&["Record3", "DataList"]).unwrap().children.iter())
+            .map(|d| d.text.as_str())
+            .collect();
+        assert_eq!(data, ["1", "", "<3AB", "x<y", "12"]);
+        assert_eq!(root.at(&["Record2"]), None);
+    }
+
+    #[test]
+    fn malformed_main_xml_is_an_error_naming_it() {
+        for doc in [
+            "<a><b></a>",
+            "<a>",
+            "",
+            "<a></a><b/>",
+            "<a>&bogus;</a>",
+            "text<a/>",
+        ] {
+            let e = parse_xml(doc).unwrap_err();
+            assert!(
+                e.starts_with("main.xml is not well-formed XML: "),
+                "{doc:?}: {e}"
+            );
+        }
+        let e = parse_xml("<a>\n</b>").unwrap_err();
+        assert!(e.contains("2:"), "{e}");
+        let deep = "<a>".repeat(100) + &"</a>".repeat(100);
+        assert!(parse_xml(&deep).unwrap_err().contains("too deeply"));
+        // Entity declarations (a billion laughs, here) are refused before parsing.
+        let laughs = r#"<?xml version="1.0"?>
+<!DOCTYPE a [<!ENTITY l "lol"><!ENTITY l1 "&l;&l;&l;&l;&l;&l;&l;&l;&l;&l;">]>
+<a>&l1;</a>"#;
+        let e = parse_xml(laughs).unwrap_err();
+        assert!(
+            e.contains("line 2") && e.contains("entity declarations"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn dates_are_iso_8601() {
