@@ -15,7 +15,10 @@ use super::DiagnoseError;
 use super::fit::uncertainties;
 use super::forward::{ForwardModel, Frame, SimulatedSurface, Trace, shift_room_mm};
 use super::measurement::{Measurement, Shape};
-use super::register::{LinearTerms, ShiftSearch, Terms, fit_linear, register, trimmed_mean_square};
+use super::register::{
+    LinearTerms, ShiftSearch, Terms, fit_linear, register, trimmed_mean_of_squares,
+    trimmed_mean_square,
+};
 use super::zones::{correlation_length, gaussian_lowpass_line};
 use crate::engine::RemovalEngine;
 use crate::io::job::Job;
@@ -465,7 +468,7 @@ fn wide_scan(
     let mut minima: Vec<Start> = rows
         .par_iter()
         .flat_map_iter(|&(t, s)| {
-            let mut scratch = Vec::new();
+            let mut scratch = ScanScratch::default();
             let values: Vec<f64> = positions
                 .iter()
                 .map(|&a| points.objective(&traces[t].judged, a, s, power, &mut scratch))
@@ -655,21 +658,22 @@ impl ScanPoints {
     }
 
     /// As [`line_objective`], without allocating: the trace is walked along the
-    /// ascending positions and the linear terms solved from their 3 × 3 normal
-    /// equations (`scratch` holds the residuals).
+    /// ascending positions and the linear terms solved from their normal equations
+    /// (`scratch` holds the model and the squared residuals).
     fn objective(
         &self,
         trace: &Trace,
         along: f64,
         scale: f64,
         power: bool,
-        scratch: &mut Vec<f64>,
+        scratch: &mut ScanScratch,
     ) -> f64 {
         let width = if power { 3 } else { 2 };
         let (mut normal, mut rhs) = ([[0.0; 3]; 3], [0.0; 3]);
-        scratch.clear();
-        let mut k = 0;
-        let mut model = Vec::with_capacity(self.along.len());
+        let ScanScratch { model, squares } = scratch;
+        model.clear();
+        squares.clear();
+        let (mut k, mut used) = (0, 0);
         for (x, y) in self.along.iter().zip(&self.height) {
             let u = (x - along) * scale;
             while k + 1 < trace.x.len() && trace.x[k + 1] <= u {
@@ -683,33 +687,45 @@ impl ScanPoints {
             };
             model.push(value);
             if value.is_finite() {
+                used += 1;
                 let row = [1.0, x - self.centre, (x - along) * (x - along)];
                 let target = y - value;
                 for a in 0..width {
                     rhs[a] += row[a] * target;
-                    for b in 0..width {
+                    for b in a..width {
                         normal[a][b] += row[a] * row[b];
                     }
                 }
             }
         }
-        let used = model.iter().filter(|v| v.is_finite()).count();
         if (used as f64) < ON_PART * self.along.len() as f64 {
             return f64::INFINITY;
         }
-        let matrix: Vec<Vec<f64>> = (0..width).map(|a| normal[a][..width].to_vec()).collect();
+        let matrix: Vec<Vec<f64>> = (0..width)
+            .map(|a| (0..width).map(|b| normal[a.min(b)][a.max(b)]).collect())
+            .collect();
         let Some(c) = crate::numeric::solve_linear(&matrix, &rhs[..width]) else {
             return f64::INFINITY;
         };
-        for ((x, y), m) in self.along.iter().zip(&self.height).zip(&model) {
+        for ((x, y), m) in self.along.iter().zip(&self.height).zip(model.iter()) {
             if m.is_finite() {
                 let p = (x - along) * (x - along);
                 let fitted = c[0] + c[1] * (x - self.centre) + if power { c[2] * p } else { 0.0 };
-                scratch.push(y - m - fitted);
+                let r = y - m - fitted;
+                if r.is_finite() {
+                    squares.push(r * r);
+                }
             }
         }
-        trimmed_mean_square(scratch, 0.95)
+        trimmed_mean_of_squares(squares, 0.95)
     }
+}
+
+/// Buffers [`ScanPoints::objective`] reuses from call to call.
+#[derive(Default)]
+struct ScanScratch {
+    model: Vec<f64>,
+    squares: Vec<f64>,
 }
 
 /// Indices of the local minima of a sequence (ends count when lower than their one

@@ -347,6 +347,11 @@ pub fn trimmed_mean_square(values: &[f64], keep: f64) -> f64 {
         .filter(|v| v.is_finite())
         .map(|v| v * v)
         .collect();
+    trimmed_mean_of_squares(&mut squares, keep)
+}
+
+/// [`trimmed_mean_square`] of values already squared (and finite), reordering them.
+pub fn trimmed_mean_of_squares(squares: &mut [f64], keep: f64) -> f64 {
     if squares.is_empty() {
         return f64::INFINITY;
     }
