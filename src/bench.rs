@@ -136,7 +136,35 @@ fn load_average() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
+/// Runs every benchmark on the chosen engines and prints the tables: the host, the NumPy
+/// comparison and the default job's stages (CPU), the default job, scaling, generating
+/// and milling throughput, and the large tiled grid (`large`, GPU).
 pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
+    let mut engines = open_engines(cpu, gpu)?;
+    print_host(&engines);
+
+    if cpu && let Err(err) = numpy_comparison(&[32, 256]) {
+        println!("\n(the NumPy comparison did not run: {err})");
+    }
+
+    bench_default_job(&mut engines)?;
+
+    if cpu {
+        default_run_with_outputs(5)?;
+    }
+
+    bench_scaling(&mut engines)?;
+    bench_generating(&mut engines)?;
+    bench_milling(&mut engines)?;
+
+    if large && gpu {
+        bench_large_grid(&mut engines)?;
+    }
+    Ok(())
+}
+
+/// The engines to measure: the CPU's, then the GPU's.
+fn open_engines(cpu: bool, gpu: bool) -> Result<Vec<Box<dyn RemovalEngine>>, String> {
     let mut engines: Vec<Box<dyn RemovalEngine>> = Vec::new();
     if cpu {
         engines.push(Box::new(CpuEngine));
@@ -144,24 +172,28 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
     if gpu {
         engines.push(Box::new(GpuEngine::new().map_err(|e| e.to_string())?));
     }
+    Ok(engines)
+}
+
+/// The processor, its threads and load, and each engine's adapter.
+fn print_host(engines: &[Box<dyn RemovalEngine>]) {
     println!(
         "host: {} ({} threads), load average {}",
         processor_name(),
         std::thread::available_parallelism().map_or(1, |n| n.get()),
         load_average()
     );
-    for engine in &engines {
+    for engine in engines {
         let info = engine.info();
         println!(
             "{}: {} [{} {}] {}",
             info.kind, info.adapter, info.backend, info.device_type, info.driver
         );
     }
+}
 
-    if cpu && let Err(err) = numpy_comparison(&[32, 256]) {
-        println!("\n(the NumPy comparison did not run: {err})");
-    }
-
+/// The default job through the whole pipeline (no file output) on each engine.
+fn bench_default_job(engines: &mut [Box<dyn RemovalEngine>]) -> Result<(), String> {
     println!("\n## default job (seed-002 asphere, XZ), whole pipeline without file output");
     println!("| engine | samples | pairs | removal s | pairs/s | wall s |");
     println!("| --- | --- | --- | --- | --- | --- |");
@@ -181,11 +213,12 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
             wall
         );
     }
+    Ok(())
+}
 
-    if cpu {
-        default_run_with_outputs(5)?;
-    }
-
+/// The scaling check: a facing job 10× wider (a 10× longer spiral) must cost about the
+/// same per dexel.
+fn bench_scaling(engines: &mut [Box<dyn RemovalEngine>]) -> Result<(), String> {
     println!(
         "\n## scaling: flat facing, feed 10 µm, pitch 1 µm, 16 azimuths; aperture ×10 → spiral ×10"
     );
@@ -211,7 +244,11 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
             );
         }
     }
+    Ok(())
+}
 
+/// Generating with a toothed wheel: pass evaluations per second.
+fn bench_generating(engines: &mut [Box<dyn RemovalEngine>]) -> Result<(), String> {
     println!(
         "\n## generating with teeth: seed-000 wheel (R_t 3.5 mm, r 0.5 mm, 6 teeth, 1000 rpm on a part at 10 rpm), Ø6 mm, 5 µm × 4096 azimuths"
     );
@@ -229,7 +266,12 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
             m.seconds / m.samples as f64 * 1e9
         );
     }
+    Ok(())
+}
 
+/// Milling, every case of [`milling_cases`]: pairs per second from a second run, and the
+/// ratio to the CPU engine.
+fn bench_milling(engines: &mut [Box<dyn RemovalEngine>]) -> Result<(), String> {
     println!(
         "\n## milling: dexel–pass pairs (samples × candidate passes) per second, from a second run (the first also compiles the GPU kernel's pipeline for the tool kind and tooth model); ratio to the CPU engine in this run"
     );
@@ -259,27 +301,29 @@ pub fn run_benchmarks(cpu: bool, gpu: bool, large: bool) -> Result<(), String> {
             );
         }
     }
+    Ok(())
+}
 
-    if large && gpu {
-        // 50 001 rings × 400 azimuths × 8 bytes = 160 MB of results: more than lavapipe's
-        // 128 MiB storage binding, so the GPU engine must tile.
-        let job = facing_job(5.0, 0.2, 0.1, 400);
-        let samples = prepare_scenes(&job)[0].grid().sample_count();
+/// A grid larger than one 128 MiB storage binding on the GPU engines (tiled).
+fn bench_large_grid(engines: &mut [Box<dyn RemovalEngine>]) -> Result<(), String> {
+    // 50 001 rings × 400 azimuths × 8 bytes = 160 MB of results: more than lavapipe's
+    // 128 MiB storage binding, so the GPU engine must tile.
+    let job = facing_job(5.0, 0.2, 0.1, 400);
+    let samples = prepare_scenes(&job)[0].grid().sample_count();
+    println!(
+        "\n## large grid: {samples} samples, {:.0} MiB of dexels",
+        samples as f64 * 8.0 / 1048576.0
+    );
+    for engine in engines.iter_mut().filter(|e| e.info().kind == "gpu") {
+        let m = time_removal(engine.as_mut(), &job)?;
         println!(
-            "\n## large grid: {samples} samples, {:.0} MiB of dexels",
-            samples as f64 * 8.0 / 1048576.0
+            "{}: {} samples, {:.3e} pairs in {:.2} s ({:.3e} pairs/s), tiled",
+            engine.info().kind,
+            m.samples,
+            m.pairs as f64,
+            m.seconds,
+            m.pairs as f64 / m.seconds
         );
-        for engine in engines.iter_mut().filter(|e| e.info().kind == "gpu") {
-            let m = time_removal(engine.as_mut(), &job)?;
-            println!(
-                "{}: {} samples, {:.3e} pairs in {:.2} s ({:.3e} pairs/s), tiled",
-                engine.info().kind,
-                m.samples,
-                m.pairs as f64,
-                m.seconds,
-                m.pairs as f64 / m.seconds
-            );
-        }
     }
     Ok(())
 }

@@ -3,10 +3,11 @@
 use super::{EngineChoice, Failure, load_job, load_job_with_effects, open_engine, slug};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
+use toolmark::engine::RemovalEngine;
 use toolmark::io::job::resources;
 use toolmark::io::outputs::{prepare_output_dir, write_outputs};
 use toolmark::process::Process;
-use toolmark::run::simulate;
+use toolmark::run::{RunResult, simulate};
 
 #[derive(clap::Args, Default)]
 pub struct RunArgs {
@@ -65,6 +66,8 @@ pub fn prepare_out(out: &Path) -> Result<(), Failure> {
     Ok(())
 }
 
+/// Simulates the job (or the built-in default) on the chosen engine with a progress bar,
+/// writes every output into the output folder and prints the figures of the result.
 pub fn run(args: RunArgs) -> Result<(), Failure> {
     let job = load_job_with_effects(args.job.as_ref(), args.effects.as_ref())?;
     if args.job.is_none() {
@@ -98,6 +101,19 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     check_memory(&job, bytes)?;
     prepare_out(&out)?;
 
+    let result = simulate_with_progress(job, engine.as_mut())?;
+    let written = write_outputs(&out, &result)
+        .map_err(|err| Failure::Runtime(format!("writing outputs to {}: {err}", out.display())))?;
+    print_result(&result);
+    println!("wrote {} files to {}", written.len(), out.display());
+    Ok(())
+}
+
+/// Simulates `job` with a progress bar of the material removal, cleared when it is done.
+fn simulate_with_progress(
+    job: toolmark::io::job::Job,
+    engine: &mut dyn RemovalEngine,
+) -> Result<RunResult, Failure> {
     let bar = ProgressBar::new(0);
     bar.set_style(
         ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% {elapsed} (eta {eta})")
@@ -108,39 +124,24 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
         bar.set_length(total);
         bar.set_position(done.max(bar.position()));
     };
-    let result = simulate(job, engine.as_mut(), &progress)
-        .map_err(|err| Failure::Runtime(err.to_string()))?;
+    let result =
+        simulate(job, engine, &progress).map_err(|err| Failure::Runtime(err.to_string()))?;
     bar.finish_and_clear();
+    Ok(result)
+}
 
-    let written = write_outputs(&out, &result)
-        .map_err(|err| Failure::Runtime(format!("writing outputs to {}: {err}", out.display())))?;
+/// The grid and motion, the stage times, the deviation, the scallop, the central feature
+/// and, for a generated part, its fitted sphere.
+fn print_result(result: &RunResult) {
     let grid = result.grid();
     let t = &result.timings;
-    let motion = match &result.job.process {
-        Process::Turning(_) => format!("{:.0} spindle revolutions", result.revolutions()),
-        Process::Milling(m) => format!(
-            "{:?} path with {} passes",
-            m.setup.path,
-            result
-                .scenes
-                .iter()
-                .map(|s| match s {
-                    toolmark::engine::Scene::Milling(scene) => scene.path.passes.len(),
-                    _ => 0,
-                })
-                .sum::<usize>()
-        ),
-        Process::Generating(g) => format!(
-            "{} workpiece revolutions of spark-out, wheel {} rpm / part {} rpm",
-            g.setup.spark_out_revolutions, g.setup.tool_rpm, g.setup.workpiece_rpm
-        ),
-    };
     println!(
-        "{}: {} rings × {} azimuths = {} samples, {motion}, {:.3e} dexel–pass pairs",
+        "{}: {} rings × {} azimuths = {} samples, {}, {:.3e} dexel–pass pairs",
         result.job.name,
         grid.ring_count(),
         grid.azimuths,
         grid.sample_count(),
+        motion(result),
         result.pair_count() as f64
     );
     println!(
@@ -184,8 +185,30 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
             fit.rms_residual_nm
         );
     }
-    println!("wrote {} files to {}", written.len(), out.display());
-    Ok(())
+}
+
+/// How the tool moved: spindle revolutions (turning), the path and its passes (milling),
+/// the spark-out and speeds (generating).
+fn motion(result: &RunResult) -> String {
+    match &result.job.process {
+        Process::Turning(_) => format!("{:.0} spindle revolutions", result.revolutions()),
+        Process::Milling(m) => format!(
+            "{:?} path with {} passes",
+            m.setup.path,
+            result
+                .scenes
+                .iter()
+                .map(|s| match s {
+                    toolmark::engine::Scene::Milling(scene) => scene.path.passes.len(),
+                    _ => 0,
+                })
+                .sum::<usize>()
+        ),
+        Process::Generating(g) => format!(
+            "{} workpiece revolutions of spark-out, wheel {} rpm / part {} rpm",
+            g.setup.spark_out_revolutions, g.setup.tool_rpm, g.setup.workpiece_rpm
+        ),
+    }
 }
 
 #[derive(clap::Args)]

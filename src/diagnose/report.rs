@@ -399,220 +399,301 @@ fn nm(values: &[f64]) -> Vec<f64> {
 
 /// The images: residual plots along a line, residual maps for a raster.
 fn write_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
-    let m = &o.fitted;
-    let mut images = Vec::new();
-    match m.shape {
-        Shape::Line { .. } => {
-            let x = &m.along_mm;
-            let (before, after) = (nm(&o.residual_before_mm), nm(&o.residual_after_mm));
-            let path = dir.join("residual.png");
-            write_line_plot(
-                &path,
-                &LinePlot {
-                    title: "residual: measured − simulated (registered)",
-                    x_label: "position along the line from the axis (mm)",
-                    y_label: "residual (nm)",
-                    series: &[
-                        Series {
-                            label: "job as given",
-                            x,
-                            y: &before,
-                            colour: PALETTE[1],
-                        },
-                        Series {
-                            label: "with the fitted effects",
-                            x,
-                            y: &after,
-                            colour: PALETTE[0],
-                        },
-                    ],
-                },
-            )?;
-            images.push(("Residual before and after the fitted effects".into(), path));
-            // The surface with the part's form taken out the same way from all three.
-            let form = gaussian_lowpass(m, &o.model_before_mm, 0.25 * m.extent_mm());
-            let minus_form = |v: &[f64]| -> Vec<f64> {
-                v.iter().zip(&form).map(|(a, f)| (a - f) * 1e6).collect()
-            };
-            let (measured, model0, model1) = (
-                minus_form(&m.height_mm),
-                minus_form(&o.model_before_mm),
-                minus_form(&o.model_after_mm),
-            );
-            let path = dir.join("profile.png");
-            write_line_plot(
-                &path,
-                &LinePlot {
-                    title: "measured and simulated profile, the nominal form removed",
-                    x_label: "position along the line from the axis (mm)",
-                    y_label: "height (nm)",
-                    series: &[
-                        Series {
-                            label: "measured",
-                            x,
-                            y: &measured,
-                            colour: PALETTE[2],
-                        },
-                        Series {
-                            label: "job as given",
-                            x,
-                            y: &model0,
-                            colour: PALETTE[1],
-                        },
-                        Series {
-                            label: "with the fitted effects",
-                            x,
-                            y: &model1,
-                            colour: PALETTE[0],
-                        },
-                    ],
-                },
-            )?;
-            images.push(("Measured and simulated profiles".into(), path));
-            // The nominal residual coloured by zone.
-            let per_zone: Vec<(String, Vec<f64>, Vec<f64>)> = o
-                .zones
-                .bounds
-                .iter()
-                .enumerate()
-                .map(|(z, (name, _, _))| {
-                    let pick = |v: &[f64]| -> Vec<f64> {
-                        (0..m.len())
-                            .map(|i| if o.zone[i] == z { v[i] } else { f64::NAN })
-                            .collect()
-                    };
-                    (name.clone(), x.clone(), pick(&before))
-                })
-                .collect();
-            let series: Vec<Series> = per_zone
-                .iter()
-                .enumerate()
-                .map(|(z, (name, x, y))| Series {
-                    label: name,
+    match o.fitted.shape {
+        Shape::Line { .. } => write_line_images(dir, o),
+        Shape::Raster { nx, ny, pixel_mm } => write_raster_images(dir, o, (nx, ny), pixel_mm),
+    }
+}
+
+/// A profile's plots: the residual before and after, the profiles with the form
+/// removed, and the nominal residual by zone.
+fn write_line_images(dir: &Path, o: &Outcome) -> io::Result<Vec<(String, PathBuf)>> {
+    let x = &o.fitted.along_mm;
+    let (before, after) = (nm(&o.residual_before_mm), nm(&o.residual_after_mm));
+    Ok(vec![
+        write_residual_plot(dir, x, &before, &after)?,
+        write_profile_plot(dir, o)?,
+        write_residual_zones_plot(dir, o, &before)?,
+    ])
+}
+
+/// `residual.png`: the residual (nm) against the job as given and with the fitted effects.
+fn write_residual_plot(
+    dir: &Path,
+    x: &[f64],
+    before: &[f64],
+    after: &[f64],
+) -> io::Result<(String, PathBuf)> {
+    let path = dir.join("residual.png");
+    write_line_plot(
+        &path,
+        &LinePlot {
+            title: "residual: measured − simulated (registered)",
+            x_label: "position along the line from the axis (mm)",
+            y_label: "residual (nm)",
+            series: &[
+                Series {
+                    label: "job as given",
                     x,
-                    y,
-                    colour: PALETTE[z % PALETTE.len()],
-                })
-                .collect();
-            let path = dir.join("residual_zones.png");
-            write_line_plot(
-                &path,
-                &LinePlot {
-                    title: "residual against the job as given, by zone",
-                    x_label: "position along the line from the axis (mm)",
-                    y_label: "residual (nm)",
-                    series: &series,
+                    y: before,
+                    colour: PALETTE[1],
                 },
-            )?;
-            images.push(("Residual by zone".into(), path));
-        }
-        Shape::Raster { nx, ny, pixel_mm } => {
-            let raster = |values: &[f64], scale: f64| -> Vec<f32> {
-                let mut out = vec![f32::NAN; nx * ny];
-                for (i, &k) in m.index.iter().enumerate() {
-                    out[k] = (values[i] * scale) as f32;
-                }
-                // Row 0 is the top of an image: +Y up.
-                let mut flipped = Vec::with_capacity(out.len());
-                for row in (0..ny).rev() {
-                    flipped.extend_from_slice(&out[row * nx..(row + 1) * nx]);
-                }
-                flipped
+                Series {
+                    label: "with the fitted effects",
+                    x,
+                    y: after,
+                    colour: PALETTE[0],
+                },
+            ],
+        },
+    )?;
+    Ok(("Residual before and after the fitted effects".into(), path))
+}
+
+/// `profile.png`: the measured and simulated profiles (nm), the part's form taken out the
+/// same way from all three.
+fn write_profile_plot(dir: &Path, o: &Outcome) -> io::Result<(String, PathBuf)> {
+    let m = &o.fitted;
+    let x = &m.along_mm;
+    let form = gaussian_lowpass(m, &o.model_before_mm, 0.25 * m.extent_mm());
+    let minus_form =
+        |v: &[f64]| -> Vec<f64> { v.iter().zip(&form).map(|(a, f)| (a - f) * 1e6).collect() };
+    let (measured, model0, model1) = (
+        minus_form(&m.height_mm),
+        minus_form(&o.model_before_mm),
+        minus_form(&o.model_after_mm),
+    );
+    let path = dir.join("profile.png");
+    write_line_plot(
+        &path,
+        &LinePlot {
+            title: "measured and simulated profile, the nominal form removed",
+            x_label: "position along the line from the axis (mm)",
+            y_label: "height (nm)",
+            series: &[
+                Series {
+                    label: "measured",
+                    x,
+                    y: &measured,
+                    colour: PALETTE[2],
+                },
+                Series {
+                    label: "job as given",
+                    x,
+                    y: &model0,
+                    colour: PALETTE[1],
+                },
+                Series {
+                    label: "with the fitted effects",
+                    x,
+                    y: &model1,
+                    colour: PALETTE[0],
+                },
+            ],
+        },
+    )?;
+    Ok(("Measured and simulated profiles".into(), path))
+}
+
+/// `residual_zones.png`: the nominal residual `before` (nm) coloured by zone.
+fn write_residual_zones_plot(
+    dir: &Path,
+    o: &Outcome,
+    before: &[f64],
+) -> io::Result<(String, PathBuf)> {
+    let m = &o.fitted;
+    let x = &m.along_mm;
+    let per_zone: Vec<(String, Vec<f64>, Vec<f64>)> = o
+        .zones
+        .bounds
+        .iter()
+        .enumerate()
+        .map(|(z, (name, _, _))| {
+            let pick = |v: &[f64]| -> Vec<f64> {
+                (0..m.len())
+                    .map(|i| if o.zone[i] == z { v[i] } else { f64::NAN })
+                    .collect()
             };
-            let before = raster(&o.residual_before_mm, 1e6);
-            let after = raster(&o.residual_after_mm, 1e6);
-            let zone_values: Vec<f64> = o.zone.iter().map(|z| *z as f64).collect();
-            let zone = raster(&zone_values, 1.0);
-            let mut attributes = BTreeMap::new();
-            attributes.insert("pixel_x_mm".into(), format!("{}", pixel_mm[0]));
-            attributes.insert("pixel_y_mm".into(), format!("{}", pixel_mm[1]));
-            attributes.insert(
-                "units".into(),
-                "residuals in nm; zone = index into diagnosis.json zones".into(),
-            );
-            let path = dir.join("residual.exr");
-            write_exr(
-                &path,
-                &ExrImage {
-                    width: nx,
-                    height: ny,
-                    channels: vec![
-                        ("residual_before_nm".into(), before.clone()),
-                        ("residual_after_nm".into(), after.clone()),
-                        ("zone".into(), zone.clone()),
-                    ],
-                    attributes,
-                },
-            )?;
-            images.push((
-                "Residual maps (EXR: residual_before_nm, residual_after_nm, zone)".into(),
-                path,
-            ));
-            let limit = symmetric_limit(&before);
-            // Small maps are drawn with each pixel a block, at least 320 px across.
-            let factor = (320 / nx.max(ny)).max(1);
-            let (width, height) = ((nx * factor) as u32, (ny * factor) as u32);
-            let (before, after, zone) = (
-                enlarged(&before, nx, factor),
-                enlarged(&after, nx, factor),
-                enlarged(&zone, nx, factor),
-            );
-            for (name, values, title) in [
-                (
-                    "residual_before.png",
-                    &before,
-                    "residual against the job as given",
-                ),
-                (
-                    "residual_after.png",
-                    &after,
-                    "residual with the fitted effects",
-                ),
-            ] {
-                let valid: Vec<bool> = values.iter().map(|v| v.is_finite()).collect();
-                let footer = format!(
-                    "RMS {:.1} nm  (same colour scale on both maps)",
-                    super::zones::rms(&values.iter().map(|v| *v as f64).collect::<Vec<_>>())
-                );
-                let path = dir.join(name);
-                write_false_colour_png(
-                    &path,
-                    &FalseColourPlot {
-                        values,
-                        valid: &valid,
-                        width,
-                        height,
-                        range: (-limit, limit),
-                        colour_map: ColourMap::Diverging,
-                        title,
-                        unit_label: "residual (nm)",
-                        footer: &footer,
-                    },
-                    &[],
-                )?;
-                images.push((title.to_string(), path));
-            }
-            let valid: Vec<bool> = zone.iter().map(|v| v.is_finite()).collect();
-            let path = dir.join("zones.png");
-            write_false_colour_png(
-                &path,
-                &FalseColourPlot {
-                    values: &zone,
-                    valid: &valid,
-                    width,
-                    height,
-                    range: (0.0, (o.zones.bounds.len() - 1) as f32),
-                    colour_map: ColourMap::Sequential,
-                    title: "radial zones: centre, annuli, rim",
-                    unit_label: "zone",
-                    footer: "0 = centre … last = rim",
-                },
-                &[],
-            )?;
-            images.push(("Zones".into(), path));
-        }
+            (name.clone(), x.clone(), pick(before))
+        })
+        .collect();
+    let series: Vec<Series> = per_zone
+        .iter()
+        .enumerate()
+        .map(|(z, (name, x, y))| Series {
+            label: name,
+            x,
+            y,
+            colour: PALETTE[z % PALETTE.len()],
+        })
+        .collect();
+    let path = dir.join("residual_zones.png");
+    write_line_plot(
+        &path,
+        &LinePlot {
+            title: "residual against the job as given, by zone",
+            x_label: "position along the line from the axis (mm)",
+            y_label: "residual (nm)",
+            series: &series,
+        },
+    )?;
+    Ok(("Residual by zone".into(), path))
+}
+
+/// A map's images: the residual maps and zones as one EXR, then as PNGs (each pixel a
+/// block on small maps) the residuals before and after on one colour scale, and the zones.
+fn write_raster_images(
+    dir: &Path,
+    o: &Outcome,
+    (nx, ny): (usize, usize),
+    pixel_mm: [f64; 2],
+) -> io::Result<Vec<(String, PathBuf)>> {
+    let raster = |values: &[f64], scale: f64| image_rows(&o.fitted, values, scale, (nx, ny));
+    let before = raster(&o.residual_before_mm, 1e6);
+    let after = raster(&o.residual_after_mm, 1e6);
+    let zone_values: Vec<f64> = o.zone.iter().map(|z| *z as f64).collect();
+    let zone = raster(&zone_values, 1.0);
+    let mut images = vec![write_residual_exr(
+        dir,
+        (nx, ny),
+        pixel_mm,
+        [&before, &after, &zone],
+    )?];
+    let limit = symmetric_limit(&before);
+    // Small maps are drawn with each pixel a block, at least 320 px across.
+    let factor = (320 / nx.max(ny)).max(1);
+    let size = ((nx * factor) as u32, (ny * factor) as u32);
+    let (before, after, zone) = (
+        enlarged(&before, nx, factor),
+        enlarged(&after, nx, factor),
+        enlarged(&zone, nx, factor),
+    );
+    images.extend(write_residual_pngs(dir, [&before, &after], size, limit)?);
+    images.push(write_zones_png(dir, &zone, size, o.zones.bounds.len())?);
+    Ok(images)
+}
+
+/// `values` (one per point of `m`, times `scale`) on the `nx` × `ny` raster as an image's
+/// rows, row 0 at the top (+Y up); NaN where no point lies.
+fn image_rows(m: &Measurement, values: &[f64], scale: f64, (nx, ny): (usize, usize)) -> Vec<f32> {
+    let mut out = vec![f32::NAN; nx * ny];
+    for (i, &k) in m.index.iter().enumerate() {
+        out[k] = (values[i] * scale) as f32;
+    }
+    // Row 0 is the top of an image: +Y up.
+    let mut flipped = Vec::with_capacity(out.len());
+    for row in (0..ny).rev() {
+        flipped.extend_from_slice(&out[row * nx..(row + 1) * nx]);
+    }
+    flipped
+}
+
+/// `residual.exr`: the residuals before and after (nm) and the zone index, as channels.
+fn write_residual_exr(
+    dir: &Path,
+    (nx, ny): (usize, usize),
+    pixel_mm: [f64; 2],
+    [before, after, zone]: [&[f32]; 3],
+) -> io::Result<(String, PathBuf)> {
+    let mut attributes = BTreeMap::new();
+    attributes.insert("pixel_x_mm".into(), format!("{}", pixel_mm[0]));
+    attributes.insert("pixel_y_mm".into(), format!("{}", pixel_mm[1]));
+    attributes.insert(
+        "units".into(),
+        "residuals in nm; zone = index into diagnosis.json zones".into(),
+    );
+    let path = dir.join("residual.exr");
+    write_exr(
+        &path,
+        &ExrImage {
+            width: nx,
+            height: ny,
+            channels: vec![
+                ("residual_before_nm".into(), before.to_vec()),
+                ("residual_after_nm".into(), after.to_vec()),
+                ("zone".into(), zone.to_vec()),
+            ],
+            attributes,
+        },
+    )?;
+    Ok((
+        "Residual maps (EXR: residual_before_nm, residual_after_nm, zone)".into(),
+        path,
+    ))
+}
+
+/// `residual_before.png` and `residual_after.png`: the residual maps (nm) on the same
+/// diverging scale, ±`limit`.
+fn write_residual_pngs(
+    dir: &Path,
+    [before, after]: [&[f32]; 2],
+    (width, height): (u32, u32),
+    limit: f32,
+) -> io::Result<Vec<(String, PathBuf)>> {
+    let mut images = Vec::new();
+    for (name, values, title) in [
+        (
+            "residual_before.png",
+            before,
+            "residual against the job as given",
+        ),
+        (
+            "residual_after.png",
+            after,
+            "residual with the fitted effects",
+        ),
+    ] {
+        let valid: Vec<bool> = values.iter().map(|v| v.is_finite()).collect();
+        let footer = format!(
+            "RMS {:.1} nm  (same colour scale on both maps)",
+            super::zones::rms(&values.iter().map(|v| *v as f64).collect::<Vec<_>>())
+        );
+        let path = dir.join(name);
+        write_false_colour_png(
+            &path,
+            &FalseColourPlot {
+                values,
+                valid: &valid,
+                width,
+                height,
+                range: (-limit, limit),
+                colour_map: ColourMap::Diverging,
+                title,
+                unit_label: "residual (nm)",
+                footer: &footer,
+            },
+            &[],
+        )?;
+        images.push((title.to_string(), path));
     }
     Ok(images)
+}
+
+/// `zones.png`: each pixel's radial zone, 0 (centre) to `zone_count` − 1 (rim).
+fn write_zones_png(
+    dir: &Path,
+    zone: &[f32],
+    (width, height): (u32, u32),
+    zone_count: usize,
+) -> io::Result<(String, PathBuf)> {
+    let valid: Vec<bool> = zone.iter().map(|v| v.is_finite()).collect();
+    let path = dir.join("zones.png");
+    write_false_colour_png(
+        &path,
+        &FalseColourPlot {
+            values: zone,
+            valid: &valid,
+            width,
+            height,
+            range: (0.0, (zone_count - 1) as f32),
+            colour_map: ColourMap::Sequential,
+            title: "radial zones: centre, annuli, rim",
+            unit_label: "zone",
+            footer: "0 = centre … last = rim",
+        },
+        &[],
+    )?;
+    Ok(("Zones".into(), path))
 }
 
 /// A row-major raster `nx` wide with each value repeated into a `factor` × `factor` block.
@@ -645,6 +726,22 @@ fn symmetric_limit(values: &[f32]) -> f32 {
 
 /// The readable report: the verdict first, then the tables and images.
 pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
+    let mut s = md_verdict(d);
+    s += &md_shrinkage(d);
+    s += &md_candidates(d);
+    s += &md_residual(d);
+    s += &md_registration(d);
+    s += &md_measurement(d);
+    s += &md_images(images);
+    s += &format!(
+        "\n---\n{} simulations on the {} engine, {:.1} s of removal, {:.1} s in all. Schema `{}`.\n",
+        d.run.simulations, d.run.engine, d.run.removal_s, d.run.total_s, d.schema
+    );
+    s
+}
+
+/// The title, the verdict sentence and the advice at the machine.
+fn md_verdict(d: &Diagnosis) -> String {
     let mut s = String::new();
     let file = if d.measurement.file.is_empty() {
         "the measurement"
@@ -660,6 +757,13 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
         }
         s += "\n";
     }
+    s
+}
+
+/// How far the residual shrinks model by model (overall and per zone), and the
+/// held-out check.
+fn md_shrinkage(d: &Diagnosis) -> String {
+    let mut s = String::new();
     if !d.shrinkage.is_empty() {
         s += "## How far the residual shrinks\n\n| model | PV (nm) | RMS (nm) |";
         let zone_names: Vec<&str> = d.shrinkage[0]
@@ -697,6 +801,13 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
             h.after_rms_nm
         );
     }
+    s
+}
+
+/// The candidates each fitted alone, those the data cannot tell apart, and those not
+/// fitted.
+fn md_candidates(d: &Diagnosis) -> String {
+    let mut s = String::new();
     if !d.candidates.is_empty() {
         s += "## Candidates (each fitted alone)\n\n| rank | effect | fitted | explained | ΔBIC | accepted |\n|---|---|---|---|---|---|\n";
         for c in &d.candidates {
@@ -726,6 +837,13 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
     for n in &d.not_diagnosable {
         s += &format!("Not fitted: `{}` — {}.\n\n", n.effect, n.reason);
     }
+    s
+}
+
+/// Where the nominal residual lies: by zone, by wavelength band, by azimuthal order; then
+/// the noise level and correlation length before and after.
+fn md_residual(d: &Diagnosis) -> String {
+    let mut s = String::new();
     s += "## Where the residual lies (against the job as given)\n\n| zone | radii (mm) | points | PV (nm) | RMS (nm) | share |\n|---|---|---|---|---|---|\n";
     for z in &d.residual_before.zones {
         s += &format!(
@@ -768,6 +886,12 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
         d.residual_before.correlation_length_points,
         d.residual_after.correlation_length_points
     );
+    s
+}
+
+/// What registration removed, against the job as given and with the fitted effects.
+fn md_registration(d: &Diagnosis) -> String {
+    let mut s = String::new();
     let r = &d.registration;
     s += &format!(
         "## Registration\n\nRemoved: {}. Against the job as given: piston {:.1} nm, tilt {:.2} / {:.2} µrad{}, axis at ({:.2}, {:.2}) µm in the measurement's frame. With the fitted effects: axis at ({:.2}, {:.2}) µm.\n\n",
@@ -783,6 +907,12 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
         r.fitted.axis_at_um[0],
         r.fitted.axis_at_um[1]
     );
+    s
+}
+
+/// The measurement's points, extent and units, its notes and the fit check's findings.
+fn md_measurement(d: &Diagnosis) -> String {
+    let mut s = String::new();
     let m = &d.measurement;
     s += &format!(
         "## Measurement\n\n{} ({}): {} points, {} valid, {} on the part, {} fitted; extent {:.4} mm, spacing {:.3} µm; lateral unit {}, height unit {}.\n",
@@ -803,6 +933,12 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
     for f in &d.fit_check.findings {
         s += &format!("- fit check ({}): {}\n", f.severity, f.message);
     }
+    s
+}
+
+/// The images: PNGs inline, other files by name.
+fn md_images(images: &[(String, PathBuf)]) -> String {
+    let mut s = String::new();
     s += "\n## Images\n\n";
     for (title, path) in images {
         let name = path
@@ -814,9 +950,5 @@ pub fn markdown(d: &Diagnosis, images: &[(String, PathBuf)]) -> String {
             s += &format!("- {title}: `{name}`\n");
         }
     }
-    s += &format!(
-        "\n---\n{} simulations on the {} engine, {:.1} s of removal, {:.1} s in all. Schema `{}`.\n",
-        d.run.simulations, d.run.engine, d.run.removal_s, d.run.total_s, d.schema
-    );
     s
 }

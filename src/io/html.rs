@@ -504,19 +504,43 @@ pub fn write_diagnosis_html(out_dir: &Path, diagnosis: &Value) -> io::Result<Pat
     )
 }
 
+/// The diagnosis report's sections in reading order, after its verdict.
 fn diagnosis_sections(dir: &Path, d: &Value) -> Vec<Section> {
     let mut sections = Vec::new();
-    if let Some(advice) = get(d, "/verdict/advice")
+    sections.extend(advice_section(d));
+    sections.push(gap_section(dir, d));
+    sections.extend(comparison_section(d));
+    sections.push(effects_section(d));
+    sections.push(shrinkage_section(d));
+    // Registration, fit check, measurement, run.
+    sections.push(registration_section(d));
+    sections.push(Section::new(
+        "Does the data fit the job",
+        key_values(&strip_arrays(get(d, "/fit_check"))),
+    ));
+    sections.push(Section::new(
+        "Measurement",
+        key_values(get(d, "/measurement")),
+    ));
+    sections.push(Section::new("Run", key_values(get(d, "/run"))));
+    sections
+}
+
+/// "What to do": the verdict's advice as a list, when it has any.
+fn advice_section(d: &Value) -> Option<Section> {
+    let advice = get(d, "/verdict/advice")
         .as_array()
-        .filter(|a| !a.is_empty())
-    {
-        let list: String = advice
-            .iter()
-            .map(|a| format!("<li>{}</li>", escape(&format_value(a))))
-            .collect();
-        sections.push(Section::new("What to do", format!("<ul>{list}</ul>")));
-    }
-    // Where the gap lies: overall, per zone, per band, per azimuthal order.
+        .filter(|a| !a.is_empty())?;
+    let list: String = advice
+        .iter()
+        .map(|a| format!("<li>{}</li>", escape(&format_value(a))))
+        .collect();
+    Some(Section::new("What to do", format!("<ul>{list}</ul>")))
+}
+
+/// Where the gap lies: overall, per zone, per band, per azimuthal order, before and after
+/// the accepted effects, then the diagnosis's figures.
+fn gap_section(dir: &Path, d: &Value) -> Section {
     let mut gap = String::new();
     for (key, label) in [
         ("residual_before", "against the job as given"),
@@ -566,15 +590,23 @@ fn diagnosis_sections(dir: &Path, d: &Value) -> Vec<Section> {
             ("zones.png", "Zones"),
         ],
     ));
-    sections.push(Section::new("Where the gap lies", gap));
-    // Measured against simulated (new blocks shown when present).
+    Section::new("Where the gap lies", gap)
+}
+
+/// Measured against simulated, when the document has the block (new blocks shown when
+/// present).
+fn comparison_section(d: &Value) -> Option<Section> {
     let comparison = get(d, "/comparison");
-    if !comparison.is_null() {
-        let mut html = key_values(&strip_arrays(comparison));
-        html.push_str(&table(get(comparison, "/mark_spacing")));
-        sections.push(Section::new("Measured against simulated", html));
+    if comparison.is_null() {
+        return None;
     }
-    // Which effects were tried and accepted.
+    let mut html = key_values(&strip_arrays(comparison));
+    html.push_str(&table(get(comparison, "/mark_spacing")));
+    Some(Section::new("Measured against simulated", html))
+}
+
+/// Which effects were accepted and tried, and those not diagnosable or indistinguishable.
+fn effects_section(d: &Value) -> Section {
     let mut effects = String::new();
     for (key, title) in [("accepted", "Accepted"), ("candidates", "Tried")] {
         if let Some(list) = get(d, &format!("/{key}"))
@@ -590,11 +622,12 @@ fn diagnosis_sections(dir: &Path, d: &Value) -> Vec<Section> {
             let _ = write!(effects, "<h3>{}</h3>{}", key.replace('_', " "), table(rows));
         }
     }
-    sections.push(Section::new(
-        "Effects tried and accepted (value ± σ)",
-        effects,
-    ));
-    // How far the residual shrank, and the held-out check.
+    Section::new("Effects tried and accepted (value ± σ)", effects)
+}
+
+/// How far the residual shrank, and the held-out check (an object's known fields in a
+/// sentence, the rest listed; an array as a table).
+fn shrinkage_section(d: &Value) -> Section {
     let mut shrink = table(get(d, "/shrinkage"));
     let held_out = get(d, "/held_out");
     if held_out.is_object() {
@@ -624,8 +657,11 @@ fn diagnosis_sections(dir: &Path, d: &Value) -> Vec<Section> {
     } else if held_out.is_array() {
         shrink.push_str(&table(held_out));
     }
-    sections.push(Section::new("How far the residual shrank", shrink));
-    // Registration, fit check, measurement, run.
+    Section::new("How far the residual shrank", shrink)
+}
+
+/// The registration found, then the fit check's findings as warnings.
+fn registration_section(d: &Value) -> Section {
     let mut registration = key_values(get(d, "/registration"));
     for finding in get(d, "/fit_check/findings")
         .as_array()
@@ -639,17 +675,7 @@ fn diagnosis_sections(dir: &Path, d: &Value) -> Vec<Section> {
             escape(&format_value(get(finding, "/message")))
         );
     }
-    sections.push(Section::new("Registration found", registration));
-    sections.push(Section::new(
-        "Does the data fit the job",
-        key_values(&strip_arrays(get(d, "/fit_check"))),
-    ));
-    sections.push(Section::new(
-        "Measurement",
-        key_values(get(d, "/measurement")),
-    ));
-    sections.push(Section::new("Run", key_values(get(d, "/run"))));
-    sections
+    Section::new("Registration found", registration)
 }
 
 /// The effects list: label, the parameters as value ± σ with units, ΔBIC, explained.

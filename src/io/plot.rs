@@ -70,41 +70,81 @@ fn draw_line(canvas: &mut RgbImage, (x0, y0): (f64, f64), (x1, y1): (f64, f64), 
     }
 }
 
-pub fn write_line_plot(path: &Path, plot: &LinePlot) -> io::Result<()> {
-    let bounds = |values: &dyn Fn(&Series) -> Vec<f64>| {
-        plot.series
-            .iter()
-            .flat_map(values)
-            .filter(|v| v.is_finite())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                (lo.min(v), hi.max(v))
-            })
-    };
-    let (x_lo, x_hi) = display_range_f64(bounds(&|s| s.x.to_vec()));
-    let (y_lo, y_hi) = {
-        let (lo, hi) = bounds(&|s| s.y.to_vec());
-        let pad = 0.05 * (hi - lo);
-        display_range_f64((lo - pad, hi + pad))
-    };
-    let mut canvas = RgbImage::from_pixel(WIDTH, HEIGHT, Rgb([255, 255, 255]));
-    let (plot_w, plot_h) = (
-        (WIDTH - LEFT - RIGHT) as f64,
-        (HEIGHT - TOP - BOTTOM) as f64,
-    );
-    let to_px = |x: f64, y: f64| {
-        (
-            LEFT as f64 + (x - x_lo) / (x_hi - x_lo) * plot_w,
-            TOP as f64 + (y_hi - y) / (y_hi - y_lo) * plot_h,
-        )
-    };
+/// Text lines of axis labels, ticks and the legend, at scale 2 (image pixels).
+const LABEL_HEIGHT: u32 = GLYPH_HEIGHT * 2;
 
-    let (x_ticks, x_step) = nice_ticks(x_lo, x_hi);
-    let (y_ticks, y_step) = nice_ticks(y_lo, y_hi);
-    let label_height = GLYPH_HEIGHT * 2;
+/// Draws `plot` and writes it as an RGB PNG at `path`.
+pub fn write_line_plot(path: &Path, plot: &LinePlot) -> io::Result<()> {
+    let axes = Axes::of(plot.series);
+    let mut canvas = RgbImage::from_pixel(WIDTH, HEIGHT, Rgb([255, 255, 255]));
+    draw_ticks(&mut canvas, &axes);
+    draw_frame_and_labels(&mut canvas, plot);
+    draw_series(&mut canvas, &axes, plot.series);
+    draw_legend(&mut canvas, plot.series);
+    write_png(
+        path,
+        (WIDTH, HEIGHT),
+        (png::ColorType::Rgb, png::BitDepth::Eight),
+        canvas.as_raw(),
+        &[],
+    )
+}
+
+/// The data ranges the plot area shows.
+struct Axes {
+    x_lo: f64,
+    x_hi: f64,
+    y_lo: f64,
+    y_hi: f64,
+}
+
+impl Axes {
+    /// Display ranges holding every finite value of `series`, y padded by 5 % each way.
+    fn of(series: &[Series]) -> Self {
+        let bounds = |values: &dyn Fn(&Series) -> Vec<f64>| {
+            series
+                .iter()
+                .flat_map(values)
+                .filter(|v| v.is_finite())
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                    (lo.min(v), hi.max(v))
+                })
+        };
+        let (x_lo, x_hi) = display_range_f64(bounds(&|s| s.x.to_vec()));
+        let (y_lo, y_hi) = {
+            let (lo, hi) = bounds(&|s| s.y.to_vec());
+            let pad = 0.05 * (hi - lo);
+            display_range_f64((lo - pad, hi + pad))
+        };
+        Self {
+            x_lo,
+            x_hi,
+            y_lo,
+            y_hi,
+        }
+    }
+
+    /// The canvas position (px) of the data point (x, y).
+    fn to_px(&self, x: f64, y: f64) -> (f64, f64) {
+        let (plot_w, plot_h) = (
+            (WIDTH - LEFT - RIGHT) as f64,
+            (HEIGHT - TOP - BOTTOM) as f64,
+        );
+        (
+            LEFT as f64 + (x - self.x_lo) / (self.x_hi - self.x_lo) * plot_w,
+            TOP as f64 + (self.y_hi - y) / (self.y_hi - self.y_lo) * plot_h,
+        )
+    }
+}
+
+/// The grid lines at the ticks of both axes, each with its labelled value.
+fn draw_ticks(canvas: &mut RgbImage, axes: &Axes) {
+    let (x_ticks, x_step) = nice_ticks(axes.x_lo, axes.x_hi);
+    let (y_ticks, y_step) = nice_ticks(axes.y_lo, axes.y_hi);
     for &x in &x_ticks {
-        let (px, _) = to_px(x, y_lo);
+        let (px, _) = axes.to_px(x, axes.y_lo);
         draw_line(
-            &mut canvas,
+            canvas,
             (px, TOP as f64),
             (px, (HEIGHT - BOTTOM) as f64),
             GRID,
@@ -112,7 +152,7 @@ pub fn write_line_plot(path: &Path, plot: &LinePlot) -> io::Result<()> {
         let text = format_tick(x, x_step);
         let w = text_width(&text, 2) as f64;
         draw_text(
-            &mut canvas,
+            canvas,
             (px - w / 2.0) as i32,
             (HEIGHT - BOTTOM + 8) as i32,
             &text,
@@ -121,9 +161,9 @@ pub fn write_line_plot(path: &Path, plot: &LinePlot) -> io::Result<()> {
         );
     }
     for &y in &y_ticks {
-        let (_, py) = to_px(x_lo, y);
+        let (_, py) = axes.to_px(axes.x_lo, y);
         draw_line(
-            &mut canvas,
+            canvas,
             (LEFT as f64, py),
             ((WIDTH - RIGHT) as f64, py),
             GRID,
@@ -131,15 +171,18 @@ pub fn write_line_plot(path: &Path, plot: &LinePlot) -> io::Result<()> {
         let text = format_tick(y, y_step);
         let w = text_width(&text, 2) as i32;
         draw_text(
-            &mut canvas,
+            canvas,
             LEFT as i32 - 8 - w,
-            (py - label_height as f64 / 2.0) as i32,
+            (py - LABEL_HEIGHT as f64 / 2.0) as i32,
             &text,
             2,
             INK,
         );
     }
-    // Frame, title, axis labels.
+}
+
+/// The plot area's frame, the title (smaller when it would not fit) and the axis labels.
+fn draw_frame_and_labels(canvas: &mut RgbImage, plot: &LinePlot) {
     let (left, right, top, bottom) = (
         LEFT as f64,
         (WIDTH - RIGHT) as f64,
@@ -152,71 +195,64 @@ pub fn write_line_plot(path: &Path, plot: &LinePlot) -> io::Result<()> {
         ((left, top), (left, bottom)),
         ((right, top), (right, bottom)),
     ] {
-        draw_line(&mut canvas, a, b, INK);
+        draw_line(canvas, a, b, INK);
     }
     let title_scale = if text_width(plot.title, 3) + LEFT < WIDTH {
         3
     } else {
         2
     };
-    draw_text(&mut canvas, LEFT as i32, 10, plot.title, title_scale, INK);
+    draw_text(canvas, LEFT as i32, 10, plot.title, title_scale, INK);
     draw_text(
-        &mut canvas,
+        canvas,
         8,
-        TOP as i32 - label_height as i32 - 6,
+        TOP as i32 - LABEL_HEIGHT as i32 - 6,
         plot.y_label,
         2,
         INK,
     );
     let x_label_w = text_width(plot.x_label, 2) as i32;
     draw_text(
-        &mut canvas,
+        canvas,
         (WIDTH as i32 - x_label_w) / 2,
-        (HEIGHT - label_height - 8) as i32,
+        (HEIGHT - LABEL_HEIGHT - 8) as i32,
         plot.x_label,
         2,
         INK,
     );
+}
 
-    for series in plot.series {
+/// Each series as a polyline through its finite points, in its colour.
+fn draw_series(canvas: &mut RgbImage, axes: &Axes, series: &[Series]) {
+    for series in series {
         let points: Vec<(f64, f64)> = series
             .x
             .iter()
             .zip(series.y)
             .filter(|(x, y)| x.is_finite() && y.is_finite())
-            .map(|(&x, &y)| to_px(x, y))
+            .map(|(&x, &y)| axes.to_px(x, y))
             .collect();
         for pair in points.windows(2) {
-            draw_line(&mut canvas, pair[0], pair[1], series.colour);
+            draw_line(canvas, pair[0], pair[1], series.colour);
         }
     }
-    // Legend: one row between the title and the frame.
+}
+
+/// The legend: one row between the title and the frame, a coloured stroke and the label
+/// of each series.
+fn draw_legend(canvas: &mut RgbImage, series: &[Series]) {
     let mut x = LEFT as f64;
     let y = 44.0;
-    for series in plot.series {
+    for series in series {
         draw_line(
-            &mut canvas,
-            (x, y + label_height as f64 / 2.0),
-            (x + 22.0, y + label_height as f64 / 2.0),
+            canvas,
+            (x, y + LABEL_HEIGHT as f64 / 2.0),
+            (x + 22.0, y + LABEL_HEIGHT as f64 / 2.0),
             series.colour,
         );
-        draw_text(
-            &mut canvas,
-            (x + 28.0) as i32,
-            y as i32,
-            series.label,
-            2,
-            INK,
-        );
+        draw_text(canvas, (x + 28.0) as i32, y as i32, series.label, 2, INK);
         x += 28.0 + text_width(series.label, 2) as f64 + 24.0;
     }
-    write_png(
-        path,
-        (WIDTH, HEIGHT),
-        (png::ColorType::Rgb, png::BitDepth::Eight),
-        canvas.as_raw(),
-        &[],
-    )
 }
 
 #[cfg(test)]

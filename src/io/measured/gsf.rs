@@ -13,37 +13,96 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::{
-    Axis, FileUnit, HeightMap, LengthUnit, MeasuredError, ReadInfo, ReadOptions, fail,
+    Axis, FileUnit, HeightMap, LengthUnit, MeasuredError, ReadInfo, ReadOptions, UnitSource, fail,
     resolve_pixel, resolve_unit,
 };
 
 const MAGIC_LINE: &str = "Gwyddion Simple Field 1.0";
 
+/// Reads a GSF file: the header's counts, units and sampling, then the heights.
 pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<HeightMap, MeasuredError> {
-    let Some(header_len) = bytes.iter().position(|&b| b == 0) else {
-        return fail(
-            None,
-            "GSF header not terminated: no NUL byte before the data",
-        );
+    let (header_len, header) = Header::parse(bytes)?;
+    let (nx, ny) = (header.count("XRes")?, header.count("YRes")?);
+    let data_start = data_start(bytes, header_len, (nx, ny))?;
+
+    let (z_unit, z_source) = resolve_unit(
+        Axis::Height,
+        header.unit("ZUnits")?,
+        options,
+        "a ZUnits line",
+    )?;
+    let (xy_real, xy_offset) = (
+        [header.real("XReal")?, header.real("YReal")?],
+        [header.real("XOffset")?, header.real("YOffset")?],
+    );
+    // Lengths in the header need the lateral unit; without them it is not needed.
+    let needs_lateral = xy_real.iter().chain(&xy_offset).any(Option::is_some);
+    let lateral = lateral_unit(&header, needs_lateral, options)?;
+    let file_pixel = file_pixel(xy_real, lateral, (nx, ny))?;
+    let (pixel, pixel_source) = resolve_pixel(file_pixel, options, "XReal and YReal lines")?;
+    let mut notes = Vec::new();
+    let offset = |k: usize| match (xy_offset[k], lateral) {
+        (Some(v), Some((u, _))) => u.to_mm(v),
+        _ => 0.0,
     };
-    let header = String::from_utf8_lossy(&bytes[..header_len]);
-    let mut lines = header.lines().enumerate();
-    match lines.next() {
-        Some((_, first)) if first.trim_end() == MAGIC_LINE => {}
-        _ => return fail(Some(1), format!("the first line must be `{MAGIC_LINE}`")),
+    if xy_offset.iter().any(Option::is_none) {
+        notes.push("no XOffset/YOffset: the field's corner taken at 0".to_string());
     }
-    let mut keys = BTreeMap::new();
-    for (i, line) in lines {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let Some((key, value)) = line.split_once('=') else {
-            return fail(Some(i + 1), format!("`{line}` is not a `Key = Value` line"));
+    let origin = [offset(0) + 0.5 * pixel[0], offset(1) + 0.5 * pixel[1]];
+    let (lateral_unit, lateral_source) = match (lateral, pixel_source) {
+        (Some(l), _) => l,
+        (None, source) => (LengthUnit::Millimetre, source),
+    };
+    let height = heights_mm(&bytes[data_start..], z_unit);
+    let info = ReadInfo {
+        format: "GSF".into(),
+        lateral_unit,
+        lateral_unit_source: lateral_source,
+        height_unit: z_unit,
+        height_unit_source: z_source,
+        invalid_points: 0,
+        notes,
+    };
+    HeightMap::new((nx, ny), origin, pixel, height, info)
+}
+
+/// The header's `Key = Value` lines: each value (trimmed) with its line number.
+struct Header {
+    keys: BTreeMap<String, (String, usize)>,
+}
+
+impl Header {
+    /// The header's length (up to its first NUL) and its lines, the first checked to be
+    /// the magic line.
+    fn parse(bytes: &[u8]) -> Result<(usize, Self), MeasuredError> {
+        let Some(header_len) = bytes.iter().position(|&b| b == 0) else {
+            return fail(
+                None,
+                "GSF header not terminated: no NUL byte before the data",
+            );
         };
-        keys.insert(key.trim().to_string(), (value.trim().to_string(), i + 1));
+        let header = String::from_utf8_lossy(&bytes[..header_len]);
+        let mut lines = header.lines().enumerate();
+        match lines.next() {
+            Some((_, first)) if first.trim_end() == MAGIC_LINE => {}
+            _ => return fail(Some(1), format!("the first line must be `{MAGIC_LINE}`")),
+        }
+        let mut keys = BTreeMap::new();
+        for (i, line) in lines {
+            if line.trim().is_empty() {
+                continue;
+            }
+            let Some((key, value)) = line.split_once('=') else {
+                return fail(Some(i + 1), format!("`{line}` is not a `Key = Value` line"));
+            };
+            keys.insert(key.trim().to_string(), (value.trim().to_string(), i + 1));
+        }
+        Ok((header_len, Self { keys }))
     }
-    let count = |key: &str| -> Result<usize, MeasuredError> {
-        match keys.get(key) {
+
+    /// A required pixel count (`XRes`, `YRes`): a positive integer.
+    fn count(&self, key: &str) -> Result<usize, MeasuredError> {
+        match self.keys.get(key) {
             None => fail(
                 None,
                 format!("the header has no {key} (XRes and YRes are required)"),
@@ -56,18 +115,22 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<HeightMap, Mea
                 ),
             },
         }
-    };
-    let real = |key: &str| -> Result<Option<f64>, MeasuredError> {
-        match keys.get(key) {
+    }
+
+    /// An optional length in the lateral unit: a finite number.
+    fn real(&self, key: &str) -> Result<Option<f64>, MeasuredError> {
+        match self.keys.get(key) {
             None => Ok(None),
             Some((v, line)) => match v.parse::<f64>() {
                 Ok(x) if x.is_finite() => Ok(Some(x)),
                 _ => fail(Some(*line), format!("{key} = `{v}` is not a finite number")),
             },
         }
-    };
-    let unit = |key: &str| -> Result<Option<FileUnit>, MeasuredError> {
-        match keys.get(key) {
+    }
+
+    /// An optional unit (`XYUnits`, `ZUnits`), with the line that gave it.
+    fn unit(&self, key: &str) -> Result<Option<FileUnit>, MeasuredError> {
+        match self.keys.get(key) {
             None => Ok(None),
             Some((v, line)) => match LengthUnit::parse(v) {
                 Some(unit) => Ok(Some(FileUnit {
@@ -80,10 +143,16 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<HeightMap, Mea
                 ),
             },
         }
-    };
-    let (nx, ny) = (count("XRes")?, count("YRes")?);
+    }
+}
 
-    // Data: after 1–4 NULs that end the header on a multiple of 4.
+/// Where the data starts: after 1–4 NULs that end the header on a multiple of 4; the
+/// rest must be exactly `nx` · `ny` f32.
+fn data_start(
+    bytes: &[u8],
+    header_len: usize,
+    (nx, ny): (usize, usize),
+) -> Result<usize, MeasuredError> {
     let data_start = (header_len / 4 + 1) * 4;
     if bytes.len() < data_start || bytes[header_len..data_start].iter().any(|&b| b != 0) {
         return fail(
@@ -105,26 +174,39 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<HeightMap, Mea
             ),
         );
     }
+    Ok(data_start)
+}
 
-    let (z_unit, z_source) = resolve_unit(Axis::Height, unit("ZUnits")?, options, "a ZUnits line")?;
-    let (xy_real, xy_offset) = (
-        [real("XReal")?, real("YReal")?],
-        [real("XOffset")?, real("YOffset")?],
-    );
-    // Lengths in the header need the lateral unit; without them it is not needed.
-    let needs_lateral = xy_real.iter().chain(&xy_offset).any(Option::is_some);
-    let xy_file = unit("XYUnits")?;
-    let lateral = if needs_lateral || xy_file.is_some() || options.lateral_unit.is_some() {
-        Some(resolve_unit(
-            Axis::Lateral,
-            xy_file,
-            options,
-            "an XYUnits line",
-        )?)
-    } else {
-        None
-    };
-    let file_pixel = match (xy_real, lateral) {
+/// The lateral unit from `XYUnits` and the options, resolved when the header has lengths
+/// (`needs_lateral`), gives a unit or the user declared one; else none.
+fn lateral_unit(
+    header: &Header,
+    needs_lateral: bool,
+    options: &ReadOptions,
+) -> Result<Option<(LengthUnit, UnitSource)>, MeasuredError> {
+    let xy_file = header.unit("XYUnits")?;
+    Ok(
+        if needs_lateral || xy_file.is_some() || options.lateral_unit.is_some() {
+            Some(resolve_unit(
+                Axis::Lateral,
+                xy_file,
+                options,
+                "an XYUnits line",
+            )?)
+        } else {
+            None
+        },
+    )
+}
+
+/// The pixel size (mm) `XReal`/`YReal` give over `nx` × `ny` pixels, if the header has
+/// both (neither: none; one alone is an error).
+fn file_pixel(
+    xy_real: [Option<f64>; 2],
+    lateral: Option<(LengthUnit, UnitSource)>,
+    (nx, ny): (usize, usize),
+) -> Result<Option<([f64; 2], String)>, MeasuredError> {
+    Ok(match (xy_real, lateral) {
         ([Some(w), Some(h)], Some((u, _))) => {
             if !(w > 0.0 && h > 0.0) {
                 return fail(None, "XReal and YReal must be > 0");
@@ -136,23 +218,12 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<HeightMap, Mea
         }
         ([None, None], _) => None,
         _ => return fail(None, "XReal and YReal must be given together"),
-    };
-    let (pixel, pixel_source) = resolve_pixel(file_pixel, options, "XReal and YReal lines")?;
-    let mut notes = Vec::new();
-    let offset = |k: usize| match (xy_offset[k], lateral) {
-        (Some(v), Some((u, _))) => u.to_mm(v),
-        _ => 0.0,
-    };
-    if xy_offset.iter().any(Option::is_none) {
-        notes.push("no XOffset/YOffset: the field's corner taken at 0".to_string());
-    }
-    let origin = [offset(0) + 0.5 * pixel[0], offset(1) + 0.5 * pixel[1]];
-    let (lateral_unit, lateral_source) = match (lateral, pixel_source) {
-        (Some(l), _) => l,
-        (None, source) => (LengthUnit::Millimetre, source),
-    };
-    let height = bytes[data_start..]
-        .chunks_exact(4)
+    })
+}
+
+/// The little-endian f32 heights in mm, NaN where a value is not finite.
+fn heights_mm(data: &[u8], z_unit: LengthUnit) -> Vec<f64> {
+    data.chunks_exact(4)
         .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .map(|v| {
             if v.is_finite() {
@@ -161,17 +232,7 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<HeightMap, Mea
                 f64::NAN
             }
         })
-        .collect();
-    let info = ReadInfo {
-        format: "GSF".into(),
-        lateral_unit,
-        lateral_unit_source: lateral_source,
-        height_unit: z_unit,
-        height_unit_source: z_source,
-        invalid_points: 0,
-        notes,
-    };
-    HeightMap::new((nx, ny), origin, pixel, height, info)
+        .collect()
 }
 
 /// Writes `map` as GSF in metres (f32 heights, NaN = invalid). Atomic.
