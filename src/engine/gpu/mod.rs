@@ -31,6 +31,10 @@ pub const MILLING_SHADER: &str = concat!(
 const WORKGROUP_SIZE: u32 = 64;
 /// Samples per dispatch at most, so progress moves and no dispatch runs for minutes.
 const MAX_TILE_SAMPLES: u64 = 1 << 22;
+/// Tiles queued on the device at once (the host reads one while the next runs).
+const TILES_IN_FLIGHT: u64 = 2;
+/// Most workgroups along one dispatch dimension (WebGPU's limit).
+const MAX_GROUPS_PER_DIMENSION: u64 = 65_535;
 
 pub mod inputs;
 pub mod layout;
@@ -170,28 +174,6 @@ impl GpuEngine {
                 contents,
                 usage: wgpu::BufferUsages::STORAGE,
             }))
-    }
-
-    fn read_back(&self, buffer: &wgpu::Buffer) -> Result<Vec<layout::Dexel>, EngineError> {
-        let slice = buffer.slice(..);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |result| {
-            let _ = sender.send(result);
-        });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|err| EngineError(format!("GPU wait failed: {err}")))?;
-        receiver
-            .recv()
-            .map_err(|_| EngineError("GPU read-back was dropped".into()))?
-            .map_err(|err| EngineError(format!("GPU read-back failed: {err}")))?;
-        let view = slice
-            .get_mapped_range()
-            .map_err(|err| EngineError(format!("GPU read-back mapping failed: {err:?}")))?;
-        let dexels = bytemuck::cast_slice::<u8, layout::Dexel>(&view).to_vec();
-        drop(view);
-        buffer.unmap();
-        Ok(dexels)
     }
 }
 
@@ -366,7 +348,10 @@ impl GpuEngine {
         )
     }
 
-    /// Runs `kernel` over every sample, in tiles that fit one storage binding.
+    /// Runs `kernel` over every sample, in tiles that fit one storage binding, with
+    /// [`TILES_IN_FLIGHT`] tiles queued: while the host reads tile k back, the device
+    /// already runs tile k + 1 (each tile has its own output, read-back and parameter
+    /// buffers). Results arrive in tile order.
     fn dispatch<P: Pod>(
         &self,
         kernel: &Kernel,
@@ -385,26 +370,67 @@ impl GpuEngine {
             .min(self.max_tile_samples)
             .min(sample_count)
             .max(1);
-        let tile_bytes = tile_samples * dexel_bytes;
-        let output = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("dexels"),
-            size: tile_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("dexels read-back"),
-            size: tile_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let params_buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("params"),
-            size: std::mem::size_of::<P>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let buffers: Vec<&wgpu::Buffer> = std::iter::once(&params_buffer)
+        let slots: Vec<TileSlot> = (0..sample_count.div_ceil(tile_samples).min(TILES_IN_FLIGHT))
+            .map(|_| self.tile_slot::<P>(kernel, inputs, tile_samples * dexel_bytes))
+            .collect();
+        let mut field = DexelField {
+            depth_mm: Vec::with_capacity(sample_count as usize),
+            pass: Vec::with_capacity(sample_count as usize),
+        };
+        let mut in_flight = std::collections::VecDeque::new();
+        let mut offset = 0u64;
+        while offset < sample_count {
+            if in_flight.len() == slots.len() {
+                self.read_tile(
+                    &slots,
+                    in_flight.pop_front(),
+                    &mut field,
+                    sample_count,
+                    progress,
+                )?;
+            }
+            let count = tile_samples.min(sample_count - offset);
+            let slot = (offset / tile_samples) as usize % slots.len();
+            let tile = params(offset, count, dispatch_width(count))?;
+            let submission = self.submit_tile(kernel, &slots[slot], &tile, count)?;
+            in_flight.push_back(InFlight {
+                slot,
+                count,
+                submission,
+            });
+            offset += count;
+        }
+        while !in_flight.is_empty() {
+            self.read_tile(
+                &slots,
+                in_flight.pop_front(),
+                &mut field,
+                sample_count,
+                progress,
+            )?;
+        }
+        Ok(field)
+    }
+
+    /// One tile's buffers, bound to `kernel` with its `inputs`.
+    fn tile_slot<P: Pod>(&self, kernel: &Kernel, inputs: &[wgpu::Buffer], bytes: u64) -> TileSlot {
+        let buffer = |label: &str, size: u64, usage: wgpu::BufferUsages| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as U;
+        let output = buffer("dexels", bytes, U::STORAGE | U::COPY_SRC);
+        let staging = buffer("dexels read-back", bytes, U::MAP_READ | U::COPY_DST);
+        let params = buffer(
+            "params",
+            std::mem::size_of::<P>() as u64,
+            U::UNIFORM | U::COPY_DST,
+        );
+        let buffers: Vec<&wgpu::Buffer> = std::iter::once(&params)
             .chain(inputs)
             .chain(std::iter::once(&output))
             .collect();
@@ -421,52 +447,157 @@ impl GpuEngine {
             layout: &kernel.bind_group_layout,
             entries: &entries,
         });
-
-        let mut depth_mm = Vec::with_capacity(sample_count as usize);
-        let mut pass = Vec::with_capacity(sample_count as usize);
-        let mut offset = 0u64;
-        while offset < sample_count {
-            let count = tile_samples.min(sample_count - offset);
-            let groups = count.div_ceil(WORKGROUP_SIZE as u64) as u32;
-            let groups_x = groups.min(65_535);
-            let groups_y = groups.div_ceil(groups_x);
-            let tile = params(offset, count, groups_x * WORKGROUP_SIZE)?;
-            let out_of_memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-            let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-            self.queue
-                .write_buffer(&params_buffer, 0, bytemuck::bytes_of(&tile));
-            let mut encoder = self
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some(kernel.label),
-                });
-            {
-                let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some(kernel.label),
-                    timestamp_writes: None,
-                });
-                compute.set_pipeline(&kernel.pipeline);
-                compute.set_bind_group(0, &bind_group, &[]);
-                compute.dispatch_workgroups(groups_x, groups_y, 1);
-            }
-            encoder.copy_buffer_to_buffer(&output, 0, &staging, 0, count * dexel_bytes);
-            self.queue.submit([encoder.finish()]);
-            for (scope, what) in [
-                (validation, "GPU dispatch failed"),
-                (out_of_memory, "out of GPU memory"),
-            ] {
-                if let Some(err) = pollster::block_on(scope.pop()) {
-                    return Err(EngineError(format!("{what}: {err}")));
-                }
-            }
-            let dexels = self.read_back(&staging)?;
-            for dexel in &dexels[..count as usize] {
-                depth_mm.push(dexel.depth_mm as f64);
-                pass.push(dexel.pass_id);
-            }
-            offset += count;
-            progress(offset, sample_count);
+        TileSlot {
+            output,
+            staging,
+            params,
+            bind_group,
         }
-        Ok(DexelField { depth_mm, pass })
+    }
+
+    /// Queues one tile of `count` samples with parameters `tile` on `slot`: the kernel,
+    /// then the copy of its output to the read-back buffer.
+    fn submit_tile<P: Pod>(
+        &self,
+        kernel: &Kernel,
+        slot: &TileSlot,
+        tile: &P,
+        count: u64,
+    ) -> Result<wgpu::SubmissionIndex, EngineError> {
+        let (groups_x, groups_y) = workgroup_grid(count);
+        let out_of_memory = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        self.queue
+            .write_buffer(&slot.params, 0, bytemuck::bytes_of(tile));
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some(kernel.label),
+            });
+        {
+            let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(kernel.label),
+                timestamp_writes: None,
+            });
+            compute.set_pipeline(&kernel.pipeline);
+            compute.set_bind_group(0, &slot.bind_group, &[]);
+            compute.dispatch_workgroups(groups_x, groups_y, 1);
+        }
+        let bytes = count * std::mem::size_of::<layout::Dexel>() as u64;
+        encoder.copy_buffer_to_buffer(&slot.output, 0, &slot.staging, 0, bytes);
+        let submission = self.queue.submit([encoder.finish()]);
+        for (scope, what) in [
+            (validation, "GPU dispatch failed"),
+            (out_of_memory, "out of GPU memory"),
+        ] {
+            if let Some(err) = pollster::block_on(scope.pop()) {
+                return Err(EngineError(format!("{what}: {err}")));
+            }
+        }
+        Ok(submission)
+    }
+
+    /// Waits for the tile `done` (the oldest in flight) and appends its samples to
+    /// `field`, straight from the mapped read-back buffer.
+    fn read_tile(
+        &self,
+        slots: &[TileSlot],
+        done: Option<InFlight>,
+        field: &mut DexelField,
+        sample_count: u64,
+        progress: Progress<'_>,
+    ) -> Result<(), EngineError> {
+        let Some(done) = done else {
+            return Ok(());
+        };
+        let staging = &slots[done.slot].staging;
+        let bytes = done.count * std::mem::size_of::<layout::Dexel>() as u64;
+        let slice = staging.slice(..bytes);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |result| {
+            let _ = sender.send(result);
+        });
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(done.submission),
+                timeout: None,
+            })
+            .map_err(|err| EngineError(format!("GPU wait failed: {err}")))?;
+        receiver
+            .recv()
+            .map_err(|_| EngineError("GPU read-back was dropped".into()))?
+            .map_err(|err| EngineError(format!("GPU read-back failed: {err}")))?;
+        let view = slice
+            .get_mapped_range()
+            .map_err(|err| EngineError(format!("GPU read-back mapping failed: {err:?}")))?;
+        let dexels: &[layout::Dexel] = bytemuck::cast_slice(&view);
+        field
+            .depth_mm
+            .extend(dexels.iter().map(|d| d.depth_mm as f64));
+        field.pass.extend(dexels.iter().map(|d| d.pass_id));
+        drop(view);
+        staging.unmap();
+        progress(field.depth_mm.len() as u64, sample_count);
+        Ok(())
+    }
+}
+
+/// One tile's device buffers and their binding.
+struct TileSlot {
+    output: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    params: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+}
+
+/// A tile queued and not yet read back.
+struct InFlight {
+    slot: usize,
+    count: u64,
+    submission: wgpu::SubmissionIndex,
+}
+
+/// Workgroups (x, y) for `count` samples: as few rows as the per-dimension limit allows
+/// and the groups spread evenly over them, so that at most one group per row idles
+/// (not a second row of 65 535 for one sample more than a row holds).
+fn workgroup_grid(count: u64) -> (u32, u32) {
+    let groups = count.div_ceil(WORKGROUP_SIZE as u64).max(1);
+    let rows = groups.div_ceil(MAX_GROUPS_PER_DIMENSION);
+    (groups.div_ceil(rows) as u32, rows as u32)
+}
+
+/// Samples per row of the dispatch grid for `count` samples (the kernels' index is
+/// x + y · width).
+fn dispatch_width(count: u64) -> u32 {
+    workgroup_grid(count).0 * WORKGROUP_SIZE
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_workgroup_grid_covers_every_sample_and_idles_under_a_group_per_row() {
+        for count in [
+            1,
+            63,
+            64,
+            65,
+            4_194_304,
+            64 * 65_535,
+            64 * 65_535 + 1,
+            1 << 31,
+        ] {
+            let (x, y) = workgroup_grid(count);
+            let groups = count.div_ceil(64);
+            assert!(x as u64 <= MAX_GROUPS_PER_DIMENSION, "{count}: {x}");
+            assert!(x as u64 * y as u64 >= groups, "{count}: {x} × {y}");
+            assert!(
+                x as u64 * y as u64 - groups < y as u64,
+                "{count}: {x} × {y}"
+            );
+        }
+        // 2²² samples: 65 536 groups in two rows of 32 768, not 65 535 + 65 535.
+        assert_eq!(workgroup_grid(1 << 22), (32_768, 2));
     }
 }
