@@ -770,13 +770,22 @@ impl<'a, 'e> Problem<'a, 'e> {
         let mut jacobian = self.jacobian(set, parameters, &values, &current)?;
         let mut mu = 1e-3;
         for _ in 0..12 {
-            // Parameters the data does not see stay where they are.
-            let free = observable(&jacobian, frozen);
+            // Parameters the data does not see stay where they are; so, for this step,
+            // does one at its bound that the descent would push beyond it (the active
+            // set: a step solved with it free, then clamped, moves the others as if it
+            // had gone on, and stalls them short of their best).
+            let r = self.residual(&current);
+            let free: Vec<usize> = observable(&jacobian, frozen)
+                .into_iter()
+                .filter(|&j| {
+                    let descent = -dot(&jacobian[j], &r);
+                    !(values[j].abs() >= parameters[j].bound && descent * values[j] > 0.0)
+                })
+                .collect();
             let k = free.len();
             if k == 0 {
                 break;
             }
-            let r = self.residual(&current);
             let jtj = normal_matrix(&jacobian, &free);
             let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], &r)).collect();
             let mut improved = false;

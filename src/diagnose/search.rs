@@ -560,11 +560,26 @@ pub fn fit_new(
             Ok(Some(problem.fit(&set, start, &[])?))
         }
         // Spring-back does nothing until both its threshold and its share are above
-        // zero: the threshold is scanned at half recovery, then both fitted.
+        // zero, and a higher share with a lower threshold raises a cusp alike: the
+        // threshold is scanned at a low share and both fitted (the spiral's azimuth
+        // moving with the marks' shape); where that fit ends at a bound, from a middle
+        // and a high share too, the best kept.
         Candidate::SpringBack => {
             set.push(c);
-            start.extend([0.0, 0.5]);
-            Ok(Some(problem.fit(&set, start, &[first])?))
+            let mut best: Option<Fit> = None;
+            for share in SPRING_BACK_SHARES {
+                let mut from = start.clone();
+                from.extend([0.0, share]);
+                let fit = problem.fit(&set, from, &[first])?;
+                let inside = !fit.at_bound[first..].iter().any(|b| *b);
+                if best.as_ref().is_none_or(|b| fit.objective < b.objective) {
+                    best = Some(fit);
+                }
+                if inside {
+                    break;
+                }
+            }
+            Ok(best)
         }
         _ => {
             set.push(c);
@@ -574,6 +589,9 @@ pub fn fit_new(
         }
     }
 }
+
+/// Recovered shares a spring-back fit starts from (see [`fit_new`]).
+const SPRING_BACK_SHARES: [f64; 3] = [0.3, 0.6, 0.9];
 
 /// The effective number of independent points for comparing models: from the
 /// correlation of the residual the best of them leaves (closest to the noise), the
