@@ -661,3 +661,44 @@ fn a_centre_height_is_found_where_the_marks_cannot_place_the_axis() {
         assert_residual_shrinks_fivefold(d, "centre_height");
     }
 }
+
+#[test]
+fn spring_back_threshold_is_fitted_where_its_share_trades_with_it() {
+    // The suite's case 084 on its own grid (0.5 µm rings: the ploughed flanks are a few
+    // µm wide): h_min 40 nm, ρ 0.9, through synth's section model (not the forward
+    // model). A higher share with a lower threshold raises a cusp alike; fitted from one
+    // share the threshold stopped at 34.7 nm on 084. The truth is the independent
+    // source: the threshold within 10 %. The share is printed, not asserted: here it
+    // comes back 0.79 ± 0.04 for 0.9 (the README's open σ cases: at the truth the
+    // forward model still leaves ~2.5 nm RMS against synth's section on 084).
+    let base = withheld::TURNING_SPHERE.job;
+    let truth = "[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = 4.0e-5\nrecovery = 0.9\n";
+    let m = measure(base, truth, &model(PROFILE));
+    let options = Options {
+        only: vec!["spring_back".into()],
+        ..Options::default()
+    };
+    let outcome = run(base, &m, &mut CpuEngine, &options);
+    let fit = outcome
+        .diagnosis
+        .candidates
+        .iter()
+        .find(|c| c.effect == "spring_back")
+        .expect("spring-back fitted");
+    let [h_min, share] = [&fit.parameters[0], &fit.parameters[1]];
+    println!(
+        "h_min {:.2} ± {:.2} nm, ρ {:.3} ± {:.3}{}; explains {:.1} %; {}",
+        h_min.value,
+        h_min.sigma,
+        share.value,
+        share.sigma,
+        if share.at_bound {
+            " (at its bound)"
+        } else {
+            ""
+        },
+        100.0 * fit.explained,
+        outcome.diagnosis.verdict.sentence
+    );
+    assert!((h_min.value - 40.0).abs() < 4.0, "h_min {} nm", h_min.value);
+}
