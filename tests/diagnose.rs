@@ -669,8 +669,8 @@ fn spring_back_threshold_is_fitted_where_its_share_trades_with_it() {
     // model). A higher share with a lower threshold raises a cusp alike; fitted from one
     // share the threshold stopped at 34.7 nm on 084. The truth is the independent
     // source: the threshold within 10 %. The share is printed, not asserted: here it
-    // comes back 0.79 ± 0.04 for 0.9 (the README's open σ cases: at the truth the
-    // forward model still leaves ~2.5 nm RMS against synth's section on 084).
+    // comes back 0.79 ± 0.04 for 0.9 (the README's open σ cases: the step of ρ·h_min
+    // where the chip crosses h_min is placed only to a ring of the forward model).
     let base = withheld::TURNING_SPHERE.job;
     let truth = "[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = 4.0e-5\nrecovery = 0.9\n";
     let m = measure(base, truth, &model(PROFILE));
