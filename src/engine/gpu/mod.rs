@@ -377,17 +377,13 @@ impl GpuEngine {
             depth_mm: Vec::with_capacity(sample_count as usize),
             pass: Vec::with_capacity(sample_count as usize),
         };
-        let mut in_flight = std::collections::VecDeque::new();
+        let mut in_flight = std::collections::VecDeque::<InFlight>::new();
         let mut offset = 0u64;
         while offset < sample_count {
-            if in_flight.len() == slots.len() {
-                self.read_tile(
-                    &slots,
-                    in_flight.pop_front(),
-                    &mut field,
-                    sample_count,
-                    progress,
-                )?;
+            if in_flight.len() == slots.len()
+                && let Some(done) = in_flight.pop_front()
+            {
+                self.read_tile(&slots[done.slot], done, &mut field, sample_count, progress)?;
             }
             let count = tile_samples.min(sample_count - offset);
             let slot = (offset / tile_samples) as usize % slots.len();
@@ -400,14 +396,8 @@ impl GpuEngine {
             });
             offset += count;
         }
-        while !in_flight.is_empty() {
-            self.read_tile(
-                &slots,
-                in_flight.pop_front(),
-                &mut field,
-                sample_count,
-                progress,
-            )?;
+        for done in in_flight {
+            self.read_tile(&slots[done.slot], done, &mut field, sample_count, progress)?;
         }
         Ok(field)
     }
@@ -501,16 +491,13 @@ impl GpuEngine {
     /// `field`, straight from the mapped read-back buffer.
     fn read_tile(
         &self,
-        slots: &[TileSlot],
-        done: Option<InFlight>,
+        slot: &TileSlot,
+        done: InFlight,
         field: &mut DexelField,
         sample_count: u64,
         progress: Progress<'_>,
     ) -> Result<(), EngineError> {
-        let Some(done) = done else {
-            return Ok(());
-        };
-        let staging = &slots[done.slot].staging;
+        let staging = &slot.staging;
         let bytes = done.count * std::mem::size_of::<layout::Dexel>() as u64;
         let slice = staging.slice(..bytes);
         let (sender, receiver) = std::sync::mpsc::channel();
