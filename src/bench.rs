@@ -563,29 +563,49 @@ fn peak_rss_bytes() -> Option<f64> {
     Some(kib * 1024.0)
 }
 
-/// `toolmark bench --target`: the target job end to end on the CPU engine (prepare,
+/// `toolmark bench --target`: the target job end to end on each chosen engine (prepare,
 /// removal, analysis, every output file), with each stage's wall time, the removal's
-/// time per pair and the process's peak resident memory. Outputs go to `out`, or to a
-/// temporary folder removed afterwards.
-pub fn run_target(azimuths: u32, out: Option<&Path>) -> Result<(), String> {
+/// time per pair and the process's peak resident memory so far. Outputs go to `out`, or
+/// to a temporary folder removed afterwards.
+pub fn run_target(cpu: bool, gpu: bool, azimuths: u32, out: Option<&Path>) -> Result<(), String> {
+    let mut engines = open_engines(cpu, gpu)?;
+    print_host(&engines);
     let job = target_job(azimuths)?;
     println!(
-        "host: {} ({} threads), load average {}",
-        processor_name(),
-        std::thread::available_parallelism().map_or(1, |n| n.get()),
-        load_average()
-    );
-    println!(
-        "\n## target job: {} ({} rings × {} azimuths = {:.3e} samples), CPU engine, end to end",
+        "\n## target job: {} ({} rings × {} azimuths = {:.3e} samples), end to end",
         job.name,
         prepare_scenes_ring_count(&job),
         azimuths,
         job.sample_count() as f64
     );
+    println!(
+        "| engine | samples | pairs | prepare s | removal s | ns/pair | analysis s | output s | wall s | peak RSS so far GiB | files |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let temporary = std::env::temp_dir().join(format!("toolmark-target-{}", std::process::id()));
-    let dir = out.unwrap_or(&temporary);
+    for engine in engines.iter_mut() {
+        let dir = out.map_or_else(|| temporary.clone(), |o| o.join(engine.info().kind));
+        target_row(engine.as_mut(), job.clone(), &dir)?;
+        if out.is_none() {
+            let _ = std::fs::remove_dir_all(&temporary);
+        }
+    }
+    if !crate::io::outputs::polar_exr_written(&crate::run::job_grid(
+        &job,
+        &crate::run::Groundwork::of(&job),
+    )) {
+        println!(
+            "(polar.exr is not written above {} samples; the top views, profile and statistics cover the whole field)",
+            crate::io::outputs::POLAR_EXR_MAX_SAMPLES
+        );
+    }
+    Ok(())
+}
+
+/// One engine's row of the target table: the job run end to end into `dir`.
+fn target_row(engine: &mut dyn RemovalEngine, job: Job, dir: &Path) -> Result<(), String> {
     let started = Instant::now();
-    let result = simulate(job, &mut CpuEngine, &|_, _| {}).map_err(|e| e.to_string())?;
+    let result = simulate(job, engine, &|_, _| {}).map_err(|e| e.to_string())?;
     let outputs = Instant::now();
     crate::io::outputs::prepare_output_dir(dir).map_err(|e| e.to_string())?;
     let written = crate::io::outputs::write_outputs(dir, &result).map_err(|e| e.to_string())?;
@@ -594,11 +614,8 @@ pub fn run_target(azimuths: u32, out: Option<&Path>) -> Result<(), String> {
     let t = result.timings;
     let pairs = result.pair_count();
     println!(
-        "| samples | pairs | prepare s | removal s | ns/pair | analysis s | output s | wall s | peak RSS GiB | files |"
-    );
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
-    println!(
-        "| {:.3e} | {:.3e} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} |",
+        "| {} | {:.3e} | {:.3e} | {:.2} | {:.2} | {:.3} | {:.2} | {:.2} | {:.2} | {} | {} |",
+        result.engine.kind,
         result.grid().sample_count() as f64,
         pairs as f64,
         t.prepare_s,
@@ -610,15 +627,6 @@ pub fn run_target(azimuths: u32, out: Option<&Path>) -> Result<(), String> {
         peak_rss_bytes().map_or("unknown".into(), |b| format!("{:.2}", b / 1024f64.powi(3))),
         written.len()
     );
-    if !crate::io::outputs::polar_exr_written(result.grid()) {
-        println!(
-            "(polar.exr is not written above {} samples; the top views, profile and statistics cover the whole field)",
-            crate::io::outputs::POLAR_EXR_MAX_SAMPLES
-        );
-    }
-    if out.is_none() {
-        let _ = std::fs::remove_dir_all(&temporary);
-    }
     Ok(())
 }
 

@@ -29,8 +29,11 @@ pub const MILLING_SHADER: &str = concat!(
 
 /// Threads per workgroup (`@workgroup_size` in the shader).
 const WORKGROUP_SIZE: u32 = 64;
-/// Samples per dispatch at most, so progress moves and no dispatch runs for minutes.
-const MAX_TILE_SAMPLES: u64 = 1 << 22;
+/// Samples per dispatch at most, so progress moves and no dispatch runs for minutes: on
+/// a software adapter (lavapipe), and on a GPU, where a larger tile costs fewer
+/// submissions (the target job on an H100: removal 0.47 s in 2²² tiles, 0.37 s in 2²⁴).
+const MAX_TILE_SAMPLES_SOFTWARE: u64 = 1 << 22;
+const MAX_TILE_SAMPLES_GPU: u64 = 1 << 24;
 /// Tiles queued on the device at once (the host reads one while the next runs).
 const TILES_IN_FLIGHT: u64 = 2;
 /// Most workgroups along one dispatch dimension (WebGPU's limit).
@@ -146,7 +149,11 @@ impl GpuEngine {
             max_binding_bytes: limits
                 .max_storage_buffer_binding_size
                 .min(limits.max_buffer_size),
-            max_tile_samples: MAX_TILE_SAMPLES,
+            max_tile_samples: if adapter_info.device_type == wgpu::DeviceType::Cpu {
+                MAX_TILE_SAMPLES_SOFTWARE
+            } else {
+                MAX_TILE_SAMPLES_GPU
+            },
         })
     }
 
@@ -373,9 +380,11 @@ impl GpuEngine {
         let slots: Vec<TileSlot> = (0..sample_count.div_ceil(tile_samples).min(TILES_IN_FLIGHT))
             .map(|_| self.tile_slot::<P>(kernel, inputs, tile_samples * dexel_bytes))
             .collect();
+        // Zeroed by the allocator (fresh pages), so the first touch of each page falls
+        // to the parallel read-back, not to a serial fill here.
         let mut field = DexelField {
-            depth_mm: Vec::with_capacity(sample_count as usize),
-            pass: Vec::with_capacity(sample_count as usize),
+            depth_mm: vec![0.0; sample_count as usize],
+            pass: vec![0; sample_count as usize],
         };
         let mut in_flight = std::collections::VecDeque::<InFlight>::new();
         let mut offset = 0u64;
@@ -391,6 +400,7 @@ impl GpuEngine {
             let submission = self.submit_tile(kernel, &slots[slot], &tile, count)?;
             in_flight.push_back(InFlight {
                 slot,
+                offset,
                 count,
                 submission,
             });
@@ -487,8 +497,9 @@ impl GpuEngine {
         Ok(submission)
     }
 
-    /// Waits for the tile `done` (the oldest in flight) and appends its samples to
-    /// `field`, straight from the mapped read-back buffer.
+    /// Waits for the tile `done` (the oldest in flight) and writes its samples into
+    /// `field` at the tile's offset, straight from the mapped read-back buffer, in
+    /// parallel stretches.
     fn read_tile(
         &self,
         slot: &TileSlot,
@@ -518,13 +529,15 @@ impl GpuEngine {
             .get_mapped_range()
             .map_err(|err| EngineError(format!("GPU read-back mapping failed: {err:?}")))?;
         let dexels: &[layout::Dexel] = bytemuck::cast_slice(&view);
-        field
-            .depth_mm
-            .extend(dexels.iter().map(|d| d.depth_mm as f64));
-        field.pass.extend(dexels.iter().map(|d| d.pass_id));
+        let tile = done.offset as usize..(done.offset + done.count) as usize;
+        convert_dexels(
+            dexels,
+            &mut field.depth_mm[tile.clone()],
+            &mut field.pass[tile.clone()],
+        );
         drop(view);
         staging.unmap();
-        progress(field.depth_mm.len() as u64, sample_count);
+        progress(tile.end as u64, sample_count);
         Ok(())
     }
 }
@@ -537,9 +550,26 @@ struct TileSlot {
     bind_group: wgpu::BindGroup,
 }
 
+/// Splits f32 dexels into the field's f64 depths and pass ids, in parallel stretches.
+fn convert_dexels(dexels: &[layout::Dexel], depth_mm: &mut [f64], pass: &mut [u32]) {
+    use rayon::prelude::*;
+    const STRETCH: usize = 1 << 16;
+    dexels
+        .par_chunks(STRETCH)
+        .zip(depth_mm.par_chunks_mut(STRETCH))
+        .zip(pass.par_chunks_mut(STRETCH))
+        .for_each(|((from, depth), pass)| {
+            for ((d, depth), pass) in from.iter().zip(depth).zip(pass) {
+                *depth = d.depth_mm as f64;
+                *pass = d.pass_id;
+            }
+        });
+}
+
 /// A tile queued and not yet read back.
 struct InFlight {
     slot: usize,
+    offset: u64,
     count: u64,
     submission: wgpu::SubmissionIndex,
 }
