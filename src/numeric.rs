@@ -175,6 +175,150 @@ pub fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
     )
 }
 
+/// A least-squares problem for [`levenberg_marquardt`]: the model at given values, the
+/// residual and objective of what it leaves, and its Jacobian there.
+pub trait LeastSquaresProblem {
+    /// What one evaluation leaves (its residual and whatever else the caller keeps).
+    type State;
+    type Error;
+    /// The model at `values`; `Ok(None)` outside its domain (a step there is refused).
+    fn evaluate(&mut self, values: &[f64]) -> Result<Option<Self::State>, Self::Error>;
+    /// The residual vector of a state.
+    fn residual(&self, state: &Self::State) -> Vec<f64>;
+    /// The objective of a state: its residual's sum of squares.
+    fn rss(&self, state: &Self::State) -> f64;
+    /// The Jacobian at `values` (where `state` was evaluated), one column per parameter.
+    fn jacobian(
+        &mut self,
+        values: &[f64],
+        state: &Self::State,
+    ) -> Result<Vec<Vec<f64>>, Self::Error>;
+}
+
+/// Where [`levenberg_marquardt`] stops and what it may move.
+pub struct LmLimits<'a> {
+    /// Jacobians taken at most.
+    pub iterations: usize,
+    /// Each parameter's bound: |value| ≤ bound (∞: unbounded).
+    pub bounds: &'a [f64],
+    /// An accepted step smaller than this in every parameter ends the fit.
+    pub small_step: &'a [f64],
+    /// An accepted step gaining no more than this share of the objective ends it.
+    pub min_gain: f64,
+    /// Parameters held where they start.
+    pub frozen: &'a [usize],
+}
+
+/// The values [`levenberg_marquardt`] ends at, with the state and Jacobian there.
+pub struct LmFit<S> {
+    pub values: Vec<f64>,
+    pub state: S,
+    pub jacobian: Vec<Vec<f64>>,
+}
+
+/// Levenberg–Marquardt with Marquardt's diagonal damping, bounds and an active set:
+/// per Jacobian up to eight damped steps are tried (the damping ×4 after each refused
+/// one, ÷3 after an accepted one). Parameters the data does not see stay where they
+/// are; so, for a step, does one at its bound that the descent would push beyond it (a
+/// step solved with it free, then clamped, would move the others as if it had gone
+/// on). `Ok(None)` when the start lies outside the model's domain.
+pub fn levenberg_marquardt<P: LeastSquaresProblem>(
+    problem: &mut P,
+    mut values: Vec<f64>,
+    limits: &LmLimits,
+) -> Result<Option<LmFit<P::State>>, P::Error> {
+    let Some(mut current) = problem.evaluate(&values)? else {
+        return Ok(None);
+    };
+    let mut jacobian = problem.jacobian(&values, &current)?;
+    let mut mu = 1e-3;
+    for _ in 0..limits.iterations {
+        let r = problem.residual(&current);
+        let free: Vec<usize> = observable(&jacobian, limits.frozen)
+            .into_iter()
+            .filter(|&j| {
+                let descent = -dot(&jacobian[j], &r);
+                !(values[j].abs() >= limits.bounds[j] && descent * values[j] > 0.0)
+            })
+            .collect();
+        let k = free.len();
+        if k == 0 {
+            break;
+        }
+        let jtj = normal_matrix(&jacobian, &free);
+        let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], &r)).collect();
+        let mut improved = false;
+        for _ in 0..8 {
+            let damped: Vec<Vec<f64>> = (0..k)
+                .map(|a| {
+                    (0..k)
+                        .map(|b| jtj[a][b] + if a == b { mu * jtj[a][a] } else { 0.0 })
+                        .collect()
+                })
+                .collect();
+            let Some(step) = solve_linear(&damped, &jtr) else {
+                mu *= 10.0;
+                continue;
+            };
+            let mut trial = values.clone();
+            for (&j, s) in free.iter().zip(&step) {
+                trial[j] = (values[j] + s).clamp(-limits.bounds[j], limits.bounds[j]);
+            }
+            let Some(evaluation) = problem.evaluate(&trial)? else {
+                mu *= 4.0;
+                continue;
+            };
+            let (now, before) = (problem.rss(&evaluation), problem.rss(&current));
+            if now < before {
+                let gain = 1.0 - now / before;
+                let small = free
+                    .iter()
+                    .zip(&step)
+                    .all(|(&j, s)| s.abs() < limits.small_step[j]);
+                values = trial;
+                current = evaluation;
+                mu = (mu / 3.0).max(1e-9);
+                improved = gain > limits.min_gain && !small;
+                break;
+            }
+            mu *= 4.0;
+        }
+        if !improved {
+            break;
+        }
+        jacobian = problem.jacobian(&values, &current)?;
+    }
+    Ok(Some(LmFit {
+        values,
+        state: current,
+        jacobian,
+    }))
+}
+
+/// The Jacobian columns the data sees (norm above 1e-12 of the largest), but `frozen`.
+pub fn observable(jacobian: &[Vec<f64>], frozen: &[usize]) -> Vec<usize> {
+    let norms: Vec<f64> = jacobian.iter().map(|c| dot(c, c)).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    (0..norms.len())
+        .filter(|&j| norms[j] > 1e-12 * largest && norms[j] > 0.0 && !frozen.contains(&j))
+        .collect()
+}
+
+/// JᵀJ over the columns `free`.
+pub fn normal_matrix(jacobian: &[Vec<f64>], free: &[usize]) -> Vec<Vec<f64>> {
+    free.iter()
+        .map(|&a| {
+            free.iter()
+                .map(|&b| dot(&jacobian[a], &jacobian[b]))
+                .collect()
+        })
+        .collect()
+}
+
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
 /// The two-sided 95 % quantile of Student's t with `dof` degrees of freedom (≥ 1;
 /// fractional values allowed): exact for 1 and 2, the Cornish–Fisher expansion about
 /// the normal quantile beyond (within 0.2 % of the tables from 3 on).

@@ -135,6 +135,16 @@ impl Line {
         self.first + i * self.stride
     }
 
+    /// The line's values of a per-sample array: read in place along a meridian (its
+    /// samples are contiguous), gathered along a ring.
+    fn values<'a, T: Copy>(&self, all: &'a [T]) -> std::borrow::Cow<'a, [T]> {
+        if self.stride == 1 {
+            std::borrow::Cow::Borrowed(&all[self.first..self.first + self.len])
+        } else {
+            (0..self.len).map(|i| all[self.sample(i)]).collect()
+        }
+    }
+
     /// Azimuth row `row`, along the meridian.
     fn meridian(grid: &PolarGrid, row: u32) -> Line {
         Line {
@@ -178,10 +188,7 @@ fn line(grid: &PolarGrid, direction: ScallopDirection, k: usize) -> Option<Line>
 
 /// One line's cusps and the lengths of its segments (in samples).
 fn analyse_line(field: &DexelField, line: &Line) -> (Vec<Cusp>, Vec<usize>) {
-    let depths: Vec<f64> = (0..line.len)
-        .map(|i| field.depth_mm[line.sample(i)])
-        .collect();
-    let passes: Vec<u32> = (0..line.len).map(|i| field.pass[line.sample(i)]).collect();
+    let (depths, passes) = (line.values(&field.depth_mm), line.values(&field.pass));
     let segments = segments(&passes);
     let lengths = segments.iter().map(|s| s.end - s.start).collect();
     (line_cusps(line, &depths, &passes, &segments), lengths)
@@ -389,6 +396,13 @@ impl Quadratic {
         let x = (s - self.origin) / self.scale;
         self.coefficients[0] + x * (self.coefficients[1] + x * self.coefficients[2])
     }
+
+    /// The coefficients in u = (s − s0)/scale: c₀ + c₁u + c₂u².
+    fn about(&self, s0: f64) -> [f64; 3] {
+        let d = (s0 - self.origin) / self.scale;
+        let [c0, c1, c2] = self.coefficients;
+        [c0 + d * (c1 + d * c2), c1 + 2.0 * d * c2, c2]
+    }
 }
 
 /// Solves the leading `order`×`order` block of a small symmetric system (Gaussian
@@ -421,28 +435,36 @@ fn solve(mut matrix: [[f64; 3]; 3], mut rhs: [f64; 3], order: usize) -> [f64; 3]
 fn cusp_between(left: &Quadratic, right: &Quadratic, a: f64, b: f64) -> (f64, f64) {
     let envelope = |s: f64| left.eval(s).min(right.eval(s));
     let difference = |s: f64| left.eval(s) - right.eval(s);
-    let (mut lo, mut hi) = (a, b);
-    let sign_lo = difference(lo).signum();
-    if sign_lo == difference(hi).signum() {
+    if difference(a).signum() == difference(b).signum() {
         return if envelope(a) >= envelope(b) {
             (a, envelope(a))
         } else {
             (b, envelope(b))
         };
     }
-    for _ in 0..60 {
-        let mid = 0.5 * (lo + hi);
-        if mid == lo || mid == hi {
-            break; // the bracket is down to adjacent floats: nothing more would change
-        }
-        if difference(mid).signum() == sign_lo {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    let at = 0.5 * (lo + hi);
+    let at = crossing(left, right, a, b);
     (at, envelope(at))
+}
+
+/// Where the two fits cross in [a, b] (their difference changes sign there, so the
+/// quadratic difference has one root inside): the root in closed form, the larger-
+/// magnitude root from the stable formula and the other as c₀/q, the one in the
+/// bracket taken (clamped against rounding).
+fn crossing(left: &Quadratic, right: &Quadratic, a: f64, b: f64) -> f64 {
+    debug_assert_eq!(left.scale, right.scale);
+    let ([l0, l1, l2], [r0, r1, r2]) = (left.about(a), right.about(a));
+    let (c0, c1, c2) = (l0 - r0, l1 - r1, l2 - r2);
+    let width = (b - a) / left.scale;
+    let u = if c2 == 0.0 {
+        -c0 / c1
+    } else {
+        let q = -0.5 * (c1 + c1.signum() * (c1 * c1 - 4.0 * c2 * c0).max(0.0).sqrt());
+        let (u1, u2) = (q / c2, if q == 0.0 { 0.0 } else { c0 / q });
+        let outside = |u: f64| (-u).max(u - width).max(0.0);
+        if outside(u1) <= outside(u2) { u1 } else { u2 }
+    };
+    let u = if u.is_finite() { u } else { 0.5 * width };
+    (a + u.clamp(0.0, width) * left.scale).clamp(a, b)
 }
 
 /// Scallop height at position `s` along a line with `cusps` (in order): linear between

@@ -14,7 +14,10 @@ use super::forward::{ForwardError, ForwardModel, Frame, SimulatedSurface};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
 use super::zones::correlation_length;
-use crate::numeric::{invert, least_squares, solve_linear, student_t_975, try_golden_section};
+use crate::numeric::{
+    LeastSquaresProblem, LmLimits, dot, invert, least_squares, levenberg_marquardt, normal_matrix,
+    observable, student_t_975, try_golden_section,
+};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::rc::Rc;
@@ -763,70 +766,26 @@ impl<'a, 'e> Problem<'a, 'e> {
         &mut self,
         set: &[Candidate],
         parameters: &[Parameter],
-        mut values: Vec<f64>,
+        values: Vec<f64>,
         frozen: &[usize],
     ) -> Result<(Vec<f64>, Vec<Vec<f64>>), ForwardError> {
-        let mut current = self.evaluate(set, &values)?;
-        let mut jacobian = self.jacobian(set, parameters, &values, &current)?;
-        let mut mu = 1e-3;
-        for _ in 0..12 {
-            // Parameters the data does not see stay where they are; so, for this step,
-            // does one at its bound that the descent would push beyond it (the active
-            // set: a step solved with it free, then clamped, moves the others as if it
-            // had gone on, and stalls them short of their best).
-            let r = self.residual(&current);
-            let free: Vec<usize> = observable(&jacobian, frozen)
-                .into_iter()
-                .filter(|&j| {
-                    let descent = -dot(&jacobian[j], &r);
-                    !(values[j].abs() >= parameters[j].bound && descent * values[j] > 0.0)
-                })
-                .collect();
-            let k = free.len();
-            if k == 0 {
-                break;
-            }
-            let jtj = normal_matrix(&jacobian, &free);
-            let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], &r)).collect();
-            let mut improved = false;
-            for _ in 0..8 {
-                let damped: Vec<Vec<f64>> = (0..k)
-                    .map(|a| {
-                        (0..k)
-                            .map(|b| jtj[a][b] + if a == b { mu * jtj[a][a] } else { 0.0 })
-                            .collect()
-                    })
-                    .collect();
-                let Some(step) = solve_linear(&damped, &jtr) else {
-                    mu *= 10.0;
-                    continue;
-                };
-                let mut trial = values.clone();
-                for (&j, s) in free.iter().zip(&step) {
-                    trial[j] = (values[j] + s).clamp(-parameters[j].bound, parameters[j].bound);
-                }
-                let evaluation = self.evaluate(set, &trial)?;
-                let (now, before) = (self.rss(&evaluation), self.rss(&current));
-                if now < before {
-                    let gain = 1.0 - now / before;
-                    let small = free
-                        .iter()
-                        .zip(&step)
-                        .all(|(&j, s)| s.abs() < 1e-4 * parameters[j].scale);
-                    values = trial;
-                    current = evaluation;
-                    mu = (mu / 3.0).max(1e-9);
-                    improved = gain > 1e-6 && !small;
-                    break;
-                }
-                mu *= 4.0;
-            }
-            if !improved {
-                break;
-            }
-            jacobian = self.jacobian(set, parameters, &values, &current)?;
-        }
-        Ok((values, jacobian))
+        let bounds: Vec<f64> = parameters.iter().map(|p| p.bound).collect();
+        let small_step: Vec<f64> = parameters.iter().map(|p| 1e-4 * p.scale).collect();
+        let limits = LmLimits {
+            iterations: 12,
+            bounds: &bounds,
+            small_step: &small_step,
+            min_gain: 1e-6,
+            frozen,
+        };
+        let mut model = SetModel {
+            problem: self,
+            set,
+            parameters,
+        };
+        let fit = levenberg_marquardt(&mut model, values, &limits)?
+            .expect("a set's evaluation is defined for any values");
+        Ok((fit.values, fit.jacobian))
     }
 
     fn finish(
@@ -1050,15 +1009,6 @@ fn scan_starts(set: &[Candidate], start: Vec<f64>, scan: &[usize]) -> Vec<Vec<f6
     vec![start, unit]
 }
 
-/// The parameters whose Jacobian column is not (numerically) zero: those the data sees.
-fn observable(jacobian: &[Vec<f64>], frozen: &[usize]) -> Vec<usize> {
-    let norms: Vec<f64> = jacobian.iter().map(|c| dot(c, c)).collect();
-    let largest = norms.iter().copied().fold(0.0, f64::max);
-    (0..norms.len())
-        .filter(|&j| norms[j] > 1e-12 * largest && norms[j] > 0.0 && !frozen.contains(&j))
-        .collect()
-}
-
 /// One-σ uncertainties of the `free` parameters: the largest of the Jacobian's — the
 /// residual's variance inflated by its correlation length `tau` (points) — a block
 /// sandwich estimate, (JᵀJ)⁻¹ (Σ_b g_b g_bᵀ) (JᵀJ)⁻¹ with g_b = J_bᵀ r_b over blocks of
@@ -1165,21 +1115,6 @@ fn line_hac_variances(
         .collect()
 }
 
-/// JᵀJ over the `free` columns of the Jacobian (stored column by column).
-fn normal_matrix(jacobian: &[Vec<f64>], free: &[usize]) -> Vec<Vec<f64>> {
-    free.iter()
-        .map(|&a| {
-            free.iter()
-                .map(|&b| dot(&jacobian[a], &jacobian[b]))
-                .collect()
-        })
-        .collect()
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
 /// The key of the job a set makes: its members but the lateral scale, and their values.
 fn job_key(set: &[Candidate], values: &[f64]) -> (String, Vec<u64>) {
     let in_job = |c: &Candidate| *c != Candidate::LateralScale;
@@ -1196,4 +1131,38 @@ fn cache_key(set: &[Candidate], values: &[f64]) -> (String, Vec<u64>) {
         format!("{set:?}"),
         values.iter().map(|v| v.to_bits()).collect(),
     )
+}
+
+/// A candidate set's fit as a [`LeastSquaresProblem`]: the forward model's evaluations
+/// and its finite-difference Jacobian.
+struct SetModel<'m, 'a, 'e> {
+    problem: &'m mut Problem<'a, 'e>,
+    set: &'m [Candidate],
+    parameters: &'m [Parameter],
+}
+
+impl LeastSquaresProblem for SetModel<'_, '_, '_> {
+    type State = Rc<Evaluation>;
+    type Error = ForwardError;
+
+    fn evaluate(&mut self, values: &[f64]) -> Result<Option<Rc<Evaluation>>, ForwardError> {
+        self.problem.evaluate(self.set, values).map(Some)
+    }
+
+    fn residual(&self, state: &Rc<Evaluation>) -> Vec<f64> {
+        self.problem.residual(state)
+    }
+
+    fn rss(&self, state: &Rc<Evaluation>) -> f64 {
+        self.problem.rss(state)
+    }
+
+    fn jacobian(
+        &mut self,
+        values: &[f64],
+        state: &Rc<Evaluation>,
+    ) -> Result<Vec<Vec<f64>>, ForwardError> {
+        self.problem
+            .jacobian(self.set, self.parameters, values, state)
+    }
 }

@@ -11,6 +11,7 @@ use std::f64::consts::PI;
 use std::path::Path;
 
 use super::{MeasuredError, fail, in_file, number, read_text};
+use crate::numeric::{LeastSquaresProblem, LmLimits, levenberg_marquardt, solve_linear};
 
 /// A tool edge measured as points in a plane (mm), with its least-squares circle.
 #[derive(Clone, Debug)]
@@ -148,71 +149,57 @@ fn dist(p: &[f64; 2], c: &[f64]) -> f64 {
     (p[0] - c[0]).hypot(p[1] - c[1])
 }
 
-/// Gaussian elimination with partial pivoting; `None` when (nearly) singular.
-fn solve<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
-    let scale = a.iter().flatten().fold(0.0_f64, |m, v| m.max(v.abs()));
-    for c in 0..N {
-        let p = (c..N).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
-        if a[p][c].is_nan() || a[p][c].abs() <= 1e-13 * scale {
-            return None;
-        }
-        a.swap(c, p);
-        b.swap(c, p);
-        let pivot = a[c];
-        for r in c + 1..N {
-            let f = a[r][c] / pivot[c];
-            a[r].iter_mut().zip(&pivot).for_each(|(v, pv)| *v -= f * pv);
-            b[r] -= f * b[c];
-        }
-    }
-    let mut x = [0.0; N];
-    for r in (0..N).rev() {
-        let s: f64 = (r + 1..N).map(|k| a[r][k] * x[k]).sum();
-        x[r] = (b[r] - s) / a[r][r];
-    }
-    x.iter().all(|v| v.is_finite()).then_some(x)
+/// A model given as (residual, gradient) rows per point, for the shared
+/// [`levenberg_marquardt`]; `eval` gives `None` outside the model's domain.
+struct RowModel<F, const N: usize> {
+    eval: F,
 }
 
-/// Levenberg–Marquardt over (residual, Jacobian row) pairs; `eval` gives `None` outside
-/// the model's domain, and such steps are refused.
+impl<F, const N: usize> LeastSquaresProblem for RowModel<F, N>
+where
+    F: Fn(&[f64; N]) -> Option<Vec<(f64, [f64; N])>>,
+{
+    type State = Vec<(f64, [f64; N])>;
+    type Error = std::convert::Infallible;
+
+    fn evaluate(&mut self, values: &[f64]) -> Result<Option<Self::State>, Self::Error> {
+        Ok(<&[f64; N]>::try_from(values).ok().and_then(&self.eval))
+    }
+
+    fn residual(&self, rows: &Self::State) -> Vec<f64> {
+        rows.iter().map(|row| row.0).collect()
+    }
+
+    fn rss(&self, rows: &Self::State) -> f64 {
+        rows.iter().map(|row| row.0 * row.0).sum()
+    }
+
+    fn jacobian(&mut self, _: &[f64], rows: &Self::State) -> Result<Vec<Vec<f64>>, Self::Error> {
+        Ok((0..N)
+            .map(|j| rows.iter().map(|row| row.1[j]).collect())
+            .collect())
+    }
+}
+
+/// Least squares over (residual, gradient) rows from `start`, unbounded, run to
+/// convergence; `None` when the start lies outside the model's domain or the fit does
+/// not stay finite.
 fn least_squares<const N: usize>(
-    mut p: [f64; N],
+    start: [f64; N],
     eval: impl Fn(&[f64; N]) -> Option<Vec<(f64, [f64; N])>>,
 ) -> Option<[f64; N]> {
-    let cost = |r: &[(f64, [f64; N])]| r.iter().map(|e| e.0 * e.0).sum::<f64>();
-    let mut rows = eval(&p)?;
-    let (mut c, mut lambda) = (cost(&rows), 1e-4);
-    for _ in 0..300 {
-        let (mut a, mut g) = ([[0.0; N]; N], [0.0; N]);
-        for (r, j) in &rows {
-            for i in 0..N {
-                g[i] -= j[i] * r;
-                a[i].iter_mut().zip(j).for_each(|(v, jk)| *v += j[i] * jk);
-            }
-        }
-        // Damp the diagonal; a parameter no residual depends on gets a zero step.
-        for (i, row) in a.iter_mut().enumerate() {
-            row[i] = if row[i] > 0.0 {
-                row[i] * (1.0 + lambda)
-            } else {
-                1.0
-            };
-        }
-        let Some(step) = solve(a, g) else { break };
-        let trial: [f64; N] = std::array::from_fn(|i| p[i] + step[i]);
-        match eval(&trial).map(|r| (cost(&r), r)) {
-            Some((tc, r)) if tc <= c => {
-                let done = c - tc <= 1e-15 * c || step.iter().all(|s| s.abs() < 1e-14);
-                (p, rows, c, lambda) = (trial, r, tc, (lambda * 0.1).max(1e-12));
-                if done {
-                    break;
-                }
-            }
-            _ if lambda > 1e10 => break,
-            _ => lambda *= 10.0,
-        }
-    }
-    (c.is_finite() && p.iter().all(|v| v.is_finite())).then_some(p)
+    let limits = LmLimits {
+        iterations: 300,
+        bounds: &[f64::INFINITY; N],
+        small_step: &[1e-14; N],
+        min_gain: 1e-15,
+        frozen: &[],
+    };
+    let mut model = RowModel { eval };
+    let Ok(fit) = levenberg_marquardt(&mut model, start.to_vec(), &limits);
+    let fit = fit?;
+    let values: [f64; N] = fit.values.try_into().ok()?;
+    (model.rss(&fit.state).is_finite() && values.iter().all(|v| v.is_finite())).then_some(values)
 }
 
 /// Algebraic (Kåsa) circle [cx, cy, r]: x² + y² = B x + C y + D in centred coordinates.
@@ -221,7 +208,7 @@ fn kasa(pts: &[[f64; 2]]) -> Option<[f64; 3]> {
     let m = pts
         .iter()
         .fold([0.0; 2], |s, p| [s[0] + p[0] / n, s[1] + p[1] / n]);
-    let (mut a, mut b) = ([[0.0; 3]; 3], [0.0; 3]);
+    let (mut a, mut b) = (vec![vec![0.0; 3]; 3], [0.0; 3]);
     for p in pts {
         let row = [p[0] - m[0], p[1] - m[1], 1.0];
         for i in 0..3 {
@@ -231,7 +218,8 @@ fn kasa(pts: &[[f64; 2]]) -> Option<[f64; 3]> {
                 .for_each(|(v, rk)| *v += row[i] * rk);
         }
     }
-    let [bb, cc, dd] = solve(a, b)?;
+    let solution = solve_linear(&a, &b)?;
+    let [bb, cc, dd] = [solution[0], solution[1], solution[2]];
     let r2 = dd + 0.25 * (bb * bb + cc * cc);
     (r2 > 0.0).then(|| [m[0] + 0.5 * bb, m[1] + 0.5 * cc, r2.sqrt()])
 }
@@ -435,7 +423,7 @@ mod tests {
         // shift, δρ = Δr + Δc·n(θ) (here a 9 nm sideways shift, 4.4 nm RMS in δρ), and the
         // table shows the rest: project the wave on (1, cos θ, sin θ) to know that rest.
         let basis = |t: f64| [1.0, t.cos(), t.sin()];
-        let (mut a, mut b) = ([[0.0; 3]; 3], [0.0; 3]);
+        let (mut a, mut b) = (vec![vec![0.0; 3]; 3], [0.0; 3]);
         for &t in &angles {
             let f = basis(t);
             for i in 0..3 {
@@ -443,7 +431,7 @@ mod tests {
                 (0..3).for_each(|k| a[i][k] += f[i] * f[k]);
             }
         }
-        let q = solve(a, b).unwrap();
+        let q = solve_linear(&a, &b).unwrap();
         let rest = |t: f64| wave(t) - (0..3).map(|i| q[i] * basis(t)[i]).sum::<f64>();
         let (psi0, step, dev) = e.radial_deviation_table(500, 1);
         let err2: f64 = (dev.iter().enumerate())
