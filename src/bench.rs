@@ -571,10 +571,11 @@ pub fn run_target(cpu: bool, gpu: bool, azimuths: u32, out: Option<&Path>) -> Re
     let mut engines = open_engines(cpu, gpu)?;
     print_host(&engines);
     let job = target_job(azimuths)?;
+    let grid = crate::run::job_grid(&job, &crate::run::Groundwork::of(&job));
     println!(
         "\n## target job: {} ({} rings × {} azimuths = {:.3e} samples), end to end",
         job.name,
-        prepare_scenes_ring_count(&job),
+        grid.ring_count(),
         azimuths,
         job.sample_count() as f64
     );
@@ -590,10 +591,7 @@ pub fn run_target(cpu: bool, gpu: bool, azimuths: u32, out: Option<&Path>) -> Re
             let _ = std::fs::remove_dir_all(&temporary);
         }
     }
-    if !crate::io::outputs::polar_exr_written(&crate::run::job_grid(
-        &job,
-        &crate::run::Groundwork::of(&job),
-    )) {
+    if !crate::io::outputs::polar_exr_written(&grid) {
         println!(
             "(polar.exr is not written above {} samples; the top views, profile and statistics cover the whole field)",
             crate::io::outputs::POLAR_EXR_MAX_SAMPLES
@@ -628,10 +626,4 @@ fn target_row(engine: &mut dyn RemovalEngine, job: Job, dir: &Path) -> Result<()
         written.len()
     );
     Ok(())
-}
-
-/// Rings of a job's grid (for the header, before the run).
-fn prepare_scenes_ring_count(job: &Job) -> usize {
-    let groundwork = crate::run::Groundwork::of(job);
-    crate::run::job_grid(job, &groundwork).ring_count()
 }
