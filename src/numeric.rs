@@ -247,6 +247,7 @@ pub fn levenberg_marquardt<P: LeastSquaresProblem>(
         }
         let jtj = normal_matrix(&jacobian, &free);
         let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], &r)).collect();
+        let before = problem.rss(&current);
         let mut improved = false;
         for _ in 0..8 {
             let damped: Vec<Vec<f64>> = (0..k)
@@ -268,7 +269,7 @@ pub fn levenberg_marquardt<P: LeastSquaresProblem>(
                 mu *= 4.0;
                 continue;
             };
-            let (now, before) = (problem.rss(&evaluation), problem.rss(&current));
+            let now = problem.rss(&evaluation);
             if now < before {
                 let gain = 1.0 - now / before;
                 let small = free
