@@ -13,6 +13,7 @@ use super::candidates::{Candidate, Parameter};
 use super::forward::{ForwardError, ForwardModel, Frame, SimulatedSurface};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
+use super::spectrum;
 use super::zones::correlation_length;
 use crate::numeric::{
     LeastSquaresProblem, LmLimits, dot, invert, least_squares, levenberg_marquardt, normal_matrix,
@@ -557,6 +558,45 @@ impl<'a, 'e> Problem<'a, 'e> {
         Ok(fit)
     }
 
+    /// Fits `fit`'s set again on rings half as far apart, from where it ended, and
+    /// keeps those values: the forward model's own resolution error (a cusp between
+    /// rings, the marks' shift near the axis read between rings) biases a fit in
+    /// proportion to the ring pitch, and halving the pitch halves that bias. Each σ
+    /// becomes at least the move between the two fits, the size of the bias left.
+    /// Parameters not seen (σ = ∞) stay where they are. The residuals stay those of the
+    /// job's own pitch, which every other figure of the diagnosis is judged on.
+    pub fn refine_on_finer_rings(&mut self, fit: &mut Fit) -> Result<(), ForwardError> {
+        let pitch = self.model.pitch_mm();
+        let held: Vec<usize> = (0..fit.values.len())
+            .filter(|&j| !fit.sigmas[j].is_finite())
+            .collect();
+        self.model.set_pitch_mm(0.5 * pitch);
+        self.forget_all();
+        let refined = self
+            .levenberg_marquardt(&fit.set, &fit.parameters, fit.values.clone(), &held)
+            .and_then(|(values, jacobian)| {
+                self.finish(&fit.set, fit.parameters.clone(), values, &jacobian, &held)
+            });
+        self.model.set_pitch_mm(pitch);
+        self.forget_all();
+        let fine = refined?;
+        for j in 0..fit.values.len() {
+            if held.contains(&j) {
+                continue;
+            }
+            let moved = (fine.values[j] - fit.values[j]).abs();
+            fit.sigmas[j] = fit.sigmas[j].max(fine.sigmas[j]).max(moved);
+            fit.values[j] = fine.values[j];
+        }
+        fit.at_bound = fine.at_bound;
+        Ok(())
+    }
+
+    fn forget_all(&mut self) {
+        self.cache.clear();
+        self.simulations.clear();
+    }
+
     /// Widens each effect parameter's σ to the half-width of the interval over which
     /// Σr² rises by less than one effective point's variance (Δχ² = 1, the residual's
     /// variance inflated by its correlation length), stepped out from ±σ by doubling
@@ -1048,8 +1088,8 @@ pub(super) fn uncertainties(
             }
         }
     }
-    let hac = if line {
-        line_hac_variances(jacobian, free, &inverse, residual)
+    let line_variances = if line {
+        line_variances(jacobian, free, &inverse, residual)
     } else {
         vec![0.0; k]
     };
@@ -1063,38 +1103,27 @@ pub(super) fn uncertainties(
             few_points
                 * jacobian_sigma
                     .max(sandwich.max(0.0).sqrt())
-                    .max(hac[a].sqrt())
+                    .max(line_variances[a].sqrt())
         })
         .collect()
 }
 
-/// Longest lag of the autocovariance estimate, as a share of the points: 1/f noise
-/// and model error correlate over much of a profile.
-const HAC_LAG_SHARE: f64 = 0.25;
-
 /// Per free parameter, the variance of its least-squares estimate when the residual is
-/// a stationary correlated noise along the line: wᵀ C w, with w the estimator's
-/// weights ((JᵀJ)⁻¹Jᵀ) and C the residual's autocovariance, estimated up to lags of
-/// [`HAC_LAG_SHARE`] of the points and tapered (Bartlett: 1 − ℓ/L, which keeps the
-/// estimate non-negative). Unlike a correlation length, this weighs the noise at the
-/// wavelengths the parameter's signature has: a cone's or a power's long waves see
-/// the 1/f part's long waves.
-fn line_hac_variances(
+/// a stationary correlated noise along the line: the larger of the autocovariance
+/// estimate [`spectrum::autocovariance_variance`] and the fitted-spectrum estimate
+/// [`spectrum::weighted_variance`], which carries a 1/f noise below the wavelengths
+/// the fit took out of the residual.
+fn line_variances(
     jacobian: &[Vec<f64>],
     free: &[usize],
     inverse: &[Vec<f64>],
     residual: &[f64],
 ) -> Vec<f64> {
     let n = residual.len();
-    let lags = ((HAC_LAG_SHARE * n as f64) as usize).clamp(1, n.max(1));
-    let lagged = |a: &[f64], b: &[f64], lag: usize| -> f64 {
-        a[..n - lag].iter().zip(&b[lag..]).map(|(x, y)| x * y).sum()
-    };
-    let covariance: Vec<f64> = (0..lags)
-        .map(|lag| lagged(residual, residual, lag) / n as f64)
-        .collect();
+    let spectrum = spectrum::fit_noise_spectrum(residual);
     (0..free.len())
         .map(|a| {
+            // The estimator's weights: row a of (JᵀJ)⁻¹Jᵀ.
             let weights: Vec<f64> = (0..n)
                 .map(|i| {
                     free.iter()
@@ -1103,14 +1132,10 @@ fn line_hac_variances(
                         .sum()
                 })
                 .collect();
-            (0..lags)
-                .map(|lag| {
-                    let taper = 1.0 - lag as f64 / lags as f64;
-                    let twice = if lag == 0 { 1.0 } else { 2.0 };
-                    twice * taper * covariance[lag] * lagged(&weights, &weights, lag)
-                })
-                .sum::<f64>()
-                .max(0.0)
+            let spectral = spectrum
+                .map(|s| spectrum::weighted_variance(&weights, &s))
+                .unwrap_or(0.0);
+            spectrum::autocovariance_variance(&weights, residual).max(spectral)
         })
         .collect()
 }

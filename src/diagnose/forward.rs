@@ -242,6 +242,17 @@ impl<'e> ForwardModel<'e> {
         &self.base
     }
 
+    /// The ring pitch the model simulates on (mm).
+    pub fn pitch_mm(&self) -> f64 {
+        self.base.pitch_mm
+    }
+
+    /// Simulates on rings `pitch_mm` apart from now on (the same rows and aperture).
+    pub fn set_pitch_mm(&mut self, pitch_mm: f64) {
+        self.base.pitch_mm = pitch_mm;
+        self.grid = job_grid(&self.base, &self.groundwork);
+    }
+
     /// The engine, for another model to borrow while this one rests.
     pub fn engine(&mut self) -> &mut dyn RemovalEngine {
         &mut *self.engine

@@ -24,6 +24,7 @@ pub mod register;
 pub mod report;
 pub mod screen;
 pub mod search;
+pub mod spectrum;
 pub mod validate;
 pub mod verdict;
 pub mod withheld;
@@ -230,6 +231,9 @@ pub fn diagnose(
     let baseline = base.evaluation.clone();
     let indistinguishable = indistinguishable(&found.singles, &baseline.registered);
     let ambiguous = withdraw_if_ambiguous(&mut found, &indistinguishable, log);
+    if fitted.is_line() && check.fits {
+        refine_reported(&mut problem, &mut found, log)?;
+    }
     let rss0 = baseline.rss();
     let after = found
         .accepted
@@ -583,6 +587,32 @@ fn shrink_step(model: &str, residual: &[f64], radii: &[f64], zones: &Zones) -> S
         pv_nm: pv(residual) * 1e6,
         rms_nm: rms(residual) * 1e6,
         zones: zones.stats(radii, residual),
+    }
+}
+
+/// The fits whose values the report states — the accepted set and the candidate
+/// ranked first — refitted on rings half as far apart ([`Problem::refine_on_finer_rings`]).
+fn refine_reported(
+    problem: &mut Problem,
+    found: &mut Search,
+    log: &dyn Fn(&str),
+) -> Result<(), ForwardError> {
+    log("refitting what is reported on rings half as far apart");
+    if let Some(fit) = found.accepted.as_mut() {
+        problem.refine_on_finer_rings(fit)?;
+    }
+    let Some((first, _)) = found.singles.first_mut() else {
+        return Ok(());
+    };
+    // The single ranked first is most often the accepted set itself, fitted alike.
+    match &found.accepted {
+        Some(accepted) if accepted.set == first.set => {
+            first.values.clone_from(&accepted.values);
+            first.sigmas.clone_from(&accepted.sigmas);
+            first.at_bound.clone_from(&accepted.at_bound);
+            Ok(())
+        }
+        _ => problem.refine_on_finer_rings(first),
     }
 }
 
