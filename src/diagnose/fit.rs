@@ -13,7 +13,7 @@ use super::candidates::{Candidate, Parameter};
 use super::forward::{ForwardError, ForwardModel, Frame, SimulatedSurface};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register};
-use super::spectrum;
+use super::spectrum::LineNoise;
 use super::zones::correlation_length;
 use crate::numeric::{
     LeastSquaresProblem, LmLimits, dot, invert, least_squares, levenberg_marquardt, normal_matrix,
@@ -1109,10 +1109,9 @@ pub(super) fn uncertainties(
 }
 
 /// Per free parameter, the variance of its least-squares estimate when the residual is
-/// a stationary correlated noise along the line: the larger of the autocovariance
-/// estimate [`spectrum::autocovariance_variance`] and the fitted-spectrum estimate
-/// [`spectrum::weighted_variance`], which carries a 1/f noise below the wavelengths
-/// the fit took out of the residual.
+/// a stationary correlated noise along the line ([`LineNoise::variance`]: the larger of
+/// the autocovariance estimate and the fitted-spectrum one, which carries a 1/f noise
+/// below the wavelengths the fit took out of the residual).
 fn line_variances(
     jacobian: &[Vec<f64>],
     free: &[usize],
@@ -1120,7 +1119,7 @@ fn line_variances(
     residual: &[f64],
 ) -> Vec<f64> {
     let n = residual.len();
-    let spectrum = spectrum::fit_noise_spectrum(residual);
+    let noise = LineNoise::of(residual);
     (0..free.len())
         .map(|a| {
             // The estimator's weights: row a of (JᵀJ)⁻¹Jᵀ.
@@ -1132,10 +1131,7 @@ fn line_variances(
                         .sum()
                 })
                 .collect();
-            let spectral = spectrum
-                .map(|s| spectrum::weighted_variance(&weights, &s))
-                .unwrap_or(0.0);
-            spectrum::autocovariance_variance(&weights, residual).max(spectral)
+            noise.variance(&weights)
         })
         .collect()
 }

@@ -30,7 +30,7 @@ const ALPHA_STEPS: usize = 21;
 const ALPHA_MAX: f64 = 2.0;
 /// Flicker-to-white ratios tried: 0, then 10⁻³ … 10⁶ in tenths of a decade.
 const RATIO_STEPS: usize = 91;
-/// Flicker-to-white ratios tried: 0, then 10⁻³ … 10⁶ in tenths of a decade.
+
 /// White plus flicker: S(k) = white + flicker·k^−alpha, per DFT bin (the periodogram's
 /// expectation, |X(k)|²/n).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -83,9 +83,60 @@ impl Dft {
     }
 }
 
+/// What a residual along a line says about the noise an estimate sees, read once for
+/// all of a fit's parameters: its autocovariance and its fitted spectrum (None when
+/// the line is too short to read one), beside the line's DFT table.
+pub struct LineNoise {
+    dft: Dft,
+    covariance: Vec<f64>,
+    spectrum: Option<NoiseSpectrum>,
+}
+
+impl LineNoise {
+    /// The residual's noise (zeros are points not used).
+    pub fn of(residual: &[f64]) -> LineNoise {
+        let dft = Dft::new(residual.len());
+        LineNoise {
+            covariance: autocovariance(residual),
+            spectrum: fit_noise_spectrum(residual, &dft),
+            dft,
+        }
+    }
+
+    /// Var(Σ wᵢ eᵢ): the larger of the autocovariance and the spectrum estimates.
+    pub fn variance(&self, weights: &[f64]) -> f64 {
+        self.autocovariance_variance(weights)
+            .max(self.spectral_variance(weights))
+    }
+
+    /// The spectrum estimate ([`weighted_variance`]); 0 without a spectrum.
+    pub fn spectral_variance(&self, weights: &[f64]) -> f64 {
+        self.spectrum
+            .map_or(0.0, |s| weighted_variance(weights, &s, &self.dft))
+    }
+
+    /// wᵀ C w, with w an estimator's weights and C the residual's autocovariance,
+    /// estimated up to lags of [`HAC_LAG_SHARE`] of the points and tapered (Bartlett:
+    /// 1 − ℓ/L, which keeps the estimate non-negative). Unlike a correlation length,
+    /// this weighs the noise at the wavelengths the parameter's signature has.
+    pub fn autocovariance_variance(&self, weights: &[f64]) -> f64 {
+        let lags = self.covariance.len();
+        self.covariance
+            .iter()
+            .enumerate()
+            .map(|(lag, covariance)| {
+                let taper = 1.0 - lag as f64 / lags as f64;
+                let twice = if lag == 0 { 1.0 } else { 2.0 };
+                twice * taper * covariance * lagged(weights, weights, lag)
+            })
+            .sum::<f64>()
+            .max(0.0)
+    }
+}
+
 /// The noise spectrum of a residual along a line (zeros are points not used), or None
-/// when the line is too short to read one.
-pub fn fit_noise_spectrum(residual: &[f64]) -> Option<NoiseSpectrum> {
+/// when the line is too short to read one; `dft` is the line's table.
+fn fit_noise_spectrum(residual: &[f64], dft: &Dft) -> Option<NoiseSpectrum> {
     let n = residual.len();
     let half = n / 2;
     if half < 4 * FIRST_READ_BIN {
@@ -93,7 +144,7 @@ pub fn fit_noise_spectrum(residual: &[f64]) -> Option<NoiseSpectrum> {
     }
     let centred = centred(residual);
     let bins = half.min(EXACT_BINS);
-    let power: Vec<f64> = Dft::new(n)
+    let power: Vec<f64> = dft
         .power(&centred, bins)
         .iter()
         .map(|p| p / n as f64)
@@ -194,15 +245,16 @@ fn fit_whittle(bands: &[Band]) -> NoiseSpectrum {
     best.1
 }
 
-/// Var(Σ wᵢ eᵢ) for a noise e of `spectrum` along a line of the weights' length.
-pub fn weighted_variance(weights: &[f64], spectrum: &NoiseSpectrum) -> f64 {
+/// Var(Σ wᵢ eᵢ) for a noise e of `spectrum` along a line of the weights' length
+/// (`dft` its table).
+fn weighted_variance(weights: &[f64], spectrum: &NoiseSpectrum, dft: &Dft) -> f64 {
     let n = weights.len();
     let half = n / 2;
     if half == 0 {
         return 0.0;
     }
     let bins = half.min(EXACT_BINS);
-    let power = Dft::new(n).power(weights, bins);
+    let power = dft.power(weights, bins);
     let exact: f64 = power
         .iter()
         .enumerate()
@@ -223,25 +275,22 @@ pub fn weighted_variance(weights: &[f64], spectrum: &NoiseSpectrum) -> f64 {
 /// and model error correlate over much of a profile.
 const HAC_LAG_SHARE: f64 = 0.25;
 
-/// wᵀ C w, with w an estimator's weights and C the residual's autocovariance,
-/// estimated up to lags of [`HAC_LAG_SHARE`] of the points and tapered (Bartlett:
-/// 1 − ℓ/L, which keeps the estimate non-negative). Unlike a correlation length, this
-/// weighs the noise at the wavelengths the parameter's signature has.
-pub fn autocovariance_variance(weights: &[f64], residual: &[f64]) -> f64 {
+/// The residual's autocovariance at lags 0 … [`HAC_LAG_SHARE`] of the points.
+fn autocovariance(residual: &[f64]) -> Vec<f64> {
     let n = residual.len();
     let lags = ((HAC_LAG_SHARE * n as f64) as usize).clamp(1, n.max(1));
-    let lagged = |a: &[f64], b: &[f64], lag: usize| -> f64 {
-        a[..n - lag].iter().zip(&b[lag..]).map(|(x, y)| x * y).sum()
-    };
     (0..lags)
-        .map(|lag| {
-            let taper = 1.0 - lag as f64 / lags as f64;
-            let twice = if lag == 0 { 1.0 } else { 2.0 };
-            let covariance = lagged(residual, residual, lag) / n as f64;
-            twice * taper * covariance * lagged(weights, weights, lag)
-        })
-        .sum::<f64>()
-        .max(0.0)
+        .map(|lag| lagged(residual, residual, lag) / n as f64)
+        .collect()
+}
+
+/// Σᵢ aᵢ bᵢ₊ₗ over the pairs the line holds.
+fn lagged(a: &[f64], b: &[f64], lag: usize) -> f64 {
+    a[..a.len() - lag]
+        .iter()
+        .zip(&b[lag..])
+        .map(|(x, y)| x * y)
+        .sum()
 }
 
 #[cfg(test)]
@@ -267,7 +316,7 @@ mod tests {
     #[test]
     fn white_noise_reads_as_white_at_its_variance() {
         let e: Vec<f64> = normals(4096, 7).iter().map(|v| 3.0 * v).collect();
-        let s = fit_noise_spectrum(&e).unwrap();
+        let s = fit_noise_spectrum(&e, &Dft::new(e.len())).unwrap();
         // The variance is 9 per point; 4000 ordinates fix it to a few per cent.
         assert!((s.at(10.0) - 9.0).abs() < 0.15 * 9.0, "{s:?}");
         assert!((s.at(1000.0) - 9.0).abs() < 0.15 * 9.0, "{s:?}");
@@ -289,13 +338,14 @@ mod tests {
         let w = vec![1.0 / n as f64; n];
         // A constant weight has no energy at k ≥ 1: its variance is the k = 0 term,
         // which the line's piston removes; what is left must be 0.
-        assert!(weighted_variance(&w, &s).abs() < 1e-12);
+        let dft = Dft::new(n);
+        assert!(weighted_variance(&w, &s, &dft).abs() < 1e-12);
         // A ramp's weights (a slope's estimate): Σw² σ² by Parseval.
         let x: Vec<f64> = (0..n).map(|i| i as f64 - (n - 1) as f64 / 2.0).collect();
         let sxx: f64 = x.iter().map(|v| v * v).sum();
         let w: Vec<f64> = x.iter().map(|v| v / sxx).collect();
         let expected = 4.0 / sxx;
-        let got = weighted_variance(&w, &s);
+        let got = weighted_variance(&w, &s, &dft);
         assert!((got / expected - 1.0).abs() < 1e-9, "{got} vs {expected}");
     }
 
@@ -309,7 +359,7 @@ mod tests {
             sum += s;
             walk.push(sum);
         }
-        let s = fit_noise_spectrum(&walk).unwrap();
+        let s = fit_noise_spectrum(&walk, &Dft::new(walk.len())).unwrap();
         assert!((s.alpha - 2.0).abs() <= 0.2, "{s:?}");
     }
 
@@ -365,16 +415,17 @@ mod tests {
             let residual: Vec<f64> = (0..n)
                 .map(|i| e[i] - (0..4).map(|b| coef[b] * columns[b][i]).sum::<f64>())
                 .collect();
-            let s = fit_noise_spectrum(&residual).unwrap();
+            let noise = LineNoise::of(&residual);
+            assert!(noise.spectrum.is_some());
             cones.push(coef[3]);
-            hacs.push(autocovariance_variance(&weights[3], &residual));
-            predicted.push(weighted_variance(&weights[3], &s));
+            hacs.push(noise.autocovariance_variance(&weights[3]));
+            predicted.push(noise.spectral_variance(&weights[3]));
         }
         let mean = cones.iter().sum::<f64>() / cones.len() as f64;
         let scatter =
             cones.iter().map(|c| (c - mean).powi(2)).sum::<f64>() / (cones.len() - 1) as f64;
         // The true spectrum's variance is the ensemble's (±8 % in variance, 300 draws).
-        let exact = weighted_variance(&weights[3], &truth);
+        let exact = weighted_variance(&weights[3], &truth, &Dft::new(n));
         assert!(
             (exact / scatter - 1.0).abs() < 0.2,
             "exact {exact} vs scatter {scatter}"
