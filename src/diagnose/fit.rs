@@ -592,6 +592,17 @@ impl<'a, 'e> Problem<'a, 'e> {
         Ok(())
     }
 
+    /// `fit`'s set and values simulated on rings half as far apart and registered.
+    pub fn evaluate_on_finer_rings(&mut self, fit: &Fit) -> Result<Rc<Evaluation>, ForwardError> {
+        let pitch = self.model.pitch_mm();
+        self.model.set_pitch_mm(0.5 * pitch);
+        self.forget_all();
+        let fine = self.evaluate(&fit.set, &fit.values);
+        self.model.set_pitch_mm(pitch);
+        self.forget_all();
+        fine
+    }
+
     fn forget_all(&mut self) {
         self.cache.clear();
         self.simulations.clear();

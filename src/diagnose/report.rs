@@ -3,6 +3,7 @@
 //! first, the residual images and the effects fragment.
 
 use super::Outcome;
+use super::marks::MarkShape;
 use super::measurement::{Measurement, Shape};
 use super::register::Registration;
 use super::zones::{ZoneStats, gaussian_lowpass};
@@ -294,6 +295,8 @@ pub struct ResidualInfo {
     pub white_noise_nm: f64,
     /// Points over which the residual stays correlated (1 = independent).
     pub correlation_length_points: f64,
+    /// Profiles with marks: the residual folded over the marks' phase.
+    pub mark_shape: Option<MarkShape>,
 }
 
 #[derive(Debug, Clone, serde::Serialize)]
@@ -886,7 +889,39 @@ fn md_residual(d: &Diagnosis) -> String {
         d.residual_before.correlation_length_points,
         d.residual_after.correlation_length_points
     );
+    s += &md_mark_shape(d);
     s
+}
+
+/// The residual folded over the marks, before and after, bin by bin.
+fn md_mark_shape(d: &Diagnosis) -> String {
+    let (Some(before), after) = (&d.residual_before.mark_shape, &d.residual_after.mark_shape)
+    else {
+        return String::new();
+    };
+    let mut s = format!(
+        "Folded over the marks (phase from one cusp of the model to the next): {} before; {}.\n\n| phase | before (nm) | after (nm) |\n|---|---|---|\n",
+        before.describe(),
+        after
+            .as_ref()
+            .map_or("not folded after".into(), |a| format!(
+                "after, {:.2} nm RMS (χ² {:.0})",
+                a.rms_nm, a.chi2
+            ))
+    );
+    let bins = before.bins_nm.len();
+    for (k, b) in before.bins_nm.iter().enumerate() {
+        let a = after
+            .as_ref()
+            .and_then(|a| a.bins_nm.get(k))
+            .map_or("—".into(), |v| format!("{v:+.2}"));
+        s += &format!(
+            "| {:.2}–{:.2} | {b:+.2} | {a} |\n",
+            k as f64 / bins as f64,
+            (k + 1) as f64 / bins as f64
+        );
+    }
+    s + "\n"
 }
 
 /// What registration removed, against the job as given and with the fitted effects.

@@ -68,6 +68,13 @@ pub fn verdict(
     let near_noise = after.rms_nm <= 2.0 * noise
         || (after.correlation_length_points < 3.0 && after.rms_nm <= 3.0 * noise);
     let location = where_it_lies(before);
+    // Marks whose shape the model lacks stand out only once folded over hundreds of
+    // marks: near the noise point by point, they are still a gap.
+    let marks_left = after
+        .mark_shape
+        .as_ref()
+        .filter(|s| s.unexplained(noise))
+        .map(|s| format!(" The marks are not explained: {}.", s.describe()));
     match fit {
         Some(f) => {
             let members = f.effect_members();
@@ -98,6 +105,9 @@ pub fn verdict(
                 .iter()
                 .map(|&i| f.set[i].advice(f.values_of(i).0))
                 .collect();
+            if let Some(marks) = &marks_left {
+                sentence.push_str(marks);
+            }
             let status = if near_noise || explained >= EXPLAINED {
                 "effects_found"
             } else {
@@ -128,7 +138,7 @@ pub fn verdict(
                 "correct nothing yet: measure what separates them (another radius range, a map of the part, or a part cut with another program) and diagnose again".into(),
             ],
         },
-        None if near_noise => Verdict {
+        None if near_noise && marks_left.is_none() => Verdict {
             status: "no_effect_beyond_noise".into(),
             sentence: format!(
                 "No modelled effect explains the residual beyond noise: it is {:.1} nm RMS ({:.0} nm PV) against a noise level of {:.1} nm{}.",
@@ -142,10 +152,19 @@ pub fn verdict(
             advice: vec!["nothing to correct from this measurement".into()],
         },
         None => {
-            let mut sentence = format!(
-                "This gap is not explained by any modelled effect: {:.1} nm RMS ({:.0} nm PV) remains, well above the noise level of {:.1} nm{location}.",
-                after.rms_nm, after.pv_nm, noise
-            );
+            let mut sentence = match &marks_left {
+                Some(marks) if near_noise => format!(
+                    "This gap is not explained by any modelled effect: {:.1} nm RMS ({:.0} nm PV) remains against a noise level of {:.1} nm, and it is not noise.{marks}",
+                    after.rms_nm, after.pv_nm, noise
+                ),
+                _ => format!(
+                    "This gap is not explained by any modelled effect: {:.1} nm RMS ({:.0} nm PV) remains, well above the noise level of {:.1} nm{location}.{}",
+                    after.rms_nm,
+                    after.pv_nm,
+                    noise,
+                    marks_left.as_deref().unwrap_or("")
+                ),
+            };
             if let Some((label, why)) = refused.first() {
                 sentence.push_str(&format!(
                     " The strongest candidate, {label}, was not accepted: {why}."
