@@ -712,7 +712,10 @@ fn withdraw_if_marks_unexplained(
         return;
     }
     let effects = accepted.effects();
-    let why = format!("it reshapes the marks, yet with it {}", shape.describe());
+    let why = format!(
+        "it reshapes the marks, yet with it fitted they still differ: {}",
+        shape.describe()
+    );
     log(&format!("{} withdrawn: {why}", search::labels(&effects)));
     for c in effects.iter().rev() {
         found.refused.insert(0, (c.label(), why.clone()));
