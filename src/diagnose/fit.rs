@@ -566,20 +566,14 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// Parameters not seen (σ = ∞) stay where they are. The residuals stay those of the
     /// job's own pitch, which every other figure of the diagnosis is judged on.
     pub fn refine_on_finer_rings(&mut self, fit: &mut Fit) -> Result<(), ForwardError> {
-        let pitch = self.model.pitch_mm();
         let held: Vec<usize> = (0..fit.values.len())
             .filter(|&j| !fit.sigmas[j].is_finite())
             .collect();
-        self.model.set_pitch_mm(0.5 * pitch);
-        self.forget_all();
-        let refined = self
-            .levenberg_marquardt(&fit.set, &fit.parameters, fit.values.clone(), &held)
-            .and_then(|(values, jacobian)| {
-                self.finish(&fit.set, fit.parameters.clone(), values, &jacobian, &held)
-            });
-        self.model.set_pitch_mm(pitch);
-        self.forget_all();
-        let fine = refined?;
+        let fine = self.on_finer_rings(|p| {
+            let (values, jacobian) =
+                p.levenberg_marquardt(&fit.set, &fit.parameters, fit.values.clone(), &held)?;
+            p.finish(&fit.set, fit.parameters.clone(), values, &jacobian, &held)
+        })?;
         for j in 0..fit.values.len() {
             if held.contains(&j) {
                 continue;
@@ -594,13 +588,19 @@ impl<'a, 'e> Problem<'a, 'e> {
 
     /// `fit`'s set and values simulated on rings half as far apart and registered.
     pub fn evaluate_on_finer_rings(&mut self, fit: &Fit) -> Result<Rc<Evaluation>, ForwardError> {
+        self.on_finer_rings(|p| p.evaluate(&fit.set, &fit.values))
+    }
+
+    /// Runs `work` with the forward model on rings half as far apart, then puts the
+    /// job's own pitch back; nothing simulated on either pitch is reused on the other.
+    fn on_finer_rings<T>(&mut self, work: impl FnOnce(&mut Self) -> T) -> T {
         let pitch = self.model.pitch_mm();
         self.model.set_pitch_mm(0.5 * pitch);
         self.forget_all();
-        let fine = self.evaluate(&fit.set, &fit.values);
+        let out = work(self);
         self.model.set_pitch_mm(pitch);
         self.forget_all();
-        fine
+        out
     }
 
     fn forget_all(&mut self) {

@@ -312,6 +312,15 @@ mod tests {
             .collect()
     }
 
+    /// `signal` with white noise of `sigma_mm` added.
+    fn under_white_noise(signal: &[f64], sigma_mm: f64, rng: &mut Rng) -> Vec<f64> {
+        noise(signal.len(), sigma_mm, 0.0, rng)
+            .iter()
+            .zip(signal)
+            .map(|(a, b)| a + b)
+            .collect()
+    }
+
     /// A bump of `height_mm`, `width_mm` wide (Gaussian σ = width / 2), on every cusp.
     fn pile_up(m: &Marks, height_mm: f64, width_mm: f64) -> Vec<f64> {
         m.along
@@ -365,11 +374,7 @@ mod tests {
         );
         let mut rng = Rng::new(11);
         for _ in 0..20 {
-            let r: Vec<f64> = noise(m.along.len(), 2e-6, 0.0, &mut rng)
-                .iter()
-                .zip(&bumps)
-                .map(|(a, b)| a + b)
-                .collect();
+            let r = under_white_noise(&bumps, 2e-6, &mut rng);
             let f = fold(&m.along, &m.model, &r, 0.010).unwrap();
             assert!(f.significant, "{f:?}");
             assert!(
@@ -395,11 +400,7 @@ mod tests {
         let m = marks(2.0, 0.87e-3, |x| 0.014 + 0.006 * x);
         let bumps = pile_up(&m, 3e-6, 1.5e-3);
         let mut rng = Rng::new(3);
-        let r: Vec<f64> = noise(m.along.len(), 2e-6, 0.0, &mut rng)
-            .iter()
-            .zip(&bumps)
-            .map(|(a, b)| a + b)
-            .collect();
+        let r = under_white_noise(&bumps, 2e-6, &mut rng);
         let f = fold(&m.along, &m.model, &r, 0.019).unwrap();
         assert!(f.significant, "{f:?}");
         let whole_marks = m.cusps.iter().filter(|c| **c < 2.0).count() - 1;

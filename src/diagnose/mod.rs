@@ -277,14 +277,8 @@ pub fn diagnose(
         .collect();
     let residual_before = nominal.residual_mm.clone();
     let residual_after = after.registered.residual_mm.clone();
-    let before_info = ResidualInfo {
-        mark_shape: nominal_marks,
-        ..analysis.of(&nominal)
-    };
-    let after_info = ResidualInfo {
-        mark_shape: after_marks,
-        ..analysis.of(&after.registered)
-    };
+    let before_info = analysis.of(&nominal, nominal_marks);
+    let after_info = analysis.of(&after.registered, after_marks);
     let accepted = found.accepted.as_ref();
     let candidate_results: Vec<CandidateResult> = found
         .singles
@@ -433,7 +427,8 @@ struct ResidualAnalysis<'a> {
 }
 
 impl ResidualAnalysis<'_> {
-    fn of(&self, r: &Registered) -> ResidualInfo {
+    /// `mark_shape`: the residual's fold as judged ([`judged_mark_shape`]).
+    fn of(&self, r: &Registered, mark_shape: Option<MarkShape>) -> ResidualInfo {
         let m = self.measurement;
         let residual = &r.residual_mm;
         let (marks_cutoff, form_cutoff) = band_cutoffs(m, Some(self.period_mm));
@@ -449,7 +444,7 @@ impl ResidualAnalysis<'_> {
             },
             white_noise_nm: white_noise_mm(m, residual) * 1e6,
             correlation_length_points: zones::correlation_length(m, residual),
-            mark_shape: None,
+            mark_shape,
         }
     }
 
