@@ -291,10 +291,14 @@ fn print_summary(d: &toolmark::diagnose::report::Diagnosis) {
     }
     let r = &d.registration;
     println!(
-        "\n  placed: a {} with the axis at {:.4} ± {:.4} mm of the file; lateral scale {:.4} ({}){}",
+        "\n  placed: a {} with the axis at {:.4} mm of the file ({}); lateral scale {:.4} ({}){}",
         r.trace,
         r.axis_x_mm,
-        r.axis_x_sigma_mm,
+        if r.axis_x_sigma_mm.is_finite() {
+            format!("± {:.2} µm", r.axis_x_sigma_mm * 1e3)
+        } else {
+            "σ not determined".into()
+        },
         r.lateral_scale,
         r.lateral_scale_status,
         r.azimuth_deg

@@ -630,25 +630,43 @@ impl<'a, 'e> Problem<'a, 'e> {
             let bound = fit.parameters[j].bound;
             let mut width: f64 = 0.0;
             for side in [1.0, -1.0] {
-                let mut delta = sigma;
-                let mut reached = delta;
+                let mut reached = sigma;
+                // The last step that stayed within Δχ² = 1: a residual flat up to a step
+                // (a boss's edge crossing a sample) is flat at least that far.
+                let mut flat: f64 = 0.0;
                 for doubling in 0..=PROFILE_DOUBLINGS {
-                    delta = sigma * (1 << doubling) as f64;
+                    let delta = sigma * (1 << doubling) as f64;
                     let mut trial = fit.values.clone();
                     trial[j] = (fit.values[j] + side * delta).clamp(-bound, bound);
                     let e = self.evaluate(&fit.set, &trial)?;
                     let rise = self.rss(&e) - rss0;
                     reached = delta;
                     if rise >= variance {
-                        reached = delta * (variance / rise).sqrt();
+                        reached = flat.max(delta * (variance / rise).sqrt());
                         break;
                     }
+                    flat = delta;
                 }
                 width = width.max(reached);
             }
-            fit.sigmas[j] = sigma.max(width);
+            fit.sigmas[j] = sigma
+                .max(width)
+                .max(self.boss_edge_sigma(&fit.set, j, fit.values[j]));
         }
         Ok(())
+    }
+
+    /// A floor on a centre height's σ below centre (µm): its boss's edge, at radius
+    /// |height|, lies somewhere between two measured points, and the fit may put it
+    /// anywhere there (the model's own edge, a ramp between rings, pins it far finer than
+    /// the data can) — half the point spacing, so that ±2σ spans the whole gap.
+    fn boss_edge_sigma(&self, set: &[Candidate], j: usize, value: f64) -> f64 {
+        let heights = member_parameters(set, |c| *c == Candidate::CentreHeight);
+        if heights.contains(&j) && value < 0.0 {
+            0.5 * self.measurement.spacing_mm() * 1e3
+        } else {
+            0.0
+        }
     }
 
     /// Fits `set` from `start` by Levenberg–Marquardt with the parameters `held` kept

@@ -492,6 +492,7 @@ pub struct SimulatedSurface {
     /// Raster with pixel averaging: the pixel's size (mm).
     pixel_mm: Option<[f64; 2]>,
     stylus_tip_mm: Option<f64>,
+    rings: RingLookup,
 }
 
 impl SimulatedSurface {
@@ -511,6 +512,7 @@ impl SimulatedSurface {
             None => height_mm,
         };
         Self {
+            rings: RingLookup::new(grid.rings.iter().map(|r| r.radius_mm).collect()),
             grid,
             height_mm,
             clock_rad,
@@ -587,9 +589,7 @@ impl SimulatedSurface {
                 .map(|p| {
                     let p = frame.to_part(*p);
                     let r = p.length();
-                    let k = rings
-                        .partition_point(|ring| ring.radius_mm <= r)
-                        .min(count - 1);
+                    let k = self.rings.partition_point(r).min(count - 1);
                     let k = if k > 0 && r - rings[k - 1].radius_mm < rings[k].radius_mm - r {
                         k - 1
                     } else {
@@ -611,32 +611,96 @@ impl SimulatedSurface {
 
     /// Bilinear in (radius, azimuth) on the polar grid; NaN outside its rings.
     pub fn at(&self, p: DVec2) -> f64 {
-        let rings = &self.grid.rings;
+        let radii = &self.rings.radii;
         let r = p.length();
-        let k = rings.partition_point(|ring| ring.radius_mm <= r);
+        let k = self.rings.partition_point(r);
         let (k0, k1, t) = if k == 0 {
-            if r < rings[0].radius_mm - 1e-12 {
+            if r < radii[0] - 1e-12 {
                 return f64::NAN;
             }
             (0, 0, 0.0)
-        } else if k == rings.len() {
-            if r > rings[k - 1].radius_mm + 1e-12 {
+        } else if k == radii.len() {
+            if r > radii[k - 1] + 1e-12 {
                 return f64::NAN;
             }
             (k - 1, k - 1, 0.0)
         } else {
-            let (a, b) = (rings[k - 1].radius_mm, rings[k].radius_mm);
+            let (a, b) = (radii[k - 1], radii[k]);
             (k - 1, k, (r - a) / (b - a))
         };
         let rows = self.grid.azimuths;
-        let turn = p.y.atan2(p.x).rem_euclid(TAU) / TAU * rows as f64;
-        let j0 = (turn.floor() as u32) % rows;
-        let j1 = (j0 + 1) % rows;
-        let u = turn - turn.floor();
+        // atan2 lies in [−π, π]: rem_euclid(τ) adds τ to the negative half, exactly.
+        let angle = p.y.atan2(p.x);
+        let angle = if angle < 0.0 { angle + TAU } else { angle };
+        let turn = angle / TAU * rows as f64;
+        // `turn` lies in 0..=rows: the cast is its floor, the wrap needs no division.
+        let j0 = turn as u32;
+        let whole = j0 as f64;
+        let j0 = if j0 >= rows { j0 - rows } else { j0 };
+        let j1 = if j0 + 1 == rows { 0 } else { j0 + 1 };
+        let u = turn - whole;
         let value = |k: usize, j: u32| self.height_mm[self.grid.sample_index(k, j)];
         let row0 = value(k0, j0) + t * (value(k1, j0) - value(k0, j0));
         let row1 = value(k0, j1) + t * (value(k1, j1) - value(k0, j1));
         row0 + u * (row1 - row0)
+    }
+}
+
+/// The rings' radii with a bucket table over radius, so that the ring at a radius is
+/// found in a step or two instead of a binary search (two buckets a ring on average: a
+/// few rings closer than that, as a grid puts beside a feature, cost a step more).
+struct RingLookup {
+    radii: Vec<f64>,
+    first_mm: f64,
+    /// Buckets per mm.
+    per_bucket: f64,
+    /// Per bucket, how many rings lie at or below its lower edge.
+    below: Vec<usize>,
+}
+
+impl RingLookup {
+    /// The table over `radii` (ascending).
+    fn new(radii: Vec<f64>) -> Self {
+        let (first_mm, last_mm) = (radii[0], radii[radii.len() - 1]);
+        let extent = last_mm - first_mm;
+        let bucket_mm = if extent > 0.0 {
+            extent / (2 * radii.len()) as f64
+        } else {
+            1.0
+        };
+        let count = (extent / bucket_mm).ceil() as usize + 1;
+        let below = (0..count)
+            .map(|b| {
+                let edge = first_mm + b as f64 * bucket_mm;
+                radii.partition_point(|r| *r <= edge)
+            })
+            .collect();
+        Self {
+            radii,
+            first_mm,
+            per_bucket: 1.0 / bucket_mm,
+            below,
+        }
+    }
+
+    /// How many rings lie at or below radius `r` (`partition_point`'s answer).
+    fn partition_point(&self, r: f64) -> usize {
+        let radii = &self.radii;
+        let bucket = (r - self.first_mm) * self.per_bucket;
+        // Below the first ring, or NaN: the plain search.
+        if bucket.is_nan() || bucket < 0.0 {
+            return radii.partition_point(|v| *v <= r);
+        }
+        // (the cast truncates: the floor of a number ≥ 0, saturating)
+        let mut k = self.below[(bucket as usize).min(self.below.len() - 1)];
+        // The bucket's edge and `r` agree up to rounding: walk to the exact answer.
+        while k > 0 && radii[k - 1] > r {
+            k -= 1;
+        }
+        while k < radii.len() && radii[k] <= r {
+            k += 1;
+        }
+        k
     }
 }
 
@@ -750,6 +814,31 @@ pub fn stylus_trace(x: &[f64], z: &[f64], tip: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_ring_table_finds_what_a_binary_search_finds() {
+        // Rings even in arc length on a steep meridian: radius steps shrink 20-fold.
+        let radii: Vec<f64> = (0..4000)
+            .map(|i| {
+                let s = i as f64 * 5e-4;
+                s - 0.475 * s * s / 2.0
+            })
+            .collect();
+        let lookup = RingLookup::new(radii.clone());
+        let (lo, hi) = (radii[0], radii[radii.len() - 1]);
+        let probes = (0..200_000)
+            .map(|i| lo - 0.01 + (hi - lo + 0.02) * i as f64 / 199_999.0)
+            .chain(radii.iter().copied())
+            .chain(radii.iter().map(|r| r + 1e-17))
+            .chain([f64::NAN, -1.0, 1e9]);
+        for r in probes {
+            assert_eq!(
+                lookup.partition_point(r),
+                radii.partition_point(|v| *v <= r),
+                "radius {r}"
+            );
+        }
+    }
 
     #[test]
     fn line_rows_put_a_row_on_the_azimuth() {

@@ -91,8 +91,13 @@ impl MarkShape {
         } else {
             "on the flanks"
         };
+        let shape = if self.significant {
+            format!("{sign} most {place}")
+        } else {
+            "no shape beyond chance".into()
+        };
         format!(
-            "averaged over {} marks, their shape differs from the model's by {:.2} nm RMS (χ² {:.0}; chance stays below {:.0}), {sign} most {place}",
+            "averaged over {} marks, their shape differs from the model's by {:.2} nm RMS (χ² {:.0}; chance stays below {:.0}), {shape}",
             self.marks, self.rms_nm, self.chi2, self.threshold
         )
     }

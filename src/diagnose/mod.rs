@@ -203,7 +203,8 @@ pub fn diagnose(
     let nominal = base.evaluation.registered.clone();
     let spacing = |from: f64, to: f64| locate::local_mark_spacing_mm(job, from, to);
     let comparison = compare::compare(&fitted, &nominal, options.terms.power, &spacing);
-    let check = checks::fit_check(&fitted, &nominal, job, options.terms, period, &comparison);
+    let mut check = checks::fit_check(&fitted, &nominal, job, options.terms, period, &comparison);
+    let searched = check.fits || check.findings.iter().all(|f| f.severity != "severe");
 
     let (all_candidates, mut not_diagnosable) = candidates_for(job);
     if fitted.is_line() && all_candidates.contains(&Candidate::TiltErrorMotion { order: 0.0 }) {
@@ -216,7 +217,7 @@ pub fn diagnose(
         .into_iter()
         .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
         .collect();
-    let mut found = if check.fits && !options.compare_only {
+    let mut found = if searched && !options.compare_only {
         search::search(
             &mut problem,
             &base,
@@ -230,6 +231,18 @@ pub fn diagnose(
     } else {
         Search::default()
     };
+    let singles: Vec<(String, &[f64])> = found
+        .singles
+        .iter()
+        .map(|(fit, _)| {
+            let residual = fit.evaluation.registered.residual_mm.as_slice();
+            (search::labels(&fit.set[fit.set.len() - 1..]), residual)
+        })
+        .collect();
+    checks::settle_form(&mut check, &fitted, period, &singles);
+    if !check.fits {
+        found = Search::default();
+    }
     let baseline = base.evaluation.clone();
     let indistinguishable = indistinguishable(&found.singles, &baseline.registered);
     let ambiguous = withdraw_if_ambiguous(&mut found, &indistinguishable, log);

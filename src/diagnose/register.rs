@@ -277,7 +277,7 @@ fn register_near(
                 .iter()
                 .map(|&a| objective(&coarse, search.start + a * d))
                 .collect();
-            local_minima(&values, search.refine)
+            let best = local_minima(&values, search.refine)
                 .into_iter()
                 .map(|k| {
                     let centre = search.start + offsets[k] * d;
@@ -285,7 +285,15 @@ fn register_near(
                     let a = golden_section(&along, -width, width, 14);
                     (along(a), centre + a * d)
                 })
-                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            match (best, search.comb) {
+                (Some(b), Some(comb)) => {
+                    let polished =
+                        polish_between_teeth(m, sim, terms.power, mirrored, b.1, comb, width);
+                    Some((b.0, polished))
+                }
+                _ => best,
+            }
         }
         None => {
             let n = offsets.len();
@@ -328,6 +336,50 @@ fn register_near(
     Registered {
         mirrored,
         ..fit_linear(m, &sim.sample(m, frame), shift, terms.power)
+    }
+}
+
+/// The axis moved from `at` (the bulk's placement, at a tooth of `comb`) to where Σr²
+/// — the fits' own measure, every point counted — is least within half a tooth either
+/// side: a modelled central feature (a centre height's boss) fixes the axis between the
+/// teeth, where the marks (with the spiral's azimuth held) cannot; the fit then moves
+/// the azimuth to put the marks back. A grid of `step_mm` on a subsample, then a
+/// golden section on all points; `at` stays unless Σr² falls.
+fn polish_between_teeth(
+    m: &Measurement,
+    sim: &SimulatedSurface,
+    power: bool,
+    mirrored: bool,
+    at: DVec2,
+    comb: Comb,
+    step_mm: f64,
+) -> DVec2 {
+    let direction = m.line_direction();
+    let coarse = every_nth(m, (m.len() / 4000).max(1));
+    let rss = |points: &Measurement, shift: DVec2| {
+        let simulated = sim.sample(points, Frame::at(shift).mirrored(mirrored));
+        let (value, used) = line_rss(points, &simulated, shift, power);
+        if used < points.len() / 2 {
+            f64::INFINITY
+        } else {
+            value
+        }
+    };
+    let half = 0.5 * comb.step_mm;
+    let steps = (half / step_mm).ceil() as i64;
+    let Some((_, k)) = (-steps..=steps)
+        .map(|k| (rss(&coarse, at + k as f64 * step_mm * direction), k))
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+    else {
+        return at;
+    };
+    let centre = at + k as f64 * step_mm * direction;
+    let along = |a: f64| rss(m, centre + a * direction);
+    let a = golden_section(&along, -step_mm, step_mm, 14);
+    if along(a) < rss(m, at) {
+        centre + a * direction
+    } else {
+        at
     }
 }
 

@@ -248,7 +248,8 @@ impl RegistrationInfo {
 
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Finding {
-    /// "severe" (the measurement does not fit the job) or "note".
+    /// "severe" (the measurement does not fit the job) or "note" ("pending" only while
+    /// the diagnosis runs).
     pub severity: &'static str,
     pub message: String,
 }
@@ -257,6 +258,14 @@ impl Finding {
     pub fn severe(message: String) -> Self {
         Self {
             severity: "severe",
+            message,
+        }
+    }
+
+    /// Decided once the candidates are fitted (see `checks::settle_form`).
+    pub fn pending(message: String) -> Self {
+        Self {
+            severity: "pending",
             message,
         }
     }
@@ -277,6 +286,8 @@ pub struct FitCheck {
     /// after the registration terms (nm).
     pub form_rms_nm: f64,
     pub measured_rms_nm: f64,
+    /// RMS of the job's smooth residual (low-passed at five mark periods; nm).
+    pub smooth_residual_nm: f64,
     pub mark_period_measured_um: Option<f64>,
     pub mark_period_simulated_um: Option<f64>,
 }
