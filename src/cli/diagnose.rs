@@ -294,7 +294,9 @@ fn print_summary(d: &toolmark::diagnose::report::Diagnosis) {
         "\n  placed: a {} with the axis at {:.4} mm of the file ({}); lateral scale {:.4} ({}){}",
         r.trace,
         r.axis_x_mm,
-        if r.axis_x_sigma_mm.is_finite() {
+        if r.axis_x_sigma_mm < 1e-4 {
+            format!("± {:.1} nm", r.axis_x_sigma_mm * 1e6)
+        } else if r.axis_x_sigma_mm.is_finite() {
             format!("± {:.2} µm", r.axis_x_sigma_mm * 1e3)
         } else {
             "σ not determined".into()
