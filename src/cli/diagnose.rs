@@ -289,6 +289,9 @@ fn print_summary(d: &toolmark::diagnose::report::Diagnosis) {
     for a in &d.verdict.advice {
         println!("  at the machine: {a}");
     }
+    for f in d.fit_check.findings.iter().filter(|f| f.severity == "note") {
+        println!("  note: {}", f.message);
+    }
     let r = &d.registration;
     println!(
         "\n  placed: a {} with the axis at {:.4} mm of the file ({}); lateral scale {:.4} ({}){}",

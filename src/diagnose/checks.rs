@@ -16,6 +16,10 @@ use crate::io::job::Job;
 /// follow the form — unless a candidate effect explains it (see [`settle_form`]).
 const DEPARTS: f64 = 0.5;
 
+/// How far the median mark spacing may differ from the job's before a note says so:
+/// beyond the lateral scale's bound (2 %) and the bands' scatter (~1 %).
+const SPACING_NOTE: f64 = 0.03;
+
 /// Whether `m` (placed on the part; `nominal` the job registered to it) fits the job.
 /// A departure from the form is left pending: a set-up error can leave more smooth
 /// residual than the form itself has (a decentre's cone on a sphere whose power was
@@ -51,13 +55,17 @@ pub fn fit_check(
     let measured_rms = rms(&detrend(&m.height_mm));
     let measured_smooth_rms = rms(&smooth(&detrend(&m.height_mm)));
     let residual_rms = rms(&smooth(&nominal.residual_mm));
-    if let Some(ratio) = comparison.mark_spacing_ratio
-        && !(0.8..=1.25).contains(&ratio)
-    {
-        findings.push(Finding::severe(format!(
-            "the measured tool marks are {ratio:.2}× as far apart as the job puts them (median over {} bands of radius): not this program, or the lateral unit is wrong",
-            comparison.mark_spacing.len()
-        )));
+    if let Some(ratio) = comparison.mark_spacing_ratio {
+        let bands = comparison.mark_spacing.len();
+        if !(0.8..=1.25).contains(&ratio) {
+            findings.push(Finding::severe(format!(
+                "the measured tool marks are {ratio:.2}× as far apart as the job puts them (median over {bands} bands of radius): not this program, or the lateral unit is wrong"
+            )));
+        } else if (ratio - 1.0).abs() > SPACING_NOTE {
+            findings.push(Finding::note(format!(
+                "the measured tool marks lie {ratio:.3}× as far apart as the job puts them (median over {bands} bands of radius), more than the lateral scale's ±2 % takes: check the job's feed (`feed_per_rev_mm` is the contact point's radial advance per revolution) and the instrument's lateral calibration"
+            )));
+        }
     }
     if let Some(amplitude) = mark_amplitude_ratio(m, model, period)
         && !(1.0 / 30.0..=30.0).contains(&amplitude)
