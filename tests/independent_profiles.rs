@@ -42,6 +42,15 @@ fn diagnose(profile: &str) -> serde_json::Value {
     serde_json::from_str(&text).unwrap()
 }
 
+/// The verdict's status, its sentence shown when it is another.
+fn assert_status(d: &serde_json::Value, status: &str) {
+    assert_eq!(
+        d["verdict"]["status"], status,
+        "{}",
+        d["verdict"]["sentence"]
+    );
+}
+
 /// The accepted effect's first parameter (value, σ), after checking it is the only one.
 fn accepted(d: &serde_json::Value, effect: &str) -> (f64, f64) {
     let accepted = d["accepted"].as_array().unwrap();
@@ -79,11 +88,7 @@ fn assert_sized(fit: (f64, f64), truth: f64) {
 #[test]
 fn a_decentre_on_a_form_removed_profile_is_found_not_refused() {
     let d = diagnose("decentre_2um_form_removed.csv");
-    assert_eq!(
-        d["verdict"]["status"], "effects_found",
-        "{}",
-        d["verdict"]["sentence"]
-    );
+    assert_status(&d, "effects_found");
     // The generator's +2 µm: the tool stops short of the axis.
     assert_sized(accepted(&d, "x_decentre"), 2.0);
     assert_axis(&d, 0.137);
@@ -99,11 +104,7 @@ fn a_decentre_on_a_form_removed_profile_is_found_not_refused() {
 #[test]
 fn a_centre_height_boss_on_a_form_removed_profile_is_found_not_refused() {
     let d = diagnose("centre_height_-3um_form_removed.csv");
-    assert_eq!(
-        d["verdict"]["status"], "effects_found",
-        "{}",
-        d["verdict"]["sentence"]
-    );
+    assert_status(&d, "effects_found");
     // The boss's edge lies between two points 0.5 µm apart: the height is known to
     // that, and its σ says so (at least half the spacing), not to 10 %.
     let (value, sigma) = accepted(&d, "centre_height");
@@ -118,11 +119,7 @@ fn a_centre_height_boss_on_a_form_removed_profile_is_found_not_refused() {
 #[test]
 fn a_clean_form_removed_profile_shows_no_effect() {
     let d = diagnose("control_form_removed.csv");
-    assert_eq!(
-        d["verdict"]["status"], "no_effect_beyond_noise",
-        "{}",
-        d["verdict"]["sentence"]
-    );
+    assert_status(&d, "no_effect_beyond_noise");
     assert!(d["accepted"].as_array().unwrap().is_empty());
     assert_axis(&d, 0.042);
 }

@@ -116,7 +116,7 @@ pub fn fit_check(
         }
     }
     FitCheck {
-        fits: findings.iter().all(|f| f.severity == "note"),
+        fits: only_notes(&findings),
         findings,
         form_rms_nm: form_rms * 1e6,
         measured_rms_nm: measured_rms * 1e6,
@@ -128,9 +128,9 @@ pub fn fit_check(
 
 /// Settles a pending departure from the form once the candidates are fitted: where the
 /// best-explaining candidate's residual (`fits`: label and residual of each candidate
-/// fitted alone)
-/// follows the form — its smooth part within [`DEPARTS`] of it — the departure was a
-/// set-up error and stays as a note; else the measurement does not fit the job.
+/// fitted alone) follows the form — its smooth part within [`DEPARTS`] of it — the
+/// departure was a set-up error and stays as a note; else the measurement does not fit
+/// the job.
 pub fn settle_form(check: &mut FitCheck, m: &Measurement, period: f64, fits: &[(String, &[f64])]) {
     let Some(at) = check.findings.iter().position(|f| f.severity == "pending") else {
         return;
@@ -152,7 +152,18 @@ pub fn settle_form(check: &mut FitCheck, m: &Measurement, period: f64, fits: &[(
         }
         None => finding.severity = "severe",
     }
-    check.fits = check.findings.iter().all(|f| f.severity == "note");
+    check.fits = only_notes(&check.findings);
+}
+
+/// The measurement fits the job: nothing severe, nothing pending.
+fn only_notes(findings: &[Finding]) -> bool {
+    findings.iter().all(|f| f.severity == "note")
+}
+
+/// Whether the candidates may be fitted: nothing severe (a pending departure from the
+/// form is settled by them).
+pub fn may_search(check: &FitCheck) -> bool {
+    check.findings.iter().all(|f| f.severity != "severe")
 }
 
 /// The measured marks' RMS over the simulated marks' (both high-passed at five mark

@@ -204,7 +204,6 @@ pub fn diagnose(
     let spacing = |from: f64, to: f64| locate::local_mark_spacing_mm(job, from, to);
     let comparison = compare::compare(&fitted, &nominal, options.terms.power, &spacing);
     let mut check = checks::fit_check(&fitted, &nominal, job, options.terms, period, &comparison);
-    let searched = check.fits || check.findings.iter().all(|f| f.severity != "severe");
 
     let (all_candidates, mut not_diagnosable) = candidates_for(job);
     if fitted.is_line() && all_candidates.contains(&Candidate::TiltErrorMotion { order: 0.0 }) {
@@ -217,7 +216,7 @@ pub fn diagnose(
         .into_iter()
         .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
         .collect();
-    let mut found = if searched && !options.compare_only {
+    let mut found = if checks::may_search(&check) && !options.compare_only {
         search::search(
             &mut problem,
             &base,
