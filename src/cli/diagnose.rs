@@ -321,10 +321,18 @@ fn print_summary(d: &toolmark::diagnose::report::Diagnosis) {
             c.mark_spacing.len()
         ))
     );
-    println!("\n  {:<34} {:>10} {:>10}", "model", "PV (nm)", "RMS (nm)");
+    let width = d
+        .shrinkage
+        .iter()
+        .map(|step| step.model.chars().count())
+        .fold(34, usize::max);
+    println!(
+        "\n  {:<width$} {:>10} {:>10}",
+        "model", "PV (nm)", "RMS (nm)"
+    );
     for step in &d.shrinkage {
         println!(
-            "  {:<34} {:>10.1} {:>10.2}",
+            "  {:<width$} {:>10.1} {:>10.2}",
             step.model, step.pv_nm, step.rms_nm
         );
     }

@@ -27,6 +27,8 @@ use std::rc::Rc;
 /// remove and where it may look for the axis.
 /// Golden-section steps refining a scan (the bracket shrinks to 0.618^n).
 const GOLDEN_STEPS: usize = 10;
+/// Golden-section steps refining a waviness order by re-fitting (0.618^8: 2 %).
+const WAVINESS_ORDER_STEPS: usize = 8;
 /// Simulations a problem keeps for re-registration.
 const SIMULATIONS_KEPT: usize = 32;
 /// Doublings of the step a σ's profile takes beyond ±σ (up to 16σ).
@@ -119,8 +121,19 @@ impl Fit {
             self.objective,
             self.evaluation.registered.used,
             self.effective_points,
-            self.values.len(),
+            self.parameter_count(),
         )
+    }
+
+    /// The parameters the fit chose: its values, and each edge waviness's order (found
+    /// by search, not held: it is paid for in BIC like a value).
+    pub fn parameter_count(&self) -> usize {
+        let orders = self
+            .set
+            .iter()
+            .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
+            .count();
+        self.values.len() + orders
     }
 
     /// The members that are effects (not registration terms), by index.
@@ -873,7 +886,16 @@ impl<'a, 'e> Problem<'a, 'e> {
         let free = observable(jacobian, frozen);
         let residual = self.residual(&evaluation);
         let line = self.measurement.is_line();
-        let sigmas_free = uncertainties(jacobian, &free, &residual, tau, line);
+        // A waviness order is fitted too (outside the Jacobian): its column joins the
+        // σs' estimate so that the amplitudes' carry what the order's doubt leaves.
+        let orders = self.order_columns(set, &values, &residual)?;
+        let mut extended = jacobian.to_vec();
+        let mut free_extended = free.clone();
+        for column in orders {
+            free_extended.push(extended.len());
+            extended.push(column);
+        }
+        let sigmas_free = uncertainties(&extended, &free_extended, &residual, tau, line);
         let mut sigmas = vec![f64::INFINITY; values.len()];
         for (&j, s) in free.iter().zip(sigmas_free) {
             sigmas[j] = s;
@@ -899,14 +921,15 @@ impl<'a, 'e> Problem<'a, 'e> {
     }
 
     /// Picks the waviness order that best explains the residual left by `base` (the
-    /// accepted effects at `base_values`): for each order on the grid, the residual's
+    /// accepted effects at `base_values`): for each order tried, the residual's
     /// projection on the responses to a cosine and a sine harmonic; then the best order
-    /// refined between its grid neighbours. Returns (order, cos, sin) in nm.
+    /// refined within ±`half_width`. Returns (order, cos, sin) in nm.
     pub fn screen_waviness(
         &mut self,
         base: &[Candidate],
         base_values: &[f64],
         orders: &[f64],
+        half_width: f64,
         amplitude_nm: f64,
     ) -> Result<Option<(f64, f64, f64)>, ForwardError> {
         let r0 = {
@@ -936,11 +959,11 @@ impl<'a, 'e> Problem<'a, 'e> {
         let Some(mut best) = best else {
             return Ok(None);
         };
-        if orders.len() > 1 {
-            // Golden-section on the order between the grid neighbours, keeping the best
-            // order evaluated (7 steps: 9 orders).
-            let step = orders[1] - orders[0];
-            let (lo, hi) = ((best.1 - step).max(orders[0] * 0.5), best.1 + step);
+        if half_width > 0.0 {
+            // Golden section on the order around the best tried, keeping the best
+            // order evaluated (7 steps).
+            let lowest = orders.iter().copied().fold(f64::INFINITY, f64::min);
+            let (lo, hi) = ((best.1 - half_width).max(lowest * 0.5), best.1 + half_width);
             try_golden_section(
                 |order| {
                     let f = self.waviness_at(base, base_values, order, amplitude_nm, &r0)?;
@@ -955,6 +978,81 @@ impl<'a, 'e> Problem<'a, 'e> {
             )?;
         }
         Ok(Some((best.1, best.2, best.3)))
+    }
+
+    /// The residual's derivative by each edge waviness member's order (forward
+    /// difference of half a percent), the values held.
+    fn order_columns(
+        &mut self,
+        set: &[Candidate],
+        values: &[f64],
+        residual: &[f64],
+    ) -> Result<Vec<Vec<f64>>, ForwardError> {
+        let mut columns = Vec::new();
+        for (m, c) in set.iter().enumerate() {
+            let Candidate::EdgeWaviness { order } = *c else {
+                continue;
+            };
+            let h = (0.005 * order).max(0.05);
+            let mut moved = set.to_vec();
+            moved[m] = Candidate::EdgeWaviness { order: order + h };
+            let e = self.evaluate(&moved, values)?;
+            let r1 = self.residual(&e);
+            columns.push(r1.iter().zip(residual).map(|(a, b)| (a - b) / h).collect());
+        }
+        Ok(columns)
+    }
+
+    /// The order of `set`'s last member, an edge waviness, that leaves the least
+    /// residual when every value is fitted with it (Levenberg–Marquardt, warm-started
+    /// from the best order so far): golden section over `lo..hi`. The responses the
+    /// order screens use hold the registration members still, and a scale or spiral
+    /// azimuth re-fitted beside the waviness moves the best order by a fifth and more.
+    /// Each order is fitted from the best values so far and at the unit scale. Returns
+    /// the set at the best order and its values.
+    pub fn refit_waviness_order(
+        &mut self,
+        set: &[Candidate],
+        start: Vec<f64>,
+        lo: f64,
+        hi: f64,
+    ) -> Result<(Vec<Candidate>, Vec<f64>), ForwardError> {
+        let at = |order: f64| {
+            let mut set = set.to_vec();
+            *set.last_mut().expect("a waviness member") = Candidate::EdgeWaviness { order };
+            set
+        };
+        let parameters: Vec<Parameter> = set
+            .iter()
+            .flat_map(|c| c.parameters(self.model.base_job()))
+            .collect();
+        let mut best = {
+            let (values, _) = self.levenberg_marquardt(set, &parameters, start, &[])?;
+            let e = self.evaluate(set, &values)?;
+            (self.rss(&e), set.to_vec(), values)
+        };
+        try_golden_section(
+            |order| {
+                let trial = at(order);
+                let mut lowest = f64::INFINITY;
+                // From the best values so far, and at the unit scale (a scale fitted
+                // beside another order holds part of this one's power).
+                for start in with_unit_scale(&trial, best.2.clone()) {
+                    let (values, _) = self.levenberg_marquardt(&trial, &parameters, start, &[])?;
+                    let e = self.evaluate(&trial, &values)?;
+                    let rss = self.rss(&e);
+                    lowest = lowest.min(rss);
+                    if rss < best.0 {
+                        best = (rss, trial.clone(), values);
+                    }
+                }
+                Ok::<f64, ForwardError>(lowest)
+            },
+            lo,
+            hi,
+            WAVINESS_ORDER_STEPS,
+        )?;
+        Ok((best.1, best.2))
     }
 
     /// The least-squares cos/sin amplitudes (nm) of one waviness order against the
@@ -1067,8 +1165,17 @@ fn scan_values(origin: f64, scale: f64, bound: f64) -> Vec<f64> {
 /// beside one effect can hold what a new one explains, and held there along the scan
 /// it hides it.
 fn scan_starts(set: &[Candidate], start: Vec<f64>, scan: &[usize]) -> Vec<Vec<f64>> {
+    if scan.is_empty() {
+        return vec![start];
+    }
+    with_unit_scale(set, start)
+}
+
+/// `start`, and — where the set fits the lateral scale and `start` has it away from 1 —
+/// `start` at the unit scale.
+fn with_unit_scale(set: &[Candidate], start: Vec<f64>) -> Vec<Vec<f64>> {
     let scale = member_parameters(set, |c| *c == Candidate::LateralScale);
-    if scan.is_empty() || scale.iter().all(|&j| start[j] == 0.0) {
+    if scale.iter().all(|&j| start[j] == 0.0) {
         return vec![start];
     }
     let mut unit = start.clone();

@@ -102,7 +102,7 @@ pub fn search<'a>(
         problem.shift = best.frame;
         problem.clear_cache();
     }
-    let (rss0, k0) = (base.objective, base.values.len());
+    let (rss0, k0) = (base.objective, base.parameter_count());
     let n_eff = common_effective_points(&fits, problem, fitted)?;
     found.singles = fits
         .into_iter()
@@ -120,7 +120,7 @@ pub fn search<'a>(
             problem.clear_cache();
         }
         let round = greedy_round(problem, &found.singles, &current, job, fitted, log)?;
-        let (rss_before, k_before) = (current.objective, current.values.len());
+        let (rss_before, k_before) = (current.objective, current.parameter_count());
         let n_eff = common_effective_points(&round, problem, fitted)?;
         let mut ranked: Vec<(Fit, f64)> = round
             .into_iter()
@@ -131,6 +131,7 @@ pub fn search<'a>(
             .collect();
         ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
         let mut taken = None;
+        let mut refused = Vec::new();
         for (mut fit, e) in ranked.into_iter().take(TRIES_PER_ROUND) {
             if e <= options.min_evidence {
                 break;
@@ -152,7 +153,14 @@ pub fn search<'a>(
                 taken = Some(fit);
                 break;
             }
+            refused.push(fit);
         }
+        let taken = match taken {
+            Some(fit) => Some(fit),
+            None => joint_pair(
+                problem, folds, &mut found, &current, &refused, job, options, log,
+            )?,
+        };
         match taken {
             Some(fit) => {
                 found.steps.push(fit.clone());
@@ -222,7 +230,7 @@ fn rival_pair<'a>(
         for pair in greedy_round(problem, &found.singles, rival, job, fitted, log)? {
             let gain = evidence(
                 current.objective,
-                current.values.len(),
+                current.parameter_count(),
                 &pair,
                 current.effective_points,
             );
@@ -275,6 +283,80 @@ fn rival_pair<'a>(
     Ok(Some(pair))
 }
 
+/// When no effect of a round predicts the data it was not fitted on alone, two present
+/// together can still be the cause — each fitted alone bends to imitate the other, and
+/// that bend does not carry to unseen data (a centre height beside an edge waviness,
+/// two waviness orders). The strongest effect refused for that is given the best
+/// partner of all the candidates (one that explains nothing alone included), and the
+/// two are accepted together when the pair beats
+/// `current` on BIC by more than the evidence threshold, both are fits, the partner
+/// removes a tenth of what the first leaves, and the two, fitted together on part of
+/// the data, predict the rest.
+#[allow(clippy::too_many_arguments)]
+fn joint_pair<'a>(
+    problem: &mut Problem<'a, '_>,
+    folds: &'a Folds<'a>,
+    found: &mut Search,
+    current: &Fit,
+    refused: &[Fit],
+    job: &Job,
+    options: &Options,
+    log: &dyn Fn(&str),
+) -> Result<Option<Fit>, DiagnoseError> {
+    let Some(first) = refused.first() else {
+        return Ok(None);
+    };
+    if current.effect_members().len() + 2 > options.max_effects {
+        return Ok(None);
+    }
+    let fitted = problem.measurement;
+    problem.shift = first.frame;
+    problem.clear_cache();
+    let round = partners_round(problem, &found.singles, first, (job, fitted), true, log)?;
+    problem.shift = current.frame;
+    problem.clear_cache();
+    let Some(mut pair) = round
+        .into_iter()
+        .min_by(|a, b| a.objective.total_cmp(&b.objective))
+    else {
+        return Ok(None);
+    };
+    let label = labels(&pair.set[current.set.len()..]);
+    let gain = evidence(
+        current.objective,
+        current.parameter_count(),
+        &pair,
+        current.effective_points,
+    );
+    if gain <= options.min_evidence {
+        return Ok(None);
+    }
+    let members: Vec<usize> = (current.set.len()..pair.set.len()).collect();
+    if let Some(why) = members
+        .iter()
+        .find_map(|&m| not_a_fit(&pair, m))
+        .or_else(|| too_small(first.objective, pair.objective))
+    {
+        log(&format!("{label} together: {why}"));
+        found.refused.push((label, why));
+        return Ok(None);
+    }
+    log(&format!(
+        "{label} together (ΔBIC {gain:.1}): checking that they predict data they were not fitted on"
+    ));
+    let tested = members.len();
+    let Some(spread) = predict_unseen_together(problem, folds, found, &pair, tested, log)? else {
+        return Ok(None);
+    };
+    let mut offset = 0;
+    for &m in &members {
+        let n = width(&pair.set[m]);
+        widen_sigmas(&mut pair, m, &spread[offset..offset + n]);
+        offset += n;
+    }
+    Ok(Some(pair))
+}
+
 /// Whether the last member of `fit` predicts the data it was not fitted on; the
 /// validation, and a failure's reason, are recorded in `found`. Returns the folds'
 /// spread of its values (a floor for its σ) when it passed.
@@ -285,16 +367,28 @@ fn predicts_unseen(
     fit: &Fit,
     log: &dyn Fn(&str),
 ) -> Result<Option<Vec<f64>>, DiagnoseError> {
+    predict_unseen_together(problem, folds, found, fit, 1, log)
+}
+
+/// [`predicts_unseen`] for the last `tested` members of `fit` fitted and judged together.
+fn predict_unseen_together(
+    problem: &mut Problem,
+    folds: &Folds,
+    found: &mut Search,
+    fit: &Fit,
+    tested: usize,
+    log: &dyn Fn(&str),
+) -> Result<Option<Vec<f64>>, DiagnoseError> {
     let validation = cross_validate(
         problem,
         folds,
-        &fit.set,
-        &fit.values,
+        (&fit.set, &fit.values),
+        tested,
         &fit.evaluation.registered,
     )?;
     let spread = validation.passed.then(|| validation.spread.clone());
     if !validation.passed {
-        let label = fit.set[fit.set.len() - 1].label();
+        let label = validation.effect.clone();
         log(&format!("{label}: not accepted — {}", validation.reason));
         found.refused.push((label, validation.reason.clone()));
     }
@@ -347,13 +441,27 @@ fn widen_sigmas(fit: &mut Fit, member: usize, spread: &[f64]) {
 
 /// One greedy round: every candidate not yet taken fitted on top of `cur` (the singles
 /// themselves in the first round); a further waviness order while fewer than
-/// `MAX_WAVINESS_ORDERS` are taken.
+/// `MAX_WAVINESS_ORDERS` are taken. An effect that explains nothing alone is not
+/// looked for beside others.
 fn greedy_round(
     problem: &mut Problem,
     singles: &[(Fit, f64)],
     cur: &Fit,
     job: &Job,
     fitted: &Measurement,
+    log: &dyn Fn(&str),
+) -> Result<Vec<Fit>, DiagnoseError> {
+    partners_round(problem, singles, cur, (job, fitted), false, log)
+}
+
+/// [`greedy_round`], with every candidate tried when `all` (an effect can explain
+/// nothing alone while a stronger one it bends is missing).
+fn partners_round(
+    problem: &mut Problem,
+    singles: &[(Fit, f64)],
+    cur: &Fit,
+    (job, fitted): (&Job, &Measurement),
+    all: bool,
     log: &dyn Fn(&str),
 ) -> Result<Vec<Fit>, DiagnoseError> {
     if cur.effect_members().is_empty() {
@@ -366,8 +474,7 @@ fn greedy_round(
         .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
         .count();
     for (single, evidence) in singles {
-        // An effect that explains nothing alone is not looked for beside others.
-        if *evidence <= 0.0 {
+        if *evidence <= 0.0 && !all {
             continue;
         }
         let c = *single.set.last().expect("a single has its candidate");
@@ -411,7 +518,7 @@ fn drop_redundant(
         let reduced = problem.fit(&rest, start, &[])?;
         let e = evidence(
             reduced.objective,
-            reduced.values.len(),
+            reduced.parameter_count(),
             cur,
             cur.effective_points,
         );
@@ -525,19 +632,37 @@ pub fn fit_new(
                     _ => None,
                 })
                 .collect();
-            let orders: Vec<f64> = waviness_orders(job, fitted)
+            let WavinessTrials {
+                orders,
+                half_width,
+                range: (orders_lo, orders_hi),
+            } = waviness_trials(problem, base, base_values, job, fitted)?;
+            let orders: Vec<f64> = orders
                 .into_iter()
                 .filter(|o| taken.iter().all(|t| (o / t - 1.0).abs() > 0.1))
                 .collect();
             if orders.is_empty() {
                 return Ok(None);
             }
-            let Some((order, a, b)) = problem.screen_waviness(base, base_values, &orders, 20.0)?
+            let Some((order, a, b)) =
+                problem.screen_waviness(base, base_values, &orders, half_width, 20.0)?
             else {
                 return Ok(None);
             };
             set.push(Candidate::EdgeWaviness { order });
             start.extend([a, b]);
+            let fit = problem.fit(&set, start, &[])?;
+            // Where the harmonic could be acted on (it removes a tenth of the RMS), its
+            // order is re-fitted over ±40 % of the screened one (within the grid).
+            let before = {
+                let e = problem.evaluate(base, base_values)?;
+                problem.rss(&e)
+            };
+            if too_small(before, fit.objective).is_some() {
+                return Ok(Some(fit));
+            }
+            let (lo, hi) = ((0.6 * order).max(orders_lo), (1.4 * order).min(orders_hi));
+            let (set, start) = problem.refit_waviness_order(&fit.set, fit.values, lo, hi)?;
             Ok(Some(problem.fit(&set, start, &[])?))
         }
         // A moving effect's rate is screened on the residual's projection on its
@@ -616,7 +741,7 @@ fn common_effective_points(
 /// Evidence `fit` adds over a model leaving `rss_before` with `k_before` parameters.
 pub fn evidence(rss_before: f64, k_before: usize, fit: &Fit, n_eff: f64) -> f64 {
     let used = fit.evaluation.registered.used;
-    bic(rss_before, used, n_eff, k_before) - bic(fit.objective, used, n_eff, fit.values.len())
+    bic(rss_before, used, n_eff, k_before) - bic(fit.objective, used, n_eff, fit.parameter_count())
 }
 
 /// Whether member `member`'s parameters stand 3σ clear of zero together.
@@ -636,6 +761,53 @@ pub fn labels(set: &[Candidate]) -> String {
         .map(Candidate::label)
         .collect::<Vec<_>>()
         .join(" + ")
+}
+
+/// Waviness orders for the simulation to try, the half-width it refines the best one
+/// in, and the range of orders the data can tell.
+struct WavinessTrials {
+    orders: Vec<f64>,
+    half_width: f64,
+    range: (f64, f64),
+}
+
+/// The waviness orders the simulation tries, and the half-width it refines the best
+/// in: the orders [`super::screen::screen_waviness`] ranks best on the residual's
+/// edge-angle signature; without one (XZB, or no slope to read the edge angle from) the
+/// grid of [`waviness_orders`] and its step. With the grid's range.
+fn waviness_trials(
+    problem: &mut Problem,
+    base: &[Candidate],
+    base_values: &[f64],
+    job: &Job,
+    fitted: &Measurement,
+) -> Result<WavinessTrials, ForwardError> {
+    let grid = waviness_orders(job, fitted);
+    let (Some(&lo), Some(&hi)) = (grid.first(), grid.last()) else {
+        return Ok(WavinessTrials {
+            orders: grid,
+            half_width: 0.0,
+            range: (0.0, 0.0),
+        });
+    };
+    // Along XZ the edge meets the surface at its slope; XZB holds the edge angle.
+    let xz = job
+        .process
+        .turning()
+        .is_some_and(|t| matches!(t.path.mode(), TurningMode::Xz));
+    let screened = match problem.screen_points(base, base_values)? {
+        Some(points) if xz => super::screen::screen_waviness(&points, lo, hi),
+        _ => None,
+    };
+    let (orders, half_width) = screened.unwrap_or_else(|| {
+        let step = grid.get(1).map_or(0.0, |second| second - lo);
+        (grid, step)
+    });
+    Ok(WavinessTrials {
+        orders,
+        half_width,
+        range: (lo, hi),
+    })
 }
 
 /// Harmonic orders to screen for edge waviness: from half a cycle over the edge angles

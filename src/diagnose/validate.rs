@@ -150,17 +150,17 @@ pub struct Validation {
     pub spread: Vec<f64>,
 }
 
-/// Cross-validates the last member of `set` (the others are those already accepted)
-/// at `values` (the whole data's fit), on the folds about the axis where that fit's
-/// registration put it (`registered`), the axis held there.
+/// Cross-validates the last `tested` members of `set` together (the others are those
+/// already accepted) at `values` (the whole data's fit), on the folds about the axis
+/// where that fit's registration put it (`registered`), the axis held there.
 pub fn cross_validate(
     problem: &mut Problem,
     folds: &Folds,
-    set: &[Candidate],
-    values: &[f64],
+    (set, values): (&[Candidate], &[f64]),
+    tested: usize,
     registered: &Registered,
 ) -> Result<Validation, ForwardError> {
-    let member = set.len() - 1;
+    let member = set.len() - tested;
     let base_set = &set[..member];
     let saved = (problem.terms, problem.shift);
     problem.terms.shift = false;
@@ -207,7 +207,7 @@ pub fn cross_validate(
             ),
         )
     };
-    let n = width(&set[member]);
+    let n: usize = set[member..].iter().map(width).sum();
     let spread = (0..n)
         .map(|j| {
             let v: Vec<f64> = judged.iter().map(|c| c.values[j]).collect();
@@ -223,7 +223,11 @@ pub fn cross_validate(
         })
         .collect();
     Ok(Validation {
-        effect: set[member].label(),
+        effect: set[member..]
+            .iter()
+            .map(Candidate::label)
+            .collect::<Vec<_>>()
+            .join(" + "),
         folds: checks,
         passed,
         reason,
@@ -241,7 +245,7 @@ fn judge_folds(
     (set, values): (&[Candidate], &[f64]),
     base_set: &[Candidate],
 ) -> Result<Vec<FoldCheck>, ForwardError> {
-    let start = values.len() - width(&set[set.len() - 1]);
+    let start: usize = base_set.iter().map(width).sum();
     let base_values = if base_set.is_empty() {
         Vec::new()
     } else {
@@ -264,7 +268,7 @@ fn judge_fold(
     (set, values): (&[Candidate], &[f64]),
     (base_set, base_values): (&[Candidate], &[f64]),
 ) -> Result<FoldCheck, ForwardError> {
-    let n = width(&set[set.len() - 1]);
+    let n = values.len() - base_values.len();
     let start = base_values.len();
     let held = Rc::new(fold.held.clone());
     // The rest of the fitted points (the problem keeps any calibration's held-out part

@@ -13,7 +13,33 @@ Written from first principles (not from toolmark's source):
   At each crossing the edge (arc of radius rho about the nose centre X_c = x_prog + d,
   Z_c + drift) reaches z = Z_c - sqrt(rho^2 - (x - X_c)^2); the surface is the lowest
   reach over all crossings, capped by the stock (2 um above nominal).
-Effects: h (centre height), d (X decentre), D (axial drift, linear in revolutions).
+Effects: h (centre height), d (X decentre), D (axial drift, linear in revolutions),
+  and edge waviness (--waviness ORDER:AMPLITUDE_NM:PHASE_DEG, repeatable): the edge at
+  angle psi from the tip lies rho + w(psi) from the nose centre, w = sum A cos(k psi + phi).
+  For a crossing at x the edge angle is found by fixed-point iteration
+  psi <- asin((x - X_c) / (rho + w(psi))) (contraction ~ k A tan(psi) / rho, ~1e-3 here,
+  iterated to 1e-15 rad) and the reach is z = Z_c - (rho + w(psi)) cos psi.
+
+Edge-waviness conventions, learnt only from toolmark's `run` output (radial_profile.csv of
+tests/data/independent/r10_sphere.toml at 0.5 um rings, with and without an `[[effects]]
+kind = "edge_waviness"` table; this model's wavy-minus-nominal, converted to the normal,
+against toolmark's, rings 0 < r < 1.45 mm):
+  * toolmark's edge angle psi is positive toward -x (from the nose centre toward the
+    spindle axis on the cutting side: on the convex part it equals the surface slope angle
+    at the contact, the contact at r > 0 lying at x - X_c = -rho sin(slope)).  Here the
+    geometric angle is positive toward +x, so w is evaluated at -psi (PSI_SIGN = -1).
+    Phase 90 decides it: with +psi the difference is 58.6 nm RMS, with -psi 0.008 nm.
+  * the tool is set at its tip: the nose centre rises by w(0) (away from the part), so the
+    tip (psi = 0) cuts at the nominal depth whatever the waviness (TIP_SET).  Phase 0
+    decides it: without the shift 39.9 nm RMS (a 40 nm piston along Z), with it 0.017 nm.
+  * phase_deg is phi in cos(k psi + phi); amplitude_mm is A (+ = edge further out, cuts
+    deeper); order k = undulations per full circle of psi.
+  Agreement (nm RMS of this model's minus toolmark's wavy-minus-nominal, max in brackets):
+  order 20, 40 nm, phase 0: 0.0165 (0.065); phase 90: 0.0079 (0.025); order 30, 30 nm:
+  0.0133 (0.042); orders 20 (40 nm) + 45 (12 nm, -21 deg): 0.0185 (0.069); with a centre
+  height of -2 um beside order 30, 30 nm: 0.0133 (0.042) (absolute profile 0.0136).
+  (The waviness was added by a second tester session, again without reading toolmark's
+  source; with no --waviness every output is bit-identical to the earlier generator's.)
 
 Provenance: written by a tester session from the physics above, without reading toolmark's
 source (toolmark's `run` output was used only to learn its sign conventions: heights +Z
@@ -50,6 +76,13 @@ def set_feed_ref(ref):
 
 set_feed_ref("contact")
 K = 14                           # passes examined each side of the nearest one
+# Edge waviness conventions (see the docstring), both learnt from toolmark's `run` output:
+# PSI_SIGN = -1: toolmark's edge angle is positive toward -x (toward the spindle axis from the
+# nose centre, i.e. equal to the surface slope angle at the contact on a convex part), so w is
+# evaluated at -psi where psi (the geometric angle used here) is positive toward +x.
+# TIP_SET: the tool is set at its tip, so the nose centre rises by w(0) and the tip stays put.
+PSI_SIGN = -1.0
+TIP_SET = True
 
 
 def sag(r):
@@ -64,8 +97,44 @@ def z_centre(xp, n, drift_mm):
     return -R + np.sqrt((R + RHO) ** 2 - xp ** 2) + drift_mm * n / N_TOTAL
 
 
-def surface(r, psi, h=0.0, d=0.0, drift_mm=0.0, flank_cone=False):
-    """Height (mm) at radius r >= 0 (array) and azimuth psi (rad, array or scalar)."""
+def edge_w(psi_edge, waviness):
+    """Edge waviness w(psi) (mm): sum of A cos(k psi + phase) over (k, A_mm, phase_rad)."""
+    w = np.zeros_like(psi_edge)
+    for k, amp, ph in waviness:
+        w = w + amp * np.cos(k * psi_edge + ph)
+    return w
+
+
+def edge_drop(dx, waviness=()):
+    """Depth (mm) of the edge point at x = X_c + dx below the nose centre.
+
+    Nominal: sqrt(rho^2 - dx^2).  With waviness the edge at angle psi (from the tip,
+    positive toward +x, so dx = (rho + w) sin psi) lies rho + w(PSI_SIGN psi) from the
+    centre; psi for the given dx by fixed-point iteration psi <- asin(dx / (rho + w(psi))),
+    and the drop is (rho + w) cos psi, less w(0) where the tool is set at its tip (TIP_SET).
+    """
+    if not waviness:
+        return np.sqrt(np.maximum(RHO * RHO - dx * dx, 0.0))
+    psi = np.arcsin(np.clip(dx / RHO, -1.0, 1.0))
+    for _ in range(60):
+        rad = RHO + edge_w(PSI_SIGN * psi, waviness)
+        nxt = np.arcsin(np.clip(dx / rad, -1.0, 1.0))
+        done = np.max(np.abs(nxt - psi), initial=0.0) < 1e-15
+        psi = nxt
+        if done:
+            break
+    rad = RHO + edge_w(PSI_SIGN * psi, waviness)
+    drop = rad * np.cos(psi)
+    if TIP_SET:
+        drop = drop - edge_w(np.zeros(1), waviness)[0]
+    return drop
+
+
+def surface(r, psi, h=0.0, d=0.0, drift_mm=0.0, flank_cone=False, waviness=()):
+    """Height (mm) at radius r >= 0 (array) and azimuth psi (rad, array or scalar).
+
+    waviness: (order k, amplitude A mm, phase rad) triples, edge radius rho + sum A cos(k psi + phase).
+    """
     r = np.asarray(r, float)
     psi = np.broadcast_to(np.asarray(psi, float), r.shape)
     z = -sag(r) + STOCK                         # stock top (boss where never cut)
@@ -88,13 +157,14 @@ def surface(r, psi, h=0.0, d=0.0, drift_mm=0.0, flank_cone=False):
         dx = x_pt[:, None] - xc
         ok &= np.abs(dx) <= RHO * np.sin(HALF_ANGLE)
         zc = z_centre(xp, n, drift_mm)
-        ze = np.where(ok, zc - np.sqrt(np.maximum(RHO * RHO - dx * dx, 0.0)), np.inf)
+        ze = np.where(ok, zc - edge_drop(dx, waviness), np.inf)
         best = np.minimum(best, ze.min(axis=1))
     z[cut] = np.minimum(z[cut], best)
     if flank_cone and h > 0:
         # above centre the flank (clearance CLEAR) sweeps the uncut core: a cone
         inner = ~cut
-        z_edge = surface(np.array([abs(h) * (1 + 1e-9)]), np.array([0.0]), h, d, drift_mm)[0]
+        z_edge = surface(np.array([abs(h) * (1 + 1e-9)]), np.array([0.0]), h, d, drift_mm,
+                         waviness=waviness)[0]
         z[inner] = np.minimum(z[inner], z_edge + (abs(h) - r[inner]) * np.tan(CLEAR))
     return z
 
@@ -123,14 +193,21 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--no-header", action="store_true")
     ap.add_argument("--feed-ref", choices=["contact", "centre"], default="contact")
+    ap.add_argument("--waviness", action="append", default=[],
+                    metavar="ORDER:AMPLITUDE_NM:PHASE_DEG",
+                    help="edge waviness harmonic A cos(k psi + phi) (repeatable)")
     ap.add_argument("--remove-form", action="store_true",
                     help="take out a least-squares quadratic in the file's x")
     a = ap.parse_args()
     set_feed_ref(a.feed_ref)
+    waviness = []
+    for spec in a.waviness:
+        k, amp_nm, ph_deg = (float(v) for v in spec.split(":"))
+        waviness.append((k, amp_nm * 1e-6, np.radians(ph_deg)))
     n = int(round(2 * a.L_mm * 1000 / a.step_um)) + 1
     u = np.linspace(-a.L_mm, a.L_mm, n)                     # mm, axis at u = 0
     z = profile(u, a.phi, h=a.h_um * 1e-3, d=a.d_um * 1e-3,
-                drift_mm=a.drift_nm * 1e-6, flank_cone=a.flank_cone)
+                drift_mm=a.drift_nm * 1e-6, flank_cone=a.flank_cone, waviness=tuple(waviness))
     x_file_um = u * 1000 + a.axis_um
     rng = np.random.default_rng(a.seed)
     z_um = (z * 1000 + a.piston_um + a.tilt_urad * 1e-6 * x_file_um
