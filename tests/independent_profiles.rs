@@ -12,8 +12,14 @@ use std::process::Command;
 
 const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/independent");
 
-/// Runs the README's diagnose command on `profile` and reads its diagnosis.json.
+/// Runs the README's diagnose command on `profile` (form removed: `--remove-power`) and
+/// reads its diagnosis.json.
 fn diagnose(profile: &str) -> serde_json::Value {
+    diagnose_with(profile, &["--remove-power"])
+}
+
+/// Runs the README's diagnose command on `profile` with `extra` options.
+fn diagnose_with(profile: &str, extra: &[&str]) -> serde_json::Value {
     let out: PathBuf =
         Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("independent-{profile}"));
     let _ = std::fs::remove_dir_all(&out);
@@ -22,13 +28,8 @@ fn diagnose(profile: &str) -> serde_json::Value {
         .arg(Path::new(DATA).join("r10_sphere.toml"))
         .arg("--measured")
         .arg(Path::new(DATA).join(profile))
-        .args([
-            "--lateral-unit",
-            "um",
-            "--height-unit",
-            "um",
-            "--remove-power",
-        ])
+        .args(["--lateral-unit", "um", "--height-unit", "um"])
+        .args(extra)
         .args(["--engine", "cpu", "--out"])
         .arg(&out)
         .output()
@@ -122,4 +123,89 @@ fn a_clean_form_removed_profile_shows_no_effect() {
     assert_status(&d, "no_effect_beyond_noise");
     assert!(d["accepted"].as_array().unwrap().is_empty());
     assert_axis(&d, 0.042);
+}
+
+/// The accepted edge waviness: (order, amplitude nm, σ of the amplitude nm).
+fn waviness(d: &serde_json::Value) -> (f64, f64, f64) {
+    let accepted = d["accepted"].as_array().unwrap();
+    let w = accepted
+        .iter()
+        .find(|a| a["effect"] == "edge_waviness")
+        .unwrap_or_else(|| panic!("no waviness: {}", d["verdict"]["sentence"]));
+    let p = |i: usize| {
+        let q = &w["parameters"][i];
+        (q["value"].as_f64().unwrap(), q["sigma"].as_f64().unwrap())
+    };
+    let ((a, sa), (b, sb)) = (p(0), p(1));
+    let amplitude = a.hypot(b);
+    // The σ along the amplitude (the cos/sin σs projected on the pair's direction).
+    let sigma = ((a * sa).powi(2) + (b * sb).powi(2)).sqrt() / amplitude;
+    (w["order"].as_f64().unwrap(), amplitude, sigma)
+}
+
+/// Form left in, order 20 and 40 nm planted (`waviness_o20_40nm.csv`). The harmonic
+/// spans under half a cycle each side of the axis, so a lateral scale (power on a
+/// sphere) takes its quadratic part and the order and amplitude trade along A·k⁴: the
+/// data pin them to ±0.44 orders and ±3.5 nm. This draw's own maximum-likelihood
+/// estimate, from `tests/independent/fit_waviness_profile.py` (the generator as the
+/// model, Gauss–Newton, not toolmark): order 19.30 ± 0.44, 46.87 ± 3.50 nm, scale
+/// +63 ± 29 ppm. toolmark must land on that estimate, and its σ must be the data's.
+/// (Before: order 28.5, 14.4 ± 1.8 nm — the scale held a lower order's power, and the
+/// order's re-fit stopped at its bracket's end.)
+#[test]
+fn an_edge_waviness_with_the_form_in_is_found_where_its_own_noise_puts_it() {
+    let d = diagnose_with("waviness_o20_40nm.csv", &[]);
+    assert_status(&d, "effects_found");
+    let (order, amplitude, sigma) = waviness(&d);
+    assert!((order / 20.0 - 1.0).abs() <= 0.05, "order {order} for 20");
+    assert!(
+        (order - 19.30).abs() <= 2.0 * 0.44,
+        "order {order}, oracle 19.30"
+    );
+    assert!(
+        (amplitude - 46.87).abs() <= 3.50,
+        "{amplitude} nm, oracle 46.87 ± 3.50"
+    );
+    assert!(
+        (0.5 * 3.50..=2.0 * 3.50).contains(&sigma),
+        "σ {sigma} nm, oracle 3.50"
+    );
+    assert_axis(&d, 0.137);
+}
+
+/// Form left in, a centre height of −2 µm (a boss) and edge waviness order 30, 30 nm
+/// (`centre_height_-2um_waviness_o30_30nm.csv`). Alone, the centre height explains
+/// 98.5 % of the residual but the waviness it leaves, correlated over ~800 points,
+/// inflates its σ to "within 3σ of zero"; it is offered a partner and the two are
+/// cross-validated together. (Before: `unexplained_residual`, the axis one mark off.)
+#[test]
+fn a_boss_beside_an_edge_waviness_is_found_as_the_pair() {
+    let d = diagnose_with("centre_height_-2um_waviness_o30_30nm.csv", &[]);
+    assert_status(&d, "effects_found");
+    let accepted = d["accepted"].as_array().unwrap();
+    let height = accepted
+        .iter()
+        .find(|a| a["effect"] == "centre_height")
+        .unwrap_or_else(|| panic!("no centre height: {}", d["verdict"]["sentence"]));
+    let (value, sigma) = (
+        height["parameters"][0]["value"].as_f64().unwrap(),
+        height["parameters"][0]["sigma"].as_f64().unwrap(),
+    );
+    // The boss's edge lies between two points 0.5 µm apart (see the −3 µm case).
+    assert!((value + 2.0).abs() <= 0.5, "{value} ± {sigma} for -2");
+    assert!(
+        (value + 2.0).abs() <= 2.0 * sigma,
+        "{value} ± {sigma} for -2"
+    );
+    let (order, amplitude, a_sigma) = waviness(&d);
+    assert!((order / 30.0 - 1.0).abs() <= 0.05, "order {order} for 30");
+    assert!(
+        (amplitude / 30.0 - 1.0).abs() <= 0.1,
+        "{amplitude} nm for 30"
+    );
+    assert!(
+        (amplitude - 30.0).abs() <= 2.0 * a_sigma,
+        "{amplitude} ± {a_sigma} nm for 30"
+    );
+    assert_axis(&d, 0.137);
 }

@@ -521,7 +521,7 @@ impl Candidate {
             ),
             Candidate::EdgeWaviness { order } => {
                 let (amplitude, phase) = amplitude_phase(values);
-                let sigma = pair_sigma(sigmas);
+                let sigma = pair_sigma(values, sigmas);
                 format!(
                     "the edge carries waviness of order {order:.1}: {} nm amplitude (phase {phase:.0}°)",
                     pm(amplitude, sigma)
@@ -557,7 +557,7 @@ impl Candidate {
             }
             Candidate::SpindleTram => {
                 let tilt = values[0].hypot(values[1]);
-                let sigma = pair_sigma(sigmas);
+                let sigma = pair_sigma(values, sigmas);
                 format!(
                     "the spindle is out of tram by {}° toward {:.0}° (tilt X {:.4}°, Y {:.4}°)",
                     pm_digits(tilt, sigma, 4),
@@ -577,7 +577,7 @@ impl Candidate {
             }
             Candidate::RadialRunout => {
                 let runout = values[0].hypot(values[1]);
-                let sigma = pair_sigma(sigmas);
+                let sigma = pair_sigma(values, sigmas);
                 format!(
                     "the cutter runs out {} µm (tooth 0 at {:.0}° from the feed)",
                     pm(runout, sigma),
@@ -602,7 +602,7 @@ impl Candidate {
                 let synchronous = (cycles - cycles.round()).abs() < 0.005;
                 format!(
                     "the tool vibrated {} nm along the {} at {cycles:.3} cycles per revolution (phase {phase:.0}°){}",
-                    pm(amplitude, pair_sigma(sigmas)),
+                    pm(amplitude, pair_sigma(values, sigmas)),
                     if *depth { "depth (Z)" } else { "feed (X)" },
                     match (synchronous, depth) {
                         (true, true) => format!(
@@ -618,7 +618,7 @@ impl Candidate {
                 let (amplitude, phase) = amplitude_phase(values);
                 format!(
                     "the spindle tilts {} µrad at order {order:.0} (phase {phase:.0}°)",
-                    pm(amplitude, pair_sigma(sigmas))
+                    pm(amplitude, pair_sigma(values, sigmas))
                 )
             }
             Candidate::SpiralAzimuth => format!(
@@ -691,15 +691,30 @@ impl Candidate {
     }
 }
 
-/// One uncertainty for a pair of components (their RMS), over the components the data
-/// sees (a component it does not see stays at zero with an infinite sigma).
-fn pair_sigma(sigmas: &[f64]) -> f64 {
-    let seen: Vec<f64> = sigmas.iter().copied().filter(|s| s.is_finite()).collect();
+/// The uncertainty of a pair's magnitude √(a² + b²): the components' σs projected on
+/// the pair's direction; where the magnitude is within 2σ of zero (its direction
+/// unknown), their RMS. Over the components the data sees (a component it does not see
+/// stays at zero with an infinite sigma).
+pub fn pair_sigma(values: &[f64], sigmas: &[f64]) -> f64 {
+    let seen: Vec<(f64, f64)> = values
+        .iter()
+        .zip(sigmas)
+        .map(|(&v, &s)| (v, s))
+        .filter(|(_, s)| s.is_finite())
+        .collect();
     if seen.is_empty() {
-        f64::INFINITY
-    } else {
-        (seen.iter().map(|s| s * s).sum::<f64>() / seen.len() as f64).sqrt()
+        return f64::INFINITY;
     }
+    let rms = (seen.iter().map(|(_, s)| s * s).sum::<f64>() / seen.len() as f64).sqrt();
+    let magnitude = seen.iter().map(|(v, _)| v * v).sum::<f64>().sqrt();
+    if magnitude <= 2.0 * rms {
+        return rms;
+    }
+    seen.iter()
+        .map(|(v, s)| (v * s).powi(2))
+        .sum::<f64>()
+        .sqrt()
+        / magnitude
 }
 
 /// A value ± its uncertainty at a sensible number of digits.

@@ -114,7 +114,24 @@ pub struct Fit {
     pub frame: ShiftSearch,
 }
 
+/// A set, its values and the objective they leave: a fit before its σs.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    pub objective: f64,
+    pub set: Vec<Candidate>,
+    pub values: Vec<f64>,
+}
+
 impl Fit {
+    /// The set, values and objective of this fit.
+    pub fn fitted(&self) -> Fitted {
+        Fitted {
+            objective: self.objective,
+            set: self.set.clone(),
+            values: self.values.clone(),
+        }
+    }
+
     /// Bayesian information criterion on the effective point count.
     pub fn bic(&self) -> f64 {
         bic(
@@ -623,7 +640,7 @@ impl<'a, 'e> Problem<'a, 'e> {
 
     /// Widens each effect parameter's σ to the half-width of the interval over which
     /// Σr² rises by less than one effective point's variance (Δχ² = 1, the residual's
-    /// variance inflated by its correlation length), stepped out from ±σ by doubling
+    /// variance inflated by [`inflation`]), stepped out from ±σ by doubling
     /// (at most [`PROFILE_DOUBLINGS`] times) and read off a parabola through the first
     /// step that rises more. Where the residual is not the parabola the Jacobian
     /// assumes — a boss's edge moving between samples leaves it flat for a while, then
@@ -631,9 +648,9 @@ impl<'a, 'e> Problem<'a, 'e> {
     fn widen_to_profile(&mut self, fit: &mut Fit) -> Result<(), ForwardError> {
         let used = fit.evaluation.registered.used.max(1) as f64;
         let k = fit.values.len() as f64;
-        let variance =
-            self.rss(&fit.evaluation) / (used - k - 4.0).max(1.0) * fit.correlation_length.max(1.0);
+        let point_variance = self.rss(&fit.evaluation) / (used - k - 4.0).max(1.0);
         let rss0 = self.rss(&fit.evaluation);
+        let r0 = self.residual(&fit.evaluation);
         let effects = member_parameters(&fit.set, |c| !c.is_registration());
         for j in effects {
             let sigma = fit.sigmas[j];
@@ -642,6 +659,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             }
             let bound = fit.parameters[j].bound;
             let mut width: f64 = 0.0;
+            let mut variance = point_variance * fit.correlation_length.max(1.0);
             for side in [1.0, -1.0] {
                 let mut reached = sigma;
                 // The last step that stayed within Δχ² = 1: a residual flat up to a step
@@ -652,6 +670,10 @@ impl<'a, 'e> Problem<'a, 'e> {
                     let mut trial = fit.values.clone();
                     trial[j] = (fit.values[j] + side * delta).clamp(-bound, bound);
                     let e = self.evaluate(&fit.set, &trial)?;
+                    if doubling == 0 && side > 0.0 {
+                        let print = self.residual(&e).into_iter().zip(&r0).map(|(a, b)| a - b);
+                        variance = point_variance * inflation(fit.correlation_length, print);
+                    }
                     let rise = self.rss(&e) - rss0;
                     reached = delta;
                     if rise >= variance {
@@ -1003,47 +1025,42 @@ impl<'a, 'e> Problem<'a, 'e> {
         Ok(columns)
     }
 
-    /// The order of `set`'s last member, an edge waviness, that leaves the least
-    /// residual when every value is fitted with it (Levenberg–Marquardt, warm-started
-    /// from the best order so far): golden section over `lo..hi`. The responses the
-    /// order screens use hold the registration members still, and a scale or spiral
-    /// azimuth re-fitted beside the waviness moves the best order by a fifth and more.
-    /// Each order is fitted from the best values so far and at the unit scale. Returns
-    /// the set at the best order and its values.
+    /// The order of the fitted set's last member, an edge waviness, that leaves the
+    /// least residual when every value is fitted with it (Levenberg–Marquardt): golden
+    /// section over `lo..hi`. The responses the order screens use hold the registration
+    /// members still, and a scale or spiral azimuth re-fitted beside the waviness moves
+    /// the best order by a fifth and more. Each order is fitted from the best values so
+    /// far and at the unit scale. Returns the best of `fitted` and the orders tried.
     pub fn refit_waviness_order(
         &mut self,
-        set: &[Candidate],
-        start: Vec<f64>,
+        parameters: &[Parameter],
+        fitted: Fitted,
         lo: f64,
         hi: f64,
-    ) -> Result<(Vec<Candidate>, Vec<f64>), ForwardError> {
+    ) -> Result<Fitted, ForwardError> {
         let at = |order: f64| {
-            let mut set = set.to_vec();
+            let mut set = fitted.set.clone();
             *set.last_mut().expect("a waviness member") = Candidate::EdgeWaviness { order };
             set
         };
-        let parameters: Vec<Parameter> = set
-            .iter()
-            .flat_map(|c| c.parameters(self.model.base_job()))
-            .collect();
-        let mut best = {
-            let (values, _) = self.levenberg_marquardt(set, &parameters, start, &[])?;
-            let e = self.evaluate(set, &values)?;
-            (self.rss(&e), set.to_vec(), values)
-        };
+        let mut best = fitted.clone();
         try_golden_section(
             |order| {
                 let trial = at(order);
                 let mut lowest = f64::INFINITY;
                 // From the best values so far, and at the unit scale (a scale fitted
                 // beside another order holds part of this one's power).
-                for start in with_unit_scale(&trial, best.2.clone()) {
-                    let (values, _) = self.levenberg_marquardt(&trial, &parameters, start, &[])?;
+                for start in with_unit_scale(&trial, best.values.clone()) {
+                    let (values, _) = self.levenberg_marquardt(&trial, parameters, start, &[])?;
                     let e = self.evaluate(&trial, &values)?;
-                    let rss = self.rss(&e);
-                    lowest = lowest.min(rss);
-                    if rss < best.0 {
-                        best = (rss, trial.clone(), values);
+                    let objective = self.rss(&e);
+                    lowest = lowest.min(objective);
+                    if objective < best.objective {
+                        best = Fitted {
+                            objective,
+                            set: trial.clone(),
+                            values,
+                        };
                     }
                 }
                 Ok::<f64, ForwardError>(lowest)
@@ -1052,7 +1069,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             hi,
             WAVINESS_ORDER_STEPS,
         )?;
-        Ok((best.1, best.2))
+        Ok(best)
     }
 
     /// The least-squares cos/sin amplitudes (nm) of one waviness order against the
@@ -1093,6 +1110,24 @@ impl<'a, 'e> Problem<'a, 'e> {
             .sum();
         Ok((rss, ab[0], ab[1]))
     }
+}
+
+/// How much a residual correlated over `tau` points inflates one point's variance for
+/// a parameter whose print is `print`: the correlation length, but no more than the
+/// number of points the print covers ((Σ|p|)² / Σp²): a boss's few points near the axis
+/// see a slow waviness in the residual as one offset, not as many independent ones.
+fn inflation(tau: f64, print: impl Iterator<Item = f64>) -> f64 {
+    let (mut sum, mut squares) = (0.0, 0.0);
+    for p in print {
+        sum += p.abs();
+        squares += p * p;
+    }
+    let covered = if squares > 0.0 {
+        sum * sum / squares
+    } else {
+        tau
+    };
+    tau.min(covered).max(1.0)
 }
 
 /// The finite-difference step of parameter `j`: a twentieth of its value or a fifth of
@@ -1186,7 +1221,8 @@ fn with_unit_scale(set: &[Candidate], start: Vec<f64>) -> Vec<Vec<f64>> {
 }
 
 /// One-σ uncertainties of the `free` parameters: the largest of the Jacobian's — the
-/// residual's variance inflated by its correlation length `tau` (points) — a block
+/// residual's variance inflated by its correlation length `tau` (points), or by the
+/// points a parameter's column covers where fewer ([`inflation`]) — a block
 /// sandwich estimate, (JᵀJ)⁻¹ (Σ_b g_b g_bᵀ) (JᵀJ)⁻¹ with g_b = J_bᵀ r_b over blocks of
 /// 5 τ points, which also carries structure the noise model ignores (model error,
 /// correlated residuals), and, along a `line` (points in order), the autocovariance
@@ -1207,7 +1243,7 @@ pub(super) fn uncertainties(
         return vec![f64::INFINITY; k];
     };
     let used = residual.iter().filter(|r| **r != 0.0).count() as f64;
-    let variance = dot(residual, residual) / (used - k as f64 - 4.0).max(1.0) * tau;
+    let point_variance = dot(residual, residual) / (used - k as f64 - 4.0).max(1.0);
     let dof = used / tau.max(1.0) - k as f64;
     let few_points = student_t_975(dof) / student_t_975(f64::INFINITY);
     let block = ((5.0 * tau).ceil() as usize).max(n / 200).max(1);
@@ -1231,6 +1267,7 @@ pub(super) fn uncertainties(
     };
     (0..k)
         .map(|a| {
+            let variance = point_variance * inflation(tau, jacobian[free[a]].iter().copied());
             let jacobian_sigma = (inverse[a][a] * variance).max(0.0).sqrt();
             let sandwich: f64 = (0..k)
                 .flat_map(|b| (0..k).map(move |c| (b, c)))

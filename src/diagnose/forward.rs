@@ -405,9 +405,18 @@ pub(super) fn line_rows_through(azimuth_rad: f64) -> Option<(u32, u32)> {
 pub struct Trace {
     pub x: Vec<f64>,
     pub z: Vec<f64>,
+    /// Per interval between samples, the surface within it ([`Piece::of`]).
+    pieces: Vec<Piece>,
 }
 
 impl Trace {
+    pub fn new(x: Vec<f64>, z: Vec<f64>) -> Trace {
+        let pieces = (0..x.len().saturating_sub(1))
+            .map(|k| Piece::of(&x, &z, k))
+            .collect();
+        Trace { x, z, pieces }
+    }
+
     /// The trace through rows `ahead` (positive positions) and `behind` (negative), seen
     /// through a stylus tip when there is one.
     fn through(
@@ -443,19 +452,28 @@ impl Trace {
         if let Some(tip) = stylus_tip_mm {
             z = stylus_trace(&x, &z, tip);
         }
-        Trace { x, z }
+        Trace::new(x, z)
     }
 
     /// The traced height at signed position `s` (mm); NaN off the trace.
     pub fn at(&self, s: f64) -> f64 {
-        interpolate(&self.x, &self.z, s)
+        let k = self.x.partition_point(|v| *v <= s);
+        if k == 0 || k == self.x.len() {
+            let edge = if k == 0 { 0 } else { self.x.len() - 1 };
+            return if (s - self.x[edge]).abs() <= 1e-12 {
+                self.z[edge]
+            } else {
+                f64::NAN
+            };
+        }
+        self.pieces[k - 1].at(s - self.x[k - 1])
     }
 
     /// The traced heights at positions `along` of a line whose frame is `(s0, scale)`:
     /// each point lies at `(along − s0)·scale` on the trace (a negative scale reads it
     /// the other way). Ordered positions are walked, not searched.
     pub fn sample(&self, along: &[f64], s0: f64, scale: f64) -> Vec<f64> {
-        let (x, z) = (&self.x, &self.z);
+        let x = &self.x;
         let first = along.first().map_or(0.0, |s| (s - s0) * scale);
         let mut k = x.partition_point(|v| *v <= first).saturating_sub(1);
         along
@@ -469,10 +487,9 @@ impl Trace {
                     k += 1;
                 }
                 if k + 1 < x.len() && x[k] <= u {
-                    let t = (u - x[k]) / (x[k + 1] - x[k]);
-                    z[k] + t * (z[k + 1] - z[k])
+                    self.pieces[k].at(u - x[k])
                 } else {
-                    interpolate(x, z, u)
+                    self.at(u)
                 }
             })
             .collect()
@@ -761,19 +778,114 @@ fn box_filtered(grid: &PolarGrid, height_mm: &[f64], width_mm: f64) -> Vec<f64> 
     filtered
 }
 
-/// Linear interpolation in a table of increasing x; NaN outside it.
-fn interpolate(x: &[f64], z: &[f64], at: f64) -> f64 {
-    let k = x.partition_point(|v| *v <= at);
-    if k == 0 || k == x.len() {
-        let edge = if k == 0 { 0 } else { x.len() - 1 };
-        return if (at - x[edge]).abs() <= 1e-12 {
-            z[edge]
-        } else {
-            f64::NAN
+/// The surface between two samples of a trace, as one or two parabolas in the distance
+/// from the first sample. Between rings a turned surface is an arc of the nose, and
+/// where a cusp lies between two rings it is the lower of the two arcs that meet there:
+/// the chord alone errs by h²/8ρ on an arc (0.1 nm at 0.63 µm rings under a 0.5 mm
+/// nose) and by a quarter of the slope's jump times h at a cusp (0.7 nm), errors that
+/// move with the scale and the axis and so ripple the fit's objective. Each side's arc
+/// is continued across the interval from its own three samples; where both overshoot
+/// the other end (a cusp: a ridge between) the lower is taken, where both undershoot (a
+/// groove) the higher, and elsewhere the chord bent by the curvature both ends agree on.
+/// On turned marks at an eighth of the feed this errs 0.036 nm RMS, the chord 0.22 nm.
+/// An arc is continued only where its own two curvatures agree to [`ARC_AGREEMENT`].
+#[derive(Debug, Clone, Copy)]
+struct Piece {
+    /// Coefficients of c₀ + c₁t + c₂t² in t = u − x_k.
+    first: [f64; 3],
+    second: [f64; 3],
+    /// 0: `first` alone; +1: the lower of the two; −1: the higher.
+    join: i8,
+}
+
+impl Piece {
+    fn of(x: &[f64], z: &[f64], k: usize) -> Piece {
+        // Each side's arc read from four samples whose two curvatures agree (an arc,
+        // not a ploughed flank's step or another cusp within reach).
+        let arc = |i: usize, j: usize| {
+            let (a, b) = (curvature(x, z, i), curvature(x, z, j));
+            a * b > 0.0 && (a - b).abs() <= ARC_AGREEMENT * a.abs().max(b.abs())
         };
+        if k >= 3 && k + 4 < x.len() && arc(k - 2, k - 1) && arc(k + 2, k + 3) {
+            let left = continued(x, z, k - 1, k, x[k]);
+            let right = continued(x, z, k + 2, k + 1, x[k]);
+            let h = x[k + 1] - x[k];
+            let over_right = quadratic(left, h) - z[k + 1];
+            let over_left = right[0] - z[k];
+            if over_right > 0.0 && over_left > 0.0 {
+                return Piece::joined(left, right, 1);
+            }
+            if over_right < 0.0 && over_left < 0.0 {
+                return Piece::joined(left, right, -1);
+            }
+        }
+        let bent = bent_chord(x, z, k);
+        Piece::joined(bent, bent, 0)
     }
-    let t = (at - x[k - 1]) / (x[k] - x[k - 1]);
-    z[k - 1] + t * (z[k] - z[k - 1])
+
+    fn joined(first: [f64; 3], second: [f64; 3], join: i8) -> Piece {
+        Piece {
+            first,
+            second,
+            join,
+        }
+    }
+
+    /// The height at `t` from the interval's first sample.
+    fn at(&self, t: f64) -> f64 {
+        let a = quadratic(self.first, t);
+        match self.join {
+            0 => a,
+            1 => a.min(quadratic(self.second, t)),
+            _ => a.max(quadratic(self.second, t)),
+        }
+    }
+}
+
+/// How far (relative) two neighbouring second differences may differ on one arc.
+const ARC_AGREEMENT: f64 = 0.25;
+
+fn quadratic(c: [f64; 3], t: f64) -> f64 {
+    c[0] + t * (c[1] + t * c[2])
+}
+
+/// The parabola through samples `i − 1, i, i + 1`, continued from sample `end` (`i` ± 1),
+/// as coefficients in t = u − `origin`.
+fn continued(x: &[f64], z: &[f64], i: usize, end: usize, origin: f64) -> [f64; 3] {
+    let c = curvature(x, z, i);
+    let (x0, z0) = (x[end], z[end]);
+    // The slope at `end`: the chord's from `i`, corrected by half the curvature over it.
+    let slope = (z0 - z[i]) / (x0 - x[i]) + 0.5 * c * (x0 - x[i]);
+    let d = origin - x0;
+    [z0 + slope * d + 0.5 * c * d * d, slope + c * d, 0.5 * c]
+}
+
+/// The second divided difference at sample `i` (twice the parabola's leading
+/// coefficient); 0 at the table's ends or where a sample is missing.
+fn curvature(x: &[f64], z: &[f64], i: usize) -> f64 {
+    if i == 0 || i + 1 >= x.len() {
+        return 0.0;
+    }
+    let left = (z[i] - z[i - 1]) / (x[i] - x[i - 1]);
+    let right = (z[i + 1] - z[i]) / (x[i + 1] - x[i]);
+    let c = 2.0 * (right - left) / (x[i + 1] - x[i - 1]);
+    if c.is_finite() { c } else { 0.0 }
+}
+
+/// The chord between samples `k` and `k + 1` bent by the curvature both ends agree on
+/// (the smaller of the two second differences where they have one sign, none
+/// otherwise), as coefficients in t = u − x_k: O(h³) on an arc, no worse than the chord
+/// at a cusp.
+fn bent_chord(x: &[f64], z: &[f64], k: usize) -> [f64; 3] {
+    let h = x[k + 1] - x[k];
+    let (a, b) = (curvature(x, z, k), curvature(x, z, k + 1));
+    let bend = if a * b > 0.0 {
+        a.signum() * a.abs().min(b.abs())
+    } else {
+        0.0
+    };
+    // chord − ½·bend·t·(h − t)
+    [z[k], (z[k + 1] - z[k]) / h - 0.5 * bend * h, 0.5 * bend]
 }
 
 /// The trace a stylus tip of radius `tip` leaves over the profile (x increasing, the
@@ -814,6 +926,51 @@ pub fn stylus_trace(x: &[f64], z: &[f64], tip: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Turned marks: arcs of a 0.5 mm nose, 5 µm apart, sampled on rings 0.625 µm apart
+    /// (the job's default, an eighth of the feed) and read at points 0.5 µm apart.
+    fn marks(x: f64) -> f64 {
+        let (rho, feed) = (0.5, 0.005);
+        let d = x - feed * (x / feed).round();
+        rho - (rho * rho - d * d).sqrt()
+    }
+
+    #[test]
+    fn a_trace_between_rings_follows_the_nose_arcs_and_their_cusps() {
+        // Rings offset from the marks so that cusps fall anywhere between them.
+        let x: Vec<f64> = (-10..1700).map(|i| i as f64 * 0.000625 + 0.00021).collect();
+        let z: Vec<f64> = x.iter().map(|&v| marks(v)).collect();
+        let trace = Trace::new(x, z);
+        let (mut sq, mut sq_chord, mut n) = (0.0, 0.0, 0.0);
+        for i in 40..1600 {
+            let u = i as f64 * 0.0005 + 0.0001;
+            let k = trace.x.partition_point(|v| *v <= u) - 1;
+            let t = (u - trace.x[k]) / 0.000625;
+            let chord = trace.z[k] + t * (trace.z[k + 1] - trace.z[k]);
+            sq += (trace.at(u) - marks(u)).powi(2);
+            sq_chord += (chord - marks(u)).powi(2);
+            n += 1.0;
+        }
+        let (rms, rms_chord) = ((sq / n).sqrt() * 1e6, (sq_chord / n).sqrt() * 1e6);
+        // The chord: 0.224 nm RMS (Python, the same marks and rings); the arcs: 0.029 in
+        // Python, 0.036 with each arc checked (an interval beside a cusp takes the bent chord).
+        assert!((rms_chord - 0.2243).abs() < 0.001, "{rms_chord}");
+        assert!(rms < 0.04, "{rms} nm");
+    }
+
+    #[test]
+    fn a_smooth_trace_between_rings_errs_at_third_order() {
+        // A 0.5 mm arc: the chord's sag h²/8ρ = 0.098 nm at mid-interval.
+        let x: Vec<f64> = (0..400).map(|i| i as f64 * 0.000625).collect();
+        let arc = |v: f64| 0.5 - (0.25 - (v - 0.1) * (v - 0.1)).sqrt();
+        let z: Vec<f64> = x.iter().map(|&v| arc(v)).collect();
+        let trace = Trace::new(x, z);
+        let worst = (20..380)
+            .map(|i| (i as f64 + 0.5) * 0.000625)
+            .map(|u| (trace.at(u) - arc(u)).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-9, "{worst} mm");
+    }
 
     #[test]
     fn the_ring_table_finds_what_a_binary_search_finds() {

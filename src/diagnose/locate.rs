@@ -601,7 +601,7 @@ fn high_passed(m: &Measurement, cutoff_mm: f64) -> Measurement {
 fn high_passed_trace(trace: Trace, cutoff_mm: f64) -> Trace {
     let low = gaussian_lowpass_line(&trace.x, &trace.z, cutoff_mm);
     let z = trace.z.iter().zip(&low).map(|(a, b)| a - b).collect();
-    Trace { x: trace.x, z }
+    Trace::new(trace.x, z)
 }
 
 /// The fewest rows with one along the azimuth, and that row.

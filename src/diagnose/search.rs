@@ -7,7 +7,7 @@
 //! effect the others have come to explain.
 
 use super::candidates::Candidate;
-use super::fit::{Fit, Problem, bic, width};
+use super::fit::{Fit, Fitted, Problem, bic, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
 use super::register::ShiftSearch;
@@ -30,6 +30,8 @@ const RIVALS: usize = 2;
 /// A runner-up is given a partner when alone it adds at least this share of the
 /// evidence of the single the selection began with.
 const RIVAL_SHARE: f64 = 0.5;
+/// Times the bracket of a waviness order re-fit may move past its end.
+const WAVINESS_BRACKET_MOVES: usize = 2;
 
 /// What the search found.
 #[derive(Default)]
@@ -143,6 +145,11 @@ pub fn search<'a>(
             {
                 log(&format!("{label}: {why}"));
                 found.refused.push((label, why));
+                // A large print whose σ the residual's unexplained structure inflated
+                // may stand once a partner takes that structure: it is offered one.
+                if only_doubtful(&fit, member, rss_before) {
+                    refused.push(fit);
+                }
                 continue;
             }
             log(&format!(
@@ -172,8 +179,9 @@ pub fn search<'a>(
     if current.effect_members().len() > 1
         && let Some(reduced) = drop_redundant(problem, &current, options, log)?
     {
-        found.steps.push(reduced.clone());
-        current = reduced;
+        let kept = keep_what_predicts(problem, folds, &mut found, reduced, log)?;
+        found.steps.push(kept.clone());
+        current = kept;
     }
     if let Some(pair) = rival_pair(problem, &mut found, &current, job, folds, options, log)? {
         found.steps = vec![pair.clone()];
@@ -414,6 +422,14 @@ fn not_a_fit(fit: &Fit, member: usize) -> Option<String> {
     None
 }
 
+/// Whether the member's only fault is its doubt: within its bounds and removing enough of
+/// the residual, but within 3σ of zero.
+fn only_doubtful(fit: &Fit, member: usize, before: f64) -> bool {
+    let start: usize = fit.set[..member].iter().map(width).sum();
+    let within_bounds = (start..start + width(&fit.set[member])).all(|j| !fit.at_bound[j]);
+    within_bounds && !significant(fit, member) && too_small(before, fit.objective).is_none()
+}
+
 /// Why an effect that lowers the residual's Σr² from `before` to `after` explains too
 /// little to act on, if it does: less than [`MIN_REDUCTION`] of the residual's RMS.
 /// Such an effect, however significant, is a fit to the residual's own structure (a
@@ -531,6 +547,55 @@ fn drop_redundant(
         }
     }
     Ok(None)
+}
+
+/// After an effect is dropped, each one left must still predict the data it was not
+/// fitted on by itself beside the others: one accepted only as the dropped effect's
+/// partner may have stood on it (a decentre beside a vibration that a waviness then
+/// replaced). The first that does not is dropped too, and the rest checked again.
+fn keep_what_predicts(
+    problem: &mut Problem,
+    folds: &Folds,
+    found: &mut Search,
+    mut fit: Fit,
+    log: &dyn Fn(&str),
+) -> Result<Fit, DiagnoseError> {
+    'check: loop {
+        for member in fit.effect_members() {
+            let last = with_member_last(problem, &fit, member, true)?;
+            if predicts_unseen(problem, folds, found, &last, log)?.is_none() {
+                log(&format!(
+                    "{} does not predict unseen data beside the others: dropped",
+                    fit.set[member].label()
+                ));
+                fit = with_member_last(problem, &fit, member, false)?;
+                if fit.effect_members().is_empty() {
+                    return Ok(fit);
+                }
+                continue 'check;
+            }
+        }
+        return Ok(fit);
+    }
+}
+
+/// `fit`'s set refitted with `member` moved last (`keep`) or left out.
+fn with_member_last(
+    problem: &mut Problem,
+    fit: &Fit,
+    member: usize,
+    keep: bool,
+) -> Result<Fit, DiagnoseError> {
+    let order: Vec<usize> = (0..fit.set.len())
+        .filter(|&i| i != member)
+        .chain(keep.then_some(member))
+        .collect();
+    let set: Vec<Candidate> = order.iter().map(|&i| fit.set[i]).collect();
+    let start: Vec<f64> = order
+        .iter()
+        .flat_map(|&i| fit.values_of(i).0.to_vec())
+        .collect();
+    Ok(problem.fit(&set, start, &[])?)
 }
 
 /// A strong effect the nominal model lacked can mislead the nominal registration by
@@ -661,9 +726,8 @@ pub fn fit_new(
             if too_small(before, fit.objective).is_some() {
                 return Ok(Some(fit));
             }
-            let (lo, hi) = ((0.6 * order).max(orders_lo), (1.4 * order).min(orders_hi));
-            let (set, start) = problem.refit_waviness_order(&fit.set, fit.values, lo, hi)?;
-            Ok(Some(problem.fit(&set, start, &[])?))
+            let refitted = refit_waviness_order(problem, &fit, order, (orders_lo, orders_hi))?;
+            Ok(Some(problem.fit(&refitted.set, refitted.values, &[])?))
         }
         // A moving effect's rate is screened on the residual's projection on its
         // signature at the cut clock; a tilt error motion only on a map (along a line
@@ -769,6 +833,37 @@ struct WavinessTrials {
     orders: Vec<f64>,
     half_width: f64,
     range: (f64, f64),
+}
+
+/// The order of `fit`'s last member, an edge waviness screened at `order`, re-fitted
+/// over ±40 % of it within `range`; where the best order lies at an end of that bracket
+/// (the residual still falls beyond it: a scale fitted beside a low order takes its
+/// power, and the screens see a higher one), the bracket moves on past that end, at most
+/// [`WAVINESS_BRACKET_MOVES`] times.
+fn refit_waviness_order(
+    problem: &mut Problem,
+    fit: &Fit,
+    order: f64,
+    (range_lo, range_hi): (f64, f64),
+) -> Result<Fitted, ForwardError> {
+    let bracket = |order: f64| ((0.6 * order).max(range_lo), (1.4 * order).min(range_hi));
+    let (mut lo, mut hi) = bracket(order);
+    let mut best = fit.fitted();
+    for _ in 0..=WAVINESS_BRACKET_MOVES {
+        best = problem.refit_waviness_order(&fit.parameters, best, lo, hi)?;
+        let Some(Candidate::EdgeWaviness { order }) = best.set.last().copied() else {
+            break;
+        };
+        let end = 0.05 * (hi - lo);
+        (lo, hi) = if order - lo < end && lo > range_lo {
+            ((0.6 * order).max(range_lo), order + end)
+        } else if hi - order < end && hi < range_hi {
+            (order - end, (1.4 * order).min(range_hi))
+        } else {
+            break;
+        };
+    }
+    Ok(best)
 }
 
 /// The waviness orders the simulation tries, and the half-width it refines the best

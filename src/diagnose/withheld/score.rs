@@ -5,6 +5,7 @@
 //! each pair of effects whether each was found.
 
 use super::{Truth, TruthEffect, selected};
+use crate::diagnose::candidates::pair_sigma;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -412,7 +413,7 @@ fn parameter_error(
             return (f64::INFINITY, f64::INFINITY);
         }
         let (a_true, a_fit) = (norm(&t.values), norm(values));
-        let sigma = norm(sigmas) / 2f64.sqrt();
+        let sigma = pair_sigma(values, sigmas);
         return (
             (a_fit - a_true).abs() / a_true,
             (a_fit - a_true).abs() / sigma,
