@@ -648,9 +648,8 @@ impl<'a, 'e> Problem<'a, 'e> {
     fn widen_to_profile(&mut self, fit: &mut Fit) -> Result<(), ForwardError> {
         let used = fit.evaluation.registered.used.max(1) as f64;
         let k = fit.values.len() as f64;
-        let point_variance = self.rss(&fit.evaluation) / (used - k - 4.0).max(1.0);
         let rss0 = self.rss(&fit.evaluation);
-        let r0 = self.residual(&fit.evaluation);
+        let point_variance = rss0 / (used - k - 4.0).max(1.0);
         let effects = member_parameters(&fit.set, |c| !c.is_registration());
         for j in effects {
             let sigma = fit.sigmas[j];
@@ -658,8 +657,18 @@ impl<'a, 'e> Problem<'a, 'e> {
                 continue;
             }
             let bound = fit.parameters[j].bound;
+            let step_at = |delta: f64| {
+                let mut trial = fit.values.clone();
+                trial[j] = (fit.values[j] + delta).clamp(-bound, bound);
+                trial
+            };
+            // The parameter's print: what its first step (+σ) changes in the residual.
+            let print = {
+                let e = self.evaluate(&fit.set, &step_at(sigma))?;
+                self.residual_change(&e, &fit.evaluation, 1.0)
+            };
+            let variance = point_variance * inflation(fit.correlation_length, &print);
             let mut width: f64 = 0.0;
-            let mut variance = point_variance * fit.correlation_length.max(1.0);
             for side in [1.0, -1.0] {
                 let mut reached = sigma;
                 // The last step that stayed within Δχ² = 1: a residual flat up to a step
@@ -667,13 +676,7 @@ impl<'a, 'e> Problem<'a, 'e> {
                 let mut flat: f64 = 0.0;
                 for doubling in 0..=PROFILE_DOUBLINGS {
                     let delta = sigma * (1 << doubling) as f64;
-                    let mut trial = fit.values.clone();
-                    trial[j] = (fit.values[j] + side * delta).clamp(-bound, bound);
-                    let e = self.evaluate(&fit.set, &trial)?;
-                    if doubling == 0 && side > 0.0 {
-                        let print = self.residual(&e).into_iter().zip(&r0).map(|(a, b)| a - b);
-                        variance = point_variance * inflation(fit.correlation_length, print);
-                    }
+                    let e = self.evaluate(&fit.set, &step_at(side * delta))?;
                     let rise = self.rss(&e) - rss0;
                     reached = delta;
                     if rise >= variance {
@@ -834,15 +837,17 @@ impl<'a, 'e> Problem<'a, 'e> {
         let h = step(parameters, values, j);
         let mut trial = values.to_vec();
         trial[j] += h;
-        let r1 = {
-            let e = self.evaluate(set, &trial)?;
-            self.residual(&e)
-        };
-        Ok(r1
+        let e = self.evaluate(set, &trial)?;
+        Ok(self.residual_change(&e, at, h))
+    }
+
+    /// The residual of `moved` less that of `at`, per `h`: a finite-difference column.
+    fn residual_change(&self, moved: &Evaluation, at: &Evaluation, h: f64) -> Vec<f64> {
+        self.residual(moved)
             .iter()
             .zip(self.residual(at))
             .map(|(a, b)| (a - b) / h)
-            .collect())
+            .collect()
     }
 
     /// The residual's Jacobian, column by column.
@@ -910,7 +915,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let line = self.measurement.is_line();
         // A waviness order is fitted too (outside the Jacobian): its column joins the
         // σs' estimate so that the amplitudes' carry what the order's doubt leaves.
-        let orders = self.order_columns(set, &values, &residual)?;
+        let orders = self.order_columns(set, &values, &evaluation)?;
         let mut extended = jacobian.to_vec();
         let mut free_extended = free.clone();
         for column in orders {
@@ -1008,7 +1013,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         &mut self,
         set: &[Candidate],
         values: &[f64],
-        residual: &[f64],
+        at: &Evaluation,
     ) -> Result<Vec<Vec<f64>>, ForwardError> {
         let mut columns = Vec::new();
         for (m, c) in set.iter().enumerate() {
@@ -1019,8 +1024,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             let mut moved = set.to_vec();
             moved[m] = Candidate::EdgeWaviness { order: order + h };
             let e = self.evaluate(&moved, values)?;
-            let r1 = self.residual(&e);
-            columns.push(r1.iter().zip(residual).map(|(a, b)| (a - b) / h).collect());
+            columns.push(self.residual_change(&e, at, h));
         }
         Ok(columns)
     }
@@ -1031,7 +1035,7 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// members still, and a scale or spiral azimuth re-fitted beside the waviness moves
     /// the best order by a fifth and more. Each order is fitted from the best values so
     /// far and at the unit scale. Returns the best of `fitted` and the orders tried.
-    pub fn refit_waviness_order(
+    pub fn best_waviness_order_within(
         &mut self,
         parameters: &[Parameter],
         fitted: Fitted,
@@ -1116,9 +1120,9 @@ impl<'a, 'e> Problem<'a, 'e> {
 /// a parameter whose print is `print`: the correlation length, but no more than the
 /// number of points the print covers ((Σ|p|)² / Σp²): a boss's few points near the axis
 /// see a slow waviness in the residual as one offset, not as many independent ones.
-fn inflation(tau: f64, print: impl Iterator<Item = f64>) -> f64 {
+fn inflation(tau: f64, print: &[f64]) -> f64 {
     let (mut sum, mut squares) = (0.0, 0.0);
-    for p in print {
+    for &p in print {
         sum += p.abs();
         squares += p * p;
     }
@@ -1267,7 +1271,7 @@ pub(super) fn uncertainties(
     };
     (0..k)
         .map(|a| {
-            let variance = point_variance * inflation(tau, jacobian[free[a]].iter().copied());
+            let variance = point_variance * inflation(tau, &jacobian[free[a]]);
             let jacobian_sigma = (inverse[a][a] * variance).max(0.0).sqrt();
             let sandwich: f64 = (0..k)
                 .flat_map(|b| (0..k).map(move |c| (b, c)))

@@ -579,13 +579,17 @@ fn keep_what_predicts(
     }
 }
 
-/// `fit`'s set refitted with `member` moved last (`keep`) or left out.
+/// `fit`'s set refitted with `member` moved last (`keep`; `fit` itself where it is
+/// last already) or left out.
 fn with_member_last(
     problem: &mut Problem,
     fit: &Fit,
     member: usize,
     keep: bool,
 ) -> Result<Fit, DiagnoseError> {
+    if keep && member + 1 == fit.set.len() {
+        return Ok(fit.clone());
+    }
     let order: Vec<usize> = (0..fit.set.len())
         .filter(|&i| i != member)
         .chain(keep.then_some(member))
@@ -850,15 +854,15 @@ fn refit_waviness_order(
     let (mut lo, mut hi) = bracket(order);
     let mut best = fit.fitted();
     for _ in 0..=WAVINESS_BRACKET_MOVES {
-        best = problem.refit_waviness_order(&fit.parameters, best, lo, hi)?;
+        best = problem.best_waviness_order_within(&fit.parameters, best, lo, hi)?;
         let Some(Candidate::EdgeWaviness { order }) = best.set.last().copied() else {
             break;
         };
         let end = 0.05 * (hi - lo);
         (lo, hi) = if order - lo < end && lo > range_lo {
-            ((0.6 * order).max(range_lo), order + end)
+            (bracket(order).0, order + end)
         } else if hi - order < end && hi < range_hi {
-            (order - end, (1.4 * order).min(range_hi))
+            (order - end, bracket(order).1)
         } else {
             break;
         };
