@@ -42,7 +42,7 @@ use marks::MarkShape;
 use measurement::{Measurement, Shape};
 use register::{Comb, Registered, ShiftSearch, Terms};
 use report::*;
-use search::Search;
+use search::{Search, TIE_EVIDENCE};
 use std::rc::Rc;
 use std::time::Instant;
 use zones::{Zones, band_cutoffs, bands, pv, radii, rms, white_noise_mm};
@@ -243,6 +243,7 @@ pub fn diagnose(
         found = Search::default();
     }
     let baseline = base.evaluation.clone();
+    search::widen_for_look_alikes(&mut problem, &mut found, job, &baseline.registered, log)?;
     let indistinguishable = indistinguishable(&found.singles, &baseline.registered);
     let ambiguous = withdraw_if_ambiguous(&mut found, &indistinguishable, log);
     if fitted.is_line() && check.fits {
@@ -405,6 +406,7 @@ pub fn diagnose(
         cross_validation: found.validations.clone(),
         shrinkage,
         indistinguishable,
+        ambiguous: ambiguous.clone(),
         held_out: held,
         verdict,
         run: RunInfo {
@@ -759,19 +761,31 @@ fn judged_mark_shape(
     Ok(Some(shape))
 }
 
-/// When the first candidate has rivals the data cannot tell from it, nothing is
-/// accepted: acting on one of two causes that leave the same print is a coin toss
+/// When the first candidate has rivals the data cannot tell from it, or another set of
+/// effects explains the data as well as the accepted one (`found.alternative`), nothing
+/// is accepted: acting on one of two causes that leave the same print is a coin toss
 /// that may make the next part worse. Returns the tied labels, the first first.
 fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&str)) -> Vec<String> {
-    let (Some(accepted), Some((best, _))) = (&found.accepted, found.singles.first()) else {
+    let Some(accepted) = &found.accepted else {
         return Vec::new();
     };
-    let best = best.set[best.set.len() - 1];
-    if rivals.is_empty() || accepted.effects().iter().all(|c| c.kind() != best.kind()) {
-        return Vec::new();
-    }
-    let mut tied = vec![best.label()];
-    tied.extend(rivals.iter().cloned());
+    let tied = if let Some(alternative) = &found.alternative {
+        vec![
+            search::labels(&accepted.set),
+            search::labels(&alternative.set),
+        ]
+    } else {
+        let Some((best, _)) = found.singles.first() else {
+            return Vec::new();
+        };
+        let best = best.set[best.set.len() - 1];
+        if rivals.is_empty() || accepted.effects().iter().all(|c| c.kind() != best.kind()) {
+            return Vec::new();
+        }
+        std::iter::once(best.label())
+            .chain(rivals.iter().cloned())
+            .collect()
+    };
     log(&format!(
         "{} cannot be told apart on this measurement: nothing accepted",
         tied.join(", ")
@@ -780,49 +794,19 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
     tied
 }
 
-/// Ties (see [`indistinguishable`]): evidence within this of the best's ΔBIC, and the
-/// two changes to the residual correlated above this.
-const TIE_EVIDENCE: f64 = 6.0;
-const TIE_CORRELATION: f64 = 0.9;
-
-/// Candidates the data cannot tell from the best: evidence within 6 of its ΔBIC (short
-/// of the conventional "strong" preference, Kass & Raftery 1995) and mostly the same
-/// change to the residual (correlation above 0.9: four fifths of each change's energy
-/// shared).
+/// Candidates the data cannot tell from the best: evidence within [`TIE_EVIDENCE`] of
+/// its ΔBIC (short of the conventional "strong" preference, Kass & Raftery 1995) and the
+/// same print ([`search::SAME_PRINT`]).
 fn indistinguishable(singles: &[(Fit, f64)], baseline: &Registered) -> Vec<String> {
     let Some((best, best_evidence)) = singles.first() else {
         return Vec::new();
     };
-    let change = |f: &Fit| -> Vec<f64> {
-        f.evaluation
-            .registered
-            .residual_mm
-            .iter()
-            .zip(&baseline.residual_mm)
-            .map(|(a, b)| {
-                if a.is_finite() && b.is_finite() {
-                    b - a
-                } else {
-                    0.0
-                }
-            })
-            .collect()
-    };
-    let reference = change(best);
-    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
     singles[1..]
         .iter()
         .filter(|(f, evidence)| {
-            let other = change(f);
-            let cos = reference
-                .iter()
-                .zip(&other)
-                .map(|(a, b)| a * b)
-                .sum::<f64>()
-                / (norm(&reference) * norm(&other)).max(1e-300);
             *best_evidence > 0.0
                 && (best_evidence - evidence).abs() < TIE_EVIDENCE
-                && cos > TIE_CORRELATION
+                && search::print_correlation(f, best, baseline) > search::SAME_PRINT
         })
         .map(|(f, _)| f.set[f.set.len() - 1].label())
         .collect()

@@ -44,6 +44,9 @@ pub struct Diagnosis {
     pub shrinkage: Vec<ShrinkageStep>,
     /// Candidates that explain the data as well as the first (the data cannot tell them apart).
     pub indistinguishable: Vec<String>,
+    /// With an `ambiguous` verdict, the explanations (effects joined by " + ") the data
+    /// cannot tell apart, the one the search accepted first; empty otherwise.
+    pub ambiguous: Vec<String>,
     pub held_out: Option<HeldOut>,
     pub verdict: Verdict,
     pub run: RunInfo,

@@ -3,14 +3,18 @@
 //! greedily. An effect is accepted only when it adds ΔBIC above the threshold, stands 3σ
 //! from zero, sits inside its search range (a value at the bound is not a fit), removes
 //! at least a tenth of the residual's RMS, and predicts the data it was not fitted on
-//! (`validate`). A last backward pass drops an
-//! effect the others have come to explain.
+//! (`validate`). A last backward pass drops an effect the others have come to explain.
+//! Then the accepted set is weighed against what could stand in for it: a pair of
+//! runners-up, a further waviness order in a set-up effect's place, and (after the
+//! search, `widen_for_look_alikes`) a candidate leaving an accepted effect's print. One
+//! that explains the data about as well is kept as `alternative`, and nothing is
+//! claimed: the verdict names both.
 
 use super::candidates::Candidate;
 use super::fit::{Fit, Fitted, Problem, bic, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
-use super::register::ShiftSearch;
+use super::register::{Registered, ShiftSearch};
 use super::validate::{Folds, Validation, cross_validate};
 use super::zones;
 use super::{DiagnoseError, Options};
@@ -45,7 +49,15 @@ pub struct Search {
     pub validations: Vec<Validation>,
     /// Effects with evidence that were not accepted, and why.
     pub refused: Vec<(String, String)>,
+    /// Another set of effects that explains the data about as well as the accepted one
+    /// (within [`TIE_EVIDENCE`] on BIC), each of its members a fit: the data cannot
+    /// tell the two apart.
+    pub alternative: Option<Fit>,
 }
+
+/// Evidence (ΔBIC) within which two explanations tie: short of the conventional
+/// "strong" preference (Kass & Raftery 1995).
+pub const TIE_EVIDENCE: f64 = 6.0;
 
 /// The job as given, registered: the registration terms that are fitted like effects
 /// (`members`: a turned profile's azimuth on the spiral, the lateral scale) fitted
@@ -72,6 +84,7 @@ pub fn search<'a>(
 ) -> Result<Search, DiagnoseError> {
     let mut found = Search::default();
     let fitted = problem.measurement;
+    let orders = OrderRange::new(job, fitted);
     let nominal_frame = problem.shift;
     let mut fits = Vec::new();
     for (i, c) in candidates.iter().enumerate() {
@@ -141,13 +154,13 @@ pub fn search<'a>(
             let member = fit.set.len() - 1;
             let label = fit.set[member].label();
             if let Some(why) =
-                not_a_fit(&fit, member).or_else(|| too_small(rss_before, fit.objective))
+                not_a_fit(&fit, member, orders).or_else(|| too_small(rss_before, fit.objective))
             {
                 log(&format!("{label}: {why}"));
                 found.refused.push((label, why));
                 // A large print whose σ the residual's unexplained structure inflated
                 // may stand once a partner takes that structure: it is offered one.
-                if only_doubtful(&fit, member, rss_before) {
+                if only_doubtful(&fit, member, rss_before, orders) {
                     refused.push(fit);
                 }
                 continue;
@@ -187,17 +200,21 @@ pub fn search<'a>(
         found.steps = vec![pair.clone()];
         current = pair;
     }
+    waviness_swap(problem, &mut found, &current, job, log)?;
     found.accepted = (!current.effect_members().is_empty()).then_some(current);
     Ok(found)
 }
 
 /// Greedy selection commits to the single that fits best, and a flexible effect (two
 /// or more parameters: an edge waviness of a fraction of a cycle over the edge the part
-/// used) can fit best by imitating two set-up effects at once. The strongest
-/// runners-up are each given the partner a greedy round would give them; the best such pair replaces the accepted set
-/// when it beats it on BIC (its parameters paid for) by more than the evidence
-/// threshold, both its members are fits, the partner removes a tenth of what the
-/// runner-up leaves, and the pair predicts the data it was not fitted on.
+/// used) or a combination can fit best by imitating other effects at once. The
+/// strongest runners-up (that are fits themselves) are each given the partner a greedy
+/// round would give them; the best such pair replaces the accepted set when it beats it
+/// on BIC (its parameters paid for) by more than the evidence threshold, both its
+/// members are fits, the partner removes a tenth of what the runner-up leaves, and the
+/// pair predicts the data it was not fitted on. A pair that passes the same tests but
+/// only ties the accepted set (within [`TIE_EVIDENCE`] of it, short of the threshold)
+/// is kept in `found.alternative`: the data cannot tell the two explanations apart.
 fn rival_pair<'a>(
     problem: &mut Problem<'a, '_>,
     found: &mut Search,
@@ -207,25 +224,36 @@ fn rival_pair<'a>(
     options: &Options,
     log: &dyn Fn(&str),
 ) -> Result<Option<Fit>, DiagnoseError> {
-    // Only an effect of two or more parameters has the freedom to imitate two.
-    let Some(first) = current.effects().first().copied().filter(|c| width(c) >= 2) else {
+    // One effect of one parameter imitates no combination (ties between singles are
+    // judged apart, on the singles).
+    let effects = current.effects();
+    if effects.len() < 2 && effects.iter().all(|c| width(c) < 2) {
         return Ok(None);
+    }
+    let orders = OrderRange::new(job, problem.measurement);
+    let single_evidence = |kind: &str| {
+        found
+            .singles
+            .iter()
+            .filter(|(f, _)| f.set.last().is_some_and(|c| c.kind() == kind))
+            .map(|(_, e)| *e)
+            .fold(f64::NEG_INFINITY, f64::max)
     };
-    let Some(first_evidence) = found
-        .singles
+    let strongest = effects
         .iter()
-        .find(|(f, _)| f.set.last().is_some_and(|c| c.kind() == first.kind()))
-        .map(|(_, e)| *e)
-    else {
+        .map(|c| single_evidence(c.kind()))
+        .fold(f64::NEG_INFINITY, f64::max);
+    if !strongest.is_finite() {
         return Ok(None);
-    };
+    }
     let rivals: Vec<Fit> = found
         .singles
         .iter()
         .filter(|(f, e)| {
-            let kind = f.set.last().map(Candidate::kind);
-            *e >= RIVAL_SHARE * first_evidence
-                && current.effects().iter().all(|c| Some(c.kind()) != kind)
+            let last = f.set.len() - 1;
+            *e >= RIVAL_SHARE * strongest
+                && effects.iter().all(|c| c.kind() != f.set[last].kind())
+                && not_a_fit(f, last, orders).is_none()
         })
         .take(RIVALS)
         .map(|(f, _)| f.clone())
@@ -253,7 +281,8 @@ fn rival_pair<'a>(
         return Ok(None);
     };
     let label = labels(&pair.set);
-    if gain <= options.min_evidence {
+    let ties = gain > -TIE_EVIDENCE && gain <= options.min_evidence;
+    if gain <= -TIE_EVIDENCE {
         log(&format!(
             "the best pair of runners-up, {label}, adds ΔBIC {gain:.1} over {}: kept",
             labels(&current.set)
@@ -263,7 +292,7 @@ fn rival_pair<'a>(
     let members = pair.effect_members();
     if let Some(why) = members
         .iter()
-        .find_map(|&m| not_a_fit(&pair, m))
+        .find_map(|&m| not_a_fit(&pair, m, orders))
         .or_else(|| too_small(rival.objective, pair.objective))
     {
         log(&format!(
@@ -274,7 +303,12 @@ fn rival_pair<'a>(
         return Ok(None);
     }
     log(&format!(
-        "{label} explains more than {} (ΔBIC {gain:.1}): checking that each predicts data it was not fitted on",
+        "{label} explains {} {} (ΔBIC {gain:.1}): checking that each predicts data it was not fitted on",
+        if ties {
+            "about as well as"
+        } else {
+            "more than"
+        },
         labels(&current.set)
     ));
     // The runner-up alone, then its partner beside it (the pair's last member), as the
@@ -288,7 +322,244 @@ fn rival_pair<'a>(
     widen_sigmas(&mut pair, rival.set.len() - 1, &rival_spread);
     let partner = pair.set.len() - 1;
     widen_sigmas(&mut pair, partner, &partner_spread);
+    if ties {
+        log(&format!(
+            "{label} and {} cannot be told apart on this measurement",
+            labels(&current.set)
+        ));
+        found.alternative = Some(pair);
+        return Ok(None);
+    }
     Ok(Some(pair))
+}
+
+/// An accepted edge waviness beside set-up effects may be two waviness orders whose
+/// second the set-up effect imitates over the few cycles the measured edge spans (a
+/// decentre's cone as the low half of a harmonic): each set-up member is replaced by a
+/// further waviness order (every order re-fitted), and where that explains the data as
+/// well as the accepted set — its log-likelihood within [`TIE_EVIDENCE`] of it, the
+/// further order's parameters not charged — with every member a fit, it is kept in
+/// `found.alternative`.
+fn waviness_swap(
+    problem: &mut Problem,
+    found: &mut Search,
+    current: &Fit,
+    job: &Job,
+    log: &dyn Fn(&str),
+) -> Result<(), DiagnoseError> {
+    let effects = current.effect_members();
+    let wavy = |i: &usize| matches!(current.set[*i], Candidate::EdgeWaviness { .. });
+    let waviness = effects.iter().filter(|i| wavy(i)).count();
+    if waviness == 0 || waviness >= MAX_WAVINESS_ORDERS || found.alternative.is_some() {
+        return Ok(());
+    }
+    let orders = OrderRange::new(job, problem.measurement);
+    let fitted = problem.measurement;
+    // The likelihoods compared, the further order's parameters not charged: the
+    // question is whether the set-up effect is needed, not which model is leaner.
+    let gain = |alternative: &Fit| {
+        evidence(
+            current.objective,
+            alternative.parameter_count(),
+            alternative,
+            current.effective_points,
+        )
+    };
+    for &m in effects.iter().filter(|i| !wavy(i)) {
+        let rest = with_member_last(problem, current, m, false)?;
+        let Some(mut swapped) = fit_new(
+            problem,
+            &rest.set,
+            &rest.values,
+            Candidate::EdgeWaviness { order: 0.0 },
+            job,
+            fitted,
+        )?
+        else {
+            continue;
+        };
+        // Re-fitting every order costs a golden-section search each: only where the
+        // screened orders come near a tie.
+        if (-SWAP_REFIT_MARGIN..=-TIE_EVIDENCE).contains(&gain(&swapped)) {
+            swapped = refit_every_order(problem, swapped, orders)?;
+        }
+        // An order at the lowest end stands for a smooth bend of the edge, which is
+        // just what the set-up effect's print may be: it counts for the tie.
+        let all_fit = swapped
+            .effect_members()
+            .iter()
+            .all(|&i| not_a_fit(&swapped, i, OrderRange::ANY).is_none());
+        let gain = gain(&swapped);
+        log(&format!(
+            "{} instead of {}: log-likelihood gain {gain:.1} (ΔBIC scale)",
+            labels(&swapped.set),
+            labels(&current.set)
+        ));
+        if gain > -TIE_EVIDENCE && all_fit {
+            log(&format!(
+                "{} and {} cannot be told apart on this measurement",
+                labels(&swapped.set),
+                labels(&current.set)
+            ));
+            found.alternative = Some(swapped);
+            return Ok(());
+        }
+    }
+    Ok(())
+}
+
+/// How far below a tie (ΔBIC scale) a swapped waviness set's screened orders may leave
+/// it and still have every order re-fitted (see [`waviness_swap`]).
+const SWAP_REFIT_MARGIN: f64 = 30.0;
+
+/// Two changes to a residual (each fit's against `baseline`) correlated above this leave
+/// the same print: four fifths of each one's energy shared.
+pub const SAME_PRINT: f64 = 0.9;
+
+/// Cosine between the changes two fits make to `baseline`'s residual: 1 when they leave
+/// the same print.
+pub fn print_correlation(a: &Fit, b: &Fit, baseline: &Registered) -> f64 {
+    let change = |f: &Fit| -> Vec<f64> {
+        f.evaluation
+            .registered
+            .residual_mm
+            .iter()
+            .zip(&baseline.residual_mm)
+            .map(|(x, b)| {
+                if x.is_finite() && b.is_finite() {
+                    b - x
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    };
+    let (ca, cb) = (change(a), change(b));
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    ca.iter().zip(&cb).map(|(x, y)| x * y).sum::<f64>() / (norm(&ca) * norm(&cb)).max(1e-300)
+}
+
+/// Look-alikes weighed per accepted member, strongest first.
+const LOOK_ALIKES: usize = 2;
+
+/// An accepted effect pinned only as far as the data tells it from a candidate that
+/// leaves the same print (a decentre and a drift are both a cone on a sphere: only the
+/// marks' phase and the few rings at the axis tell them apart, and a part with both
+/// reads as either alone). For each accepted member, the candidates not accepted whose
+/// single fit leaves its print ([`SAME_PRINT`]) and explains at least [`RIVAL_SHARE`]
+/// of its evidence are fitted beside the accepted set; the member's σ becomes at least
+/// its σ in that fit and the distance its value moved there (a model that lets the
+/// look-alike in). Where the member then no longer stands 3σ clear of zero, the set
+/// with the look-alike in its place is kept in `found.alternative`: the data cannot
+/// tell the two apart.
+pub fn widen_for_look_alikes(
+    problem: &mut Problem,
+    found: &mut Search,
+    job: &Job,
+    baseline: &Registered,
+    log: &dyn Fn(&str),
+) -> Result<(), DiagnoseError> {
+    let Some(mut accepted) = found.accepted.clone() else {
+        return Ok(());
+    };
+    let fitted = problem.measurement;
+    let orders = OrderRange::new(job, fitted);
+    problem.shift = accepted.frame;
+    problem.clear_cache();
+    for member in accepted.effect_members() {
+        let kind = accepted.set[member].kind();
+        let Some((own, own_evidence)) = found
+            .singles
+            .iter()
+            .find(|(f, _)| f.set.last().is_some_and(|c| c.kind() == kind))
+        else {
+            continue;
+        };
+        let look_alikes: Vec<Candidate> = found
+            .singles
+            .iter()
+            .filter(|(f, e)| {
+                let last = f.set.len() - 1;
+                let c = f.set[last];
+                *e >= RIVAL_SHARE * own_evidence
+                    && accepted.effects().iter().all(|a| a.kind() != c.kind())
+                    && not_a_fit(f, last, orders).is_none()
+                    && print_correlation(f, own, baseline) > SAME_PRINT
+            })
+            .take(LOOK_ALIKES)
+            .map(|(f, _)| f.set[f.set.len() - 1])
+            .collect();
+        let start: usize = accepted.set[..member].iter().map(width).sum();
+        for c in look_alikes {
+            let Some(beside) = fit_new(problem, &accepted.set, &accepted.values, c, job, fitted)?
+            else {
+                continue;
+            };
+            for j in start..start + width(&accepted.set[member]) {
+                let moved = (beside.values[j] - accepted.values[j]).abs();
+                let widened = accepted.sigmas[j].max(beside.sigmas[j]).max(moved);
+                if widened > accepted.sigmas[j] {
+                    log(&format!(
+                        "{} leaves the print of {}: its σ widened from {:.4} to {:.4} {}",
+                        c.label(),
+                        accepted.set[member].label(),
+                        accepted.sigmas[j],
+                        widened,
+                        accepted.parameters[j].unit
+                    ));
+                    accepted.sigmas[j] = widened;
+                }
+            }
+            if !significant(&accepted, member) && found.alternative.is_none() {
+                let instead = with_member_last(problem, &beside, member, false)?;
+                log(&format!(
+                    "{} and {} cannot be told apart on this measurement",
+                    labels(&accepted.set),
+                    labels(&instead.set)
+                ));
+                found.alternative = Some(instead);
+            }
+        }
+    }
+    found.accepted = Some(accepted);
+    Ok(())
+}
+
+/// `fit` with the order of each of its edge-waviness members re-fitted in turn, the
+/// others held (each moved last, where the order's re-fit acts), the new orders kept
+/// where they lower the objective.
+fn refit_every_order(
+    problem: &mut Problem,
+    mut fit: Fit,
+    orders: OrderRange,
+) -> Result<Fit, DiagnoseError> {
+    let count = fit
+        .set
+        .iter()
+        .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
+        .count();
+    for _ in 0..count {
+        let Some(first) = fit
+            .set
+            .iter()
+            .position(|c| matches!(c, Candidate::EdgeWaviness { .. }))
+        else {
+            break;
+        };
+        let last = with_member_last(problem, &fit, first, true)?;
+        let Some(Candidate::EdgeWaviness { order }) = last.set.last().copied() else {
+            break;
+        };
+        let refitted =
+            refit_waviness_order(problem, &last, order, (orders.lowest, orders.highest))?;
+        let moved = problem.fit(&refitted.set, refitted.values, &[])?;
+        fit = if moved.objective < last.objective {
+            moved
+        } else {
+            last
+        };
+    }
+    Ok(fit)
 }
 
 /// When no effect of a round predicts the data it was not fitted on alone, two present
@@ -342,7 +613,7 @@ fn joint_pair<'a>(
     let members: Vec<usize> = (current.set.len()..pair.set.len()).collect();
     if let Some(why) = members
         .iter()
-        .find_map(|&m| not_a_fit(&pair, m))
+        .find_map(|&m| not_a_fit(&pair, m, OrderRange::new(job, problem.measurement)))
         .or_else(|| too_small(first.objective, pair.objective))
     {
         log(&format!("{label} together: {why}"));
@@ -406,7 +677,10 @@ fn predict_unseen_together(
 
 /// Why member `member` of a fit is not a fit at all, if it is not: a value at its search
 /// bound, or values within 3σ of zero.
-fn not_a_fit(fit: &Fit, member: usize) -> Option<String> {
+fn not_a_fit(fit: &Fit, member: usize, orders: OrderRange) -> Option<String> {
+    if let Some(why) = order_at_bound(fit.set[member], orders) {
+        return Some(why);
+    }
     let start: usize = fit.set[..member].iter().map(width).sum();
     let n = width(&fit.set[member]);
     if let Some(j) = (start..start + n).find(|&j| fit.at_bound[j]) {
@@ -422,11 +696,59 @@ fn not_a_fit(fit: &Fit, member: usize) -> Option<String> {
     None
 }
 
+/// The waviness orders a measurement can tell (see [`waviness_orders`]): the lowest is
+/// half a cycle over the edge angles it used, the highest a quarter of one mark's contact.
+#[derive(Clone, Copy, Debug)]
+pub struct OrderRange {
+    pub lowest: f64,
+    pub highest: f64,
+}
+
+impl OrderRange {
+    /// No order is at an end.
+    pub const ANY: OrderRange = OrderRange {
+        lowest: 0.0,
+        highest: 0.0,
+    };
+
+    pub fn new(job: &Job, m: &Measurement) -> Self {
+        let grid = waviness_orders(job, m);
+        OrderRange {
+            lowest: grid.first().copied().unwrap_or(0.0),
+            highest: grid.last().copied().unwrap_or(0.0),
+        }
+    }
+}
+
+/// Share of an end of the order range within which a fitted order sits at that end.
+const ORDER_AT_END: f64 = 0.03;
+
+/// Why an edge waviness's order is not a fit, if it is not: it sits at an end of the
+/// range the measurement can tell. At the lowest (half a cycle over the edge angles
+/// used) the harmonic is a smooth bend along the edge that the data wants smoother
+/// still: it imitates a form error (a drift, a wear, a decentre), not a waviness.
+fn order_at_bound(c: Candidate, range: OrderRange) -> Option<String> {
+    let Candidate::EdgeWaviness { order } = c else {
+        return None;
+    };
+    let low = order <= range.lowest * (1.0 + ORDER_AT_END);
+    let high = order >= range.highest * (1.0 - ORDER_AT_END);
+    (range.highest > 0.0 && (low || high)).then(|| {
+        let (end, what) = if low {
+            (range.lowest, "the lowest this measurement can tell, half a cycle over the edge angles it used: a smooth bend of the form, not a waviness")
+        } else {
+            (range.highest, "the highest this measurement can tell")
+        };
+        format!("order {order:.1} sits at its search bound ({end:.1}, {what}): not a fit")
+    })
+}
+
 /// Whether the member's only fault is its doubt: within its bounds and removing enough of
 /// the residual, but within 3σ of zero.
-fn only_doubtful(fit: &Fit, member: usize, before: f64) -> bool {
+fn only_doubtful(fit: &Fit, member: usize, before: f64, orders: OrderRange) -> bool {
     let start: usize = fit.set[..member].iter().map(width).sum();
-    let within_bounds = (start..start + width(&fit.set[member])).all(|j| !fit.at_bound[j]);
+    let within_bounds = (start..start + width(&fit.set[member])).all(|j| !fit.at_bound[j])
+        && order_at_bound(fit.set[member], orders).is_none();
     within_bounds && !significant(fit, member) && too_small(before, fit.objective).is_none()
 }
 

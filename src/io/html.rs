@@ -605,7 +605,8 @@ fn comparison_section(d: &Value) -> Option<Section> {
     Some(Section::new("Measured against simulated", html))
 }
 
-/// Which effects were accepted and tried, and those not diagnosable or indistinguishable.
+/// Which effects were accepted and tried, and those not diagnosable, indistinguishable
+/// or tied (ambiguous).
 fn effects_section(d: &Value) -> Section {
     let mut effects = String::new();
     for (key, title) in [("accepted", "Accepted"), ("candidates", "Tried")] {
@@ -616,7 +617,7 @@ fn effects_section(d: &Value) -> Section {
             let _ = write!(effects, "<h3>{title}</h3>{}", effect_table(list));
         }
     }
-    for key in ["not_diagnosable", "indistinguishable"] {
+    for key in ["not_diagnosable", "indistinguishable", "ambiguous"] {
         let rows = get(d, &format!("/{key}"));
         if rows.as_array().is_some_and(|r| !r.is_empty()) {
             let _ = write!(effects, "<h3>{}</h3>{}", key.replace('_', " "), table(rows));
