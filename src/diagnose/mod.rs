@@ -243,7 +243,6 @@ pub fn diagnose(
         found = Search::default();
     }
     let baseline = base.evaluation.clone();
-    search::widen_for_look_alikes(&mut problem, &mut found, job, &baseline.registered, log)?;
     let indistinguishable = indistinguishable(&found.singles, &baseline.registered);
     let ambiguous = withdraw_if_ambiguous(&mut found, &indistinguishable, log);
     if fitted.is_line() && check.fits {
@@ -406,7 +405,7 @@ pub fn diagnose(
         cross_validation: found.validations.clone(),
         shrinkage,
         indistinguishable,
-        ambiguous: ambiguous.clone(),
+        ambiguous,
         held_out: held,
         verdict,
         run: RunInfo {

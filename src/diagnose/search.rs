@@ -5,10 +5,10 @@
 //! at least a tenth of the residual's RMS, and predicts the data it was not fitted on
 //! (`validate`). A last backward pass drops an effect the others have come to explain.
 //! Then the accepted set is weighed against what could stand in for it: a pair of
-//! runners-up, a further waviness order in a set-up effect's place, and (after the
-//! search, `widen_for_look_alikes`) a candidate leaving an accepted effect's print. One
-//! that explains the data about as well is kept as `alternative`, and nothing is
-//! claimed: the verdict names both.
+//! runners-up, a further waviness order in a set-up effect's place, and a candidate
+//! leaving an accepted effect's print (`widen_for_look_alikes`, which also widens that
+//! effect's σ). One that explains the data about as well is kept as `alternative`, and
+//! nothing is claimed: the verdict names both.
 
 use super::candidates::Candidate;
 use super::fit::{Fit, Fitted, Problem, bic, width};
@@ -202,6 +202,7 @@ pub fn search<'a>(
     }
     waviness_swap(problem, &mut found, &current, job, log)?;
     found.accepted = (!current.effect_members().is_empty()).then_some(current);
+    widen_for_look_alikes(problem, &mut found, job, &base.evaluation.registered, log)?;
     Ok(found)
 }
 
@@ -231,17 +232,9 @@ fn rival_pair<'a>(
         return Ok(None);
     }
     let orders = OrderRange::new(job, problem.measurement);
-    let single_evidence = |kind: &str| {
-        found
-            .singles
-            .iter()
-            .filter(|(f, _)| f.set.last().is_some_and(|c| c.kind() == kind))
-            .map(|(_, e)| *e)
-            .fold(f64::NEG_INFINITY, f64::max)
-    };
     let strongest = effects
         .iter()
-        .map(|c| single_evidence(c.kind()))
+        .filter_map(|c| single_of(&found.singles, c.kind()).map(|(_, e)| *e))
         .fold(f64::NEG_INFINITY, f64::max);
     if !strongest.is_finite() {
         return Ok(None);
@@ -323,11 +316,7 @@ fn rival_pair<'a>(
     let partner = pair.set.len() - 1;
     widen_sigmas(&mut pair, partner, &partner_spread);
     if ties {
-        log(&format!(
-            "{label} and {} cannot be told apart on this measurement",
-            labels(&current.set)
-        ));
-        found.alternative = Some(pair);
+        keep_alternative(found, current, pair, log);
         return Ok(None);
     }
     Ok(Some(pair))
@@ -396,16 +385,21 @@ fn waviness_swap(
             labels(&current.set)
         ));
         if gain > -TIE_EVIDENCE && all_fit {
-            log(&format!(
-                "{} and {} cannot be told apart on this measurement",
-                labels(&swapped.set),
-                labels(&current.set)
-            ));
-            found.alternative = Some(swapped);
+            keep_alternative(found, current, swapped, log);
             return Ok(());
         }
     }
     Ok(())
+}
+
+/// Keeps `alternative` as the explanation the data cannot tell from `accepted`.
+fn keep_alternative(found: &mut Search, accepted: &Fit, alternative: Fit, log: &dyn Fn(&str)) {
+    log(&format!(
+        "{} and {} cannot be told apart on this measurement",
+        labels(&alternative.set),
+        labels(&accepted.set)
+    ));
+    found.alternative = Some(alternative);
 }
 
 /// How far below a tie (ΔBIC scale) a swapped waviness set's screened orders may leave
@@ -439,6 +433,14 @@ pub fn print_correlation(a: &Fit, b: &Fit, baseline: &Registered) -> f64 {
     ca.iter().zip(&cb).map(|(x, y)| x * y).sum::<f64>() / (norm(&ca) * norm(&cb)).max(1e-300)
 }
 
+/// The strongest single fit of an effect of `kind` (the singles are sorted strongest
+/// first), with its evidence.
+fn single_of<'s>(singles: &'s [(Fit, f64)], kind: &str) -> Option<&'s (Fit, f64)> {
+    singles
+        .iter()
+        .find(|(f, _)| f.set.last().is_some_and(|c| c.kind() == kind))
+}
+
 /// Look-alikes weighed per accepted member, strongest first.
 const LOOK_ALIKES: usize = 2;
 
@@ -452,7 +454,7 @@ const LOOK_ALIKES: usize = 2;
 /// look-alike in). Where the member then no longer stands 3σ clear of zero, the set
 /// with the look-alike in its place is kept in `found.alternative`: the data cannot
 /// tell the two apart.
-pub fn widen_for_look_alikes(
+fn widen_for_look_alikes(
     problem: &mut Problem,
     found: &mut Search,
     job: &Job,
@@ -467,11 +469,7 @@ pub fn widen_for_look_alikes(
     problem.shift = accepted.frame;
     problem.clear_cache();
     for member in accepted.effect_members() {
-        let kind = accepted.set[member].kind();
-        let Some((own, own_evidence)) = found
-            .singles
-            .iter()
-            .find(|(f, _)| f.set.last().is_some_and(|c| c.kind() == kind))
+        let Some((own, own_evidence)) = single_of(&found.singles, accepted.set[member].kind())
         else {
             continue;
         };
@@ -512,12 +510,7 @@ pub fn widen_for_look_alikes(
             }
             if !significant(&accepted, member) && found.alternative.is_none() {
                 let instead = with_member_last(problem, &beside, member, false)?;
-                log(&format!(
-                    "{} and {} cannot be told apart on this measurement",
-                    labels(&accepted.set),
-                    labels(&instead.set)
-                ));
-                found.alternative = Some(instead);
+                keep_alternative(found, &accepted, instead, log);
             }
         }
     }
@@ -550,8 +543,7 @@ fn refit_every_order(
         let Some(Candidate::EdgeWaviness { order }) = last.set.last().copied() else {
             break;
         };
-        let refitted =
-            refit_waviness_order(problem, &last, order, (orders.lowest, orders.highest))?;
+        let refitted = refit_waviness_order(problem, &last, order, orders)?;
         let moved = problem.fit(&refitted.set, refitted.values, &[])?;
         fit = if moved.objective < last.objective {
             moved
@@ -611,9 +603,10 @@ fn joint_pair<'a>(
         return Ok(None);
     }
     let members: Vec<usize> = (current.set.len()..pair.set.len()).collect();
+    let orders = OrderRange::new(job, problem.measurement);
     if let Some(why) = members
         .iter()
-        .find_map(|&m| not_a_fit(&pair, m, OrderRange::new(job, problem.measurement)))
+        .find_map(|&m| not_a_fit(&pair, m, orders))
         .or_else(|| too_small(first.objective, pair.objective))
     {
         log(&format!("{label} together: {why}"));
@@ -712,7 +705,11 @@ impl OrderRange {
     };
 
     pub fn new(job: &Job, m: &Measurement) -> Self {
-        let grid = waviness_orders(job, m);
+        Self::of(&waviness_orders(job, m))
+    }
+
+    /// The ends of a grid of orders (none: [`OrderRange::ANY`]).
+    fn of(grid: &[f64]) -> Self {
         OrderRange {
             lowest: grid.first().copied().unwrap_or(0.0),
             highest: grid.last().copied().unwrap_or(0.0),
@@ -1026,7 +1023,7 @@ pub fn fit_new(
             let WavinessTrials {
                 orders,
                 half_width,
-                range: (orders_lo, orders_hi),
+                range,
             } = waviness_trials(problem, base, base_values, job, fitted)?;
             let orders: Vec<f64> = orders
                 .into_iter()
@@ -1052,7 +1049,7 @@ pub fn fit_new(
             if too_small(before, fit.objective).is_some() {
                 return Ok(Some(fit));
             }
-            let refitted = refit_waviness_order(problem, &fit, order, (orders_lo, orders_hi))?;
+            let refitted = refit_waviness_order(problem, &fit, order, range)?;
             Ok(Some(problem.fit(&refitted.set, refitted.values, &[])?))
         }
         // A moving effect's rate is screened on the residual's projection on its
@@ -1158,7 +1155,7 @@ pub fn labels(set: &[Candidate]) -> String {
 struct WavinessTrials {
     orders: Vec<f64>,
     half_width: f64,
-    range: (f64, f64),
+    range: OrderRange,
 }
 
 /// The order of `fit`'s last member, an edge waviness screened at `order`, re-fitted
@@ -1170,8 +1167,9 @@ fn refit_waviness_order(
     problem: &mut Problem,
     fit: &Fit,
     order: f64,
-    (range_lo, range_hi): (f64, f64),
+    range: OrderRange,
 ) -> Result<Fitted, ForwardError> {
+    let (range_lo, range_hi) = (range.lowest, range.highest);
     let bracket = |order: f64| ((0.6 * order).max(range_lo), (1.4 * order).min(range_hi));
     let (mut lo, mut hi) = bracket(order);
     let mut best = fit.fitted();
@@ -1204,11 +1202,12 @@ fn waviness_trials(
     fitted: &Measurement,
 ) -> Result<WavinessTrials, ForwardError> {
     let grid = waviness_orders(job, fitted);
+    let range = OrderRange::of(&grid);
     let (Some(&lo), Some(&hi)) = (grid.first(), grid.last()) else {
         return Ok(WavinessTrials {
             orders: grid,
             half_width: 0.0,
-            range: (0.0, 0.0),
+            range,
         });
     };
     // Along XZ the edge meets the surface at its slope; XZB holds the edge angle.
@@ -1227,7 +1226,7 @@ fn waviness_trials(
     Ok(WavinessTrials {
         orders,
         half_width,
-        range: (lo, hi),
+        range,
     })
 }
 
