@@ -27,8 +27,13 @@ use std::rc::Rc;
 /// remove and where it may look for the axis.
 /// Golden-section steps refining a scan (the bracket shrinks to 0.618^n).
 const GOLDEN_STEPS: usize = 10;
-/// Golden-section steps refining a waviness order by re-fitting (0.618^8: 2 %).
-const WAVINESS_ORDER_STEPS: usize = 8;
+/// Golden-section steps refining a waviness order by re-fitting, between its grid's
+/// neighbours (0.618^6: 6 % of that bracket).
+const WAVINESS_ORDER_STEPS: usize = 6;
+/// Most orders of a waviness order's grid (see [`Problem::best_waviness_order_within`]).
+const WAVINESS_GRID_ORDERS: usize = 8;
+/// Amplitude (nm) of the harmonics whose responses project a waviness order's residual.
+pub const WAVINESS_PROBE_NM: f64 = 20.0;
 /// Simulations a problem keeps for re-registration.
 const SIMULATIONS_KEPT: usize = 32;
 /// Doublings of the step a σ's profile takes beyond ±σ (up to 16σ).
@@ -295,6 +300,13 @@ pub fn width(candidate: &Candidate) -> usize {
         | Candidate::SpringBack => 2,
         _ => 1,
     }
+}
+
+/// What a parameter's profile rise is judged against (see [`Problem::profile_noise`]).
+struct ProfileNoise {
+    rss: f64,
+    point_variance: f64,
+    tau: f64,
 }
 
 /// BIC = n_eff ln(RSS / n) + k ln(n_eff).
@@ -638,60 +650,110 @@ impl<'a, 'e> Problem<'a, 'e> {
         self.simulations.clear();
     }
 
-    /// Widens each effect parameter's σ to the half-width of the interval over which
-    /// Σr² rises by less than one effective point's variance (Δχ² = 1, the residual's
-    /// variance inflated by [`inflation`]), stepped out from ±σ by doubling
-    /// (at most [`PROFILE_DOUBLINGS`] times) and read off a parabola through the first
-    /// step that rises more. Where the residual is not the parabola the Jacobian
-    /// assumes — a boss's edge moving between samples leaves it flat for a while, then
-    /// steep — this is the honest width; where it is, it changes nothing.
+    /// Widens each effect parameter's σ to its profile's half-width
+    /// ([`Self::profile_half_width`], stepped out from ±σ at most [`PROFILE_DOUBLINGS`]
+    /// times). Where the residual is not the parabola the Jacobian assumes — a slow
+    /// rise, then a steep one — this is the honest width; where it is, it changes
+    /// nothing. A boss's height was sized by its profile alone in [`Self::finish`].
     fn widen_to_profile(&mut self, fit: &mut Fit) -> Result<(), ForwardError> {
-        let used = fit.evaluation.registered.used.max(1) as f64;
-        let k = fit.values.len() as f64;
-        let rss0 = self.rss(&fit.evaluation);
-        let point_variance = rss0 / (used - k - 4.0).max(1.0);
+        let noise = self.profile_noise(&fit.evaluation, fit.values.len(), fit.correlation_length);
         let effects = member_parameters(&fit.set, |c| !c.is_registration());
         for j in effects {
             let sigma = fit.sigmas[j];
-            if !(sigma.is_finite() && sigma > 0.0) || fit.at_bound[j] {
+            let boss = self.boss_edge_sigma(&fit.set, j, fit.values[j]) > 0.0;
+            if boss || !(sigma.is_finite() && sigma > 0.0) || fit.at_bound[j] {
                 continue;
             }
-            let bound = fit.parameters[j].bound;
-            let step_at = |delta: f64| {
-                let mut trial = fit.values.clone();
-                trial[j] = (fit.values[j] + delta).clamp(-bound, bound);
-                trial
-            };
-            // The parameter's print: what its first step (+σ) changes in the residual.
-            let print = {
-                let e = self.evaluate(&fit.set, &step_at(sigma))?;
-                self.residual_change(&e, &fit.evaluation, 1.0)
-            };
-            let variance = point_variance * inflation(fit.correlation_length, &print);
-            let mut width: f64 = 0.0;
-            for side in [1.0, -1.0] {
-                let mut reached = sigma;
-                // The last step that stayed within Δχ² = 1: a residual flat up to a step
-                // (a boss's edge crossing a sample) is flat at least that far.
-                let mut flat: f64 = 0.0;
-                for doubling in 0..=PROFILE_DOUBLINGS {
-                    let delta = sigma * (1 << doubling) as f64;
-                    let e = self.evaluate(&fit.set, &step_at(side * delta))?;
-                    let rise = self.rss(&e) - rss0;
-                    reached = delta;
-                    if rise >= variance {
-                        reached = flat.max(delta * (variance / rise).sqrt());
-                        break;
-                    }
-                    flat = delta;
-                }
-                width = width.max(reached);
-            }
-            fit.sigmas[j] = sigma
-                .max(width)
-                .max(self.boss_edge_sigma(&fit.set, j, fit.values[j]));
+            let at = (&fit.set[..], &fit.values[..], fit.parameters[j].bound);
+            let width = self.profile_half_width(at, j, sigma, PROFILE_DOUBLINGS, &noise)?;
+            fit.sigmas[j] = sigma.max(width);
         }
         Ok(())
+    }
+
+    /// What a profile's rise is judged against, for a fit that left `at` with `k`
+    /// values and its residual correlated over `tau` points: Σr² there and one point's
+    /// variance.
+    fn profile_noise(&self, at: &Evaluation, k: usize, tau: f64) -> ProfileNoise {
+        let used = at.registered.used.max(1) as f64;
+        let rss = self.rss(at);
+        ProfileNoise {
+            rss,
+            point_variance: rss / (used - k as f64 - 4.0).max(1.0),
+            tau,
+        }
+    }
+
+    /// The half-width of the interval of parameter `j` (of `set` fitted at `values`,
+    /// within ±`bound`) over which Σr² rises by less than one effective point's
+    /// variance (Δχ² = 1: the point variance inflated by [`inflation`] for the
+    /// parameter's print), stepped out from ±`start` by doubling (at most `doublings`
+    /// times) and read off a parabola through the first step that rises more. A
+    /// residual flat up to a step (a boss's edge crossing a sample) counts as flat at
+    /// least that far. A side that never rises that much gives the last step.
+    fn profile_half_width(
+        &mut self,
+        (set, values, bound): (&[Candidate], &[f64], f64),
+        j: usize,
+        start: f64,
+        doublings: usize,
+        noise: &ProfileNoise,
+    ) -> Result<f64, ForwardError> {
+        let step_at = |delta: f64| {
+            let mut trial = values.to_vec();
+            trial[j] = (values[j] + delta).clamp(-bound, bound);
+            trial
+        };
+        let at = self.evaluate(set, values)?;
+        // The parameter's print: what its first step changes in the residual.
+        let print = {
+            let e = self.evaluate(set, &step_at(start))?;
+            self.residual_change(&e, &at, 1.0)
+        };
+        let variance = noise.point_variance * inflation(noise.tau, &print);
+        let mut width: f64 = 0.0;
+        for side in [1.0, -1.0] {
+            let mut reached = start;
+            let mut flat: f64 = 0.0;
+            for doubling in 0..=doublings {
+                let delta = start * (1u64 << doubling) as f64;
+                let e = self.evaluate(set, &step_at(side * delta))?;
+                let rise = self.rss(&e) - noise.rss;
+                reached = delta;
+                if rise >= variance {
+                    reached = flat.max(delta * (variance / rise).sqrt());
+                    break;
+                }
+                flat = delta;
+            }
+            width = width.max(reached);
+        }
+        Ok(width)
+    }
+
+    /// A boss's height (below centre) prints as a step: a finite difference moves a
+    /// measured point across its edge or none, so the Jacobian's σ means nothing there
+    /// (10⁻³ to 10¹ µm on the same data). Its σ is its profile's half-width, stepped
+    /// out from the edge's own floor ([`Self::boss_edge_sigma`]) as far as the bound,
+    /// and no less than that floor; ∞ where the profile never rises (the data does not
+    /// reach the boss).
+    fn boss_sigma(
+        &mut self,
+        (set, values, bound): (&[Candidate], &[f64], f64),
+        j: usize,
+        noise: &ProfileNoise,
+    ) -> Result<Option<f64>, ForwardError> {
+        let edge = self.boss_edge_sigma(set, j, values[j]);
+        if edge <= 0.0 {
+            return Ok(None);
+        }
+        let doublings = (bound / edge).log2().ceil().max(0.0) as usize;
+        let width = self.profile_half_width((set, values, bound), j, edge, doublings, noise)?;
+        Ok(Some(if width >= bound {
+            f64::INFINITY
+        } else {
+            width.max(edge)
+        }))
     }
 
     /// A floor on a centre height's σ below centre (µm): its boss's edge, at radius
@@ -927,6 +989,15 @@ impl<'a, 'e> Problem<'a, 'e> {
         for (&j, s) in free.iter().zip(sigmas_free) {
             sigmas[j] = s;
         }
+        let noise = self.profile_noise(&evaluation, values.len(), tau);
+        for j in member_parameters(set, |c| *c == Candidate::CentreHeight) {
+            let at = (set, &values[..], parameters[j].bound);
+            if !frozen.contains(&j)
+                && let Some(sigma) = self.boss_sigma(at, j, &noise)?
+            {
+                sigmas[j] = sigma;
+            }
+        }
         let at_bound = values
             .iter()
             .zip(&parameters)
@@ -1030,50 +1101,87 @@ impl<'a, 'e> Problem<'a, 'e> {
     }
 
     /// The order of the fitted set's last member, an edge waviness, that leaves the
-    /// least residual when every value is fitted with it (Levenberg–Marquardt): golden
-    /// section over `lo..hi`. The responses the order screens use hold the registration
+    /// least residual when every value is fitted with it (Levenberg–Marquardt), within
+    /// `lo..hi`. The residual over the order has a basin for each harmonic the data
+    /// holds, and the one the screen began in need not be the deepest: orders `apart`
+    /// (a quarter cycle across the edge span) over the bracket are each fitted from
+    /// their own projection's amplitudes, then a golden section refines between the
+    /// best one's neighbours. The responses the order screens use hold the registration
     /// members still, and a scale or spiral azimuth re-fitted beside the waviness moves
-    /// the best order by a fifth and more. Each order is fitted from the best values so
-    /// far and at the unit scale. Returns the best of `fitted` and the orders tried.
+    /// the best order by a fifth and more: each order is fitted at the unit scale too.
+    /// Returns the best of `fitted` and the orders tried.
     pub fn best_waviness_order_within(
         &mut self,
         parameters: &[Parameter],
         fitted: Fitted,
-        lo: f64,
-        hi: f64,
+        (lo, hi): (f64, f64),
+        apart: f64,
     ) -> Result<Fitted, ForwardError> {
         let at = |order: f64| {
             let mut set = fitted.set.clone();
             *set.last_mut().expect("a waviness member") = Candidate::EdgeWaviness { order };
             set
         };
+        let (base_set, base_values) = (
+            &fitted.set[..fitted.set.len() - 1],
+            &fitted.values[..fitted.values.len() - 2],
+        );
+        let r0 = {
+            let e = self.evaluate(base_set, base_values)?;
+            self.residual(&e)
+        };
         let mut best = fitted.clone();
+        let count = (((hi - lo) / apart).ceil() as usize + 1).clamp(2, WAVINESS_GRID_ORDERS);
+        let grid: Vec<f64> = (0..count)
+            .map(|i| lo + (hi - lo) * i as f64 / (count - 1) as f64)
+            .collect();
+        let mut scores = Vec::with_capacity(count);
+        for &order in &grid {
+            let (_, a, b) =
+                self.waviness_at(base_set, base_values, order, WAVINESS_PROBE_NM, &r0)?;
+            let mut start = base_values.to_vec();
+            start.extend([a, b]);
+            scores.push(self.fit_order(parameters, &at(order), start, &mut best)?);
+        }
+        let i = (0..count)
+            .min_by(|&a, &b| scores[a].total_cmp(&scores[b]))
+            .expect("a grid of two orders or more");
         try_golden_section(
             |order| {
-                let trial = at(order);
-                let mut lowest = f64::INFINITY;
-                // From the best values so far, and at the unit scale (a scale fitted
-                // beside another order holds part of this one's power).
-                for start in with_unit_scale(&trial, best.values.clone()) {
-                    let (values, _) = self.levenberg_marquardt(&trial, parameters, start, &[])?;
-                    let e = self.evaluate(&trial, &values)?;
-                    let objective = self.rss(&e);
-                    lowest = lowest.min(objective);
-                    if objective < best.objective {
-                        best = Fitted {
-                            objective,
-                            set: trial.clone(),
-                            values,
-                        };
-                    }
-                }
-                Ok::<f64, ForwardError>(lowest)
+                let start = best.values.clone();
+                self.fit_order(parameters, &at(order), start, &mut best)
             },
-            lo,
-            hi,
+            grid[i.saturating_sub(1)],
+            grid[(i + 1).min(count - 1)],
             WAVINESS_ORDER_STEPS,
         )?;
         Ok(best)
+    }
+
+    /// Fits `trial` (Levenberg–Marquardt) from `start` and from it at the unit scale;
+    /// returns the lower Σr² and keeps the fit in `best` where it is lower there.
+    fn fit_order(
+        &mut self,
+        parameters: &[Parameter],
+        trial: &[Candidate],
+        start: Vec<f64>,
+        best: &mut Fitted,
+    ) -> Result<f64, ForwardError> {
+        let mut lowest = f64::INFINITY;
+        for start in with_unit_scale(trial, start) {
+            let (values, _) = self.levenberg_marquardt(trial, parameters, start, &[])?;
+            let e = self.evaluate(trial, &values)?;
+            let objective = self.rss(&e);
+            lowest = lowest.min(objective);
+            if objective < best.objective {
+                *best = Fitted {
+                    objective,
+                    set: trial.to_vec(),
+                    values,
+                };
+            }
+        }
+        Ok(lowest)
     }
 
     /// The least-squares cos/sin amplitudes (nm) of one waviness order against the
@@ -1120,7 +1228,7 @@ impl<'a, 'e> Problem<'a, 'e> {
 /// a parameter whose print is `print`: the correlation length, but no more than the
 /// number of points the print covers ((Σ|p|)² / Σp²): a boss's few points near the axis
 /// see a slow waviness in the residual as one offset, not as many independent ones.
-fn inflation(tau: f64, print: &[f64]) -> f64 {
+pub(super) fn inflation(tau: f64, print: &[f64]) -> f64 {
     let (mut sum, mut squares) = (0.0, 0.0);
     for &p in print {
         sum += p.abs();

@@ -161,6 +161,9 @@ const WAVINESS_TRIED: usize = 3;
 /// the power term take). The grid keeps a sixteenth-cycle phase error across the angles
 /// the points span; `None` when they span too little to tell orders apart. With the
 /// orders, the half-width (an eighth cycle across the span) a simulation refines in.
+/// The orders tried are apart by at least a quarter cycle across the span: the peaks of
+/// one harmonic's screen (its side lobes, the noise on its crest) are one order to this
+/// data, and three of them would leave another harmonic untried.
 pub fn screen_waviness(points: &[Point], lo: f64, hi: f64) -> Option<(Vec<f64>, f64)> {
     let stride = points.len().div_ceil(WAVINESS_SCREEN_POINTS).max(1);
     let points: Vec<(f64, f64, f64)> = points
@@ -169,12 +172,7 @@ pub fn screen_waviness(points: &[Point], lo: f64, hi: f64) -> Option<(Vec<f64>, 
         .filter(|p| p.residual_mm.is_finite() && p.residual_mm != 0.0 && p.slope.is_finite())
         .map(|p| (p.slope.atan(), p.radius_mm, p.residual_mm))
         .collect();
-    let (a_lo, a_hi) = points
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-            (a.min(p.0), b.max(p.0))
-        });
-    let span = a_hi - a_lo;
+    let span = angle_span(&points);
     if points.len() < 16 || span <= 0.0 || hi <= lo {
         return None;
     }
@@ -186,7 +184,7 @@ pub fn screen_waviness(points: &[Point], lo: f64, hi: f64) -> Option<(Vec<f64>, 
     let scores: Vec<f64> = orders.iter().map(|&k| -rss(k)).collect();
     let mut ranked: Vec<(f64, f64)> = local_maxima(&scores)
         .into_iter()
-        .take(2 * WAVINESS_TRIED)
+        .take(4 * WAVINESS_TRIED)
         .map(|i| {
             let (a, b) = (
                 orders[i.saturating_sub(1)],
@@ -203,13 +201,31 @@ pub fn screen_waviness(points: &[Point], lo: f64, hi: f64) -> Option<(Vec<f64>, 
         })
         .collect();
     ranked.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let orders = ranked
-        .into_iter()
-        .take(WAVINESS_TRIED)
-        .map(|x| x.0)
-        .collect();
+    let apart = std::f64::consts::FRAC_PI_2 / span;
+    let mut orders: Vec<f64> = Vec::new();
+    for (k, _) in ranked {
+        if orders.len() < WAVINESS_TRIED && orders.iter().all(|o| (k - o).abs() >= apart) {
+            orders.push(k);
+        }
+    }
     Some((orders, std::f64::consts::FRAC_PI_4 / span))
 }
+
+/// The edge angles (ψ, …) the points span, between the [`SPAN_TAIL`] quantiles: a
+/// boss's edge (a few points of a steep wall) says nothing of the orders the rest can
+/// tell apart.
+fn angle_span(points: &[(f64, f64, f64)]) -> f64 {
+    let mut angles: Vec<f64> = points.iter().map(|p| p.0).collect();
+    if angles.is_empty() {
+        return 0.0;
+    }
+    angles.sort_by(f64::total_cmp);
+    let at = |q: f64| angles[(q * (angles.len() - 1) as f64).round() as usize];
+    at(1.0 - SPAN_TAIL) - at(SPAN_TAIL)
+}
+
+/// Share of the points at each end of the edge angles left out of their span.
+const SPAN_TAIL: f64 = 0.005;
 
 /// Σ r² left after fitting 1, r, r², cos(k·ψ), sin(k·ψ) to the points (ψ, r, residual).
 fn waviness_rss(points: &[(f64, f64, f64)], k: f64) -> f64 {
@@ -270,30 +286,72 @@ mod tests {
         assert!(share > 0.5);
     }
 
-    #[test]
-    fn an_edge_harmonic_is_screened_at_its_order_on_a_sphere_profile() {
-        // A diameter over an R8 convex sphere (edge angles 0 to −10.8°) carrying
-        // 40 nm·cos(20·ψ + 0.7), a power term registration leaves and a 1 nm ripple.
-        let (k_true, radius) = (20.0, 8.0);
-        let data: Vec<Point> = (0..3000)
+    /// A diameter over an R8 convex sphere at 1 µm steps (edge angles 0 to −10.8°):
+    /// `point(x, r, ψ)` gives each point's (slope, residual), the slope None for the
+    /// sphere's own.
+    fn r8_diameter(point: impl Fn(f64, f64, f64) -> (Option<f64>, f64)) -> Vec<Point> {
+        let radius: f64 = 8.0;
+        (0..3000)
             .map(|i| {
                 let x = -1.5 + 1e-3 * i as f64;
-                let r: f64 = x.abs();
-                let slope = -r / (radius * radius - r * r).sqrt();
-                let psi = slope.atan();
-                let residual =
-                    40e-6 * (k_true * psi + 0.7).cos() + 3e-5 * r * r + 1e-6 * (977.0 * x).sin();
+                let r = x.abs();
+                let sphere = -r / (radius * radius - r * r).sqrt();
+                let (slope, residual) = point(x, r, sphere.atan());
                 Point {
                     residual_mm: residual,
                     clock_rad: 0.0,
-                    slope,
+                    slope: slope.unwrap_or(sphere),
                     radius_mm: r,
                 }
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn an_edge_harmonic_is_screened_at_its_order_on_a_sphere_profile() {
+        // 40 nm·cos(20·ψ + 0.7), a power term registration leaves and a 1 nm ripple.
+        let k_true = 20.0;
+        let data = r8_diameter(|x, r, psi| {
+            let residual =
+                40e-6 * (k_true * psi + 0.7).cos() + 3e-5 * r * r + 1e-6 * (977.0 * x).sin();
+            (None, residual)
+        });
         let (orders, half_width) = screen_waviness(&data, 4.0, 400.0).unwrap();
         assert!((orders[0] / k_true - 1.0).abs() < 0.01, "orders {orders:?}");
         // An eighth of a cycle across the 0.19 rad the edge angles span.
         assert!((half_width - std::f64::consts::FRAC_PI_4 / (1.5f64 / 8.0).asin()).abs() < 0.05);
+    }
+
+    #[test]
+    fn a_boss_wall_leaves_the_span_and_a_second_harmonic_is_tried() {
+        // 40 nm·cos(20ψ + 0.7) and 15 nm·cos(48ψ), and a modelled boss at the axis: a
+        // few points whose simulated slope is its steep wall (ψ = −1.5 rad), their
+        // residual 5 nm.
+        let k2 = 48.0;
+        let data = r8_diameter(|_, r, psi| {
+            if r < 0.002 {
+                (Some(-14.0), 5e-6)
+            } else {
+                let residual = 40e-6 * (20.0 * psi + 0.7).cos() + 15e-6 * (k2 * psi).cos();
+                (None, residual)
+            }
+        });
+        let (orders, half_width) = screen_waviness(&data, 4.0, 400.0).unwrap();
+        // The half-width of the bulk's 0.19 rad, not of the wall's 1.5.
+        let bulk = std::f64::consts::FRAC_PI_4 / (1.5f64 / 8.0).asin();
+        assert!(
+            (half_width / bulk - 1.0).abs() < 0.05,
+            "{half_width} for {bulk}"
+        );
+        // The orders tried lie a quarter cycle apart, and the second harmonic is one.
+        for (i, a) in orders.iter().enumerate() {
+            for b in &orders[i + 1..] {
+                assert!((a - b).abs() >= 2.0 * bulk * 0.95, "orders {orders:?}");
+            }
+        }
+        assert!(
+            orders.iter().any(|k| (k / k2 - 1.0).abs() < 0.05),
+            "orders {orders:?}"
+        );
     }
 }

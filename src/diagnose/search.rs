@@ -11,7 +11,7 @@
 //! nothing is claimed: the verdict names both.
 
 use super::candidates::Candidate;
-use super::fit::{Fit, Fitted, Problem, bic, width};
+use super::fit::{Fit, Fitted, Problem, WAVINESS_PROBE_NM, bic, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch};
@@ -28,6 +28,9 @@ const MAX_WAVINESS_ORDERS: usize = 3;
 const TRIES_PER_ROUND: usize = 3;
 /// Least share of the residual's RMS an accepted effect removes.
 const MIN_REDUCTION: f64 = 0.1;
+/// The share of the job's own Σr² below which what is accepted masked the singles'
+/// evidence against it (see [`search`]).
+const MASKED_SHARE: f64 = 0.25;
 /// Strongest runners-up, after the single greedy selection began with, that are each
 /// given a partner to see whether two effects explain better what one imitates.
 const RIVALS: usize = 2;
@@ -134,7 +137,19 @@ pub fn search<'a>(
             problem.shift = current.frame;
             problem.clear_cache();
         }
-        let round = greedy_round(problem, &found.singles, &current, job, fitted, log)?;
+        // The singles were judged against the job as given: where what is accepted took
+        // most of that residual (a boss) and leaves more than noise, it hid what the
+        // rest can explain, and every candidate is tried beside it.
+        let masked =
+            current.objective < MASKED_SHARE * base.objective && leaves_structure(&current, fitted);
+        let round = partners_round(
+            problem,
+            &found.singles,
+            &current,
+            (job, fitted),
+            masked,
+            log,
+        )?;
         let (rss_before, k_before) = (current.objective, current.parameter_count());
         let n_eff = common_effective_points(&round, problem, fitted)?;
         let mut ranked: Vec<(Fit, f64)> = round
@@ -831,6 +846,13 @@ fn partners_round(
     Ok(round)
 }
 
+/// Whether `fit` leaves more than noise: its residual's RMS over twice the white noise
+/// read from the residual's point-to-point scatter.
+fn leaves_structure(fit: &Fit, m: &Measurement) -> bool {
+    let residual = &fit.evaluation.registered.residual_mm;
+    zones::rms(residual) > 2.0 * zones::white_noise_mm(m, residual)
+}
+
 /// One backward pass: the first effect the others explain as well without it is dropped.
 fn drop_redundant(
     problem: &mut Problem,
@@ -1032,8 +1054,13 @@ pub fn fit_new(
             if orders.is_empty() {
                 return Ok(None);
             }
-            let Some((order, a, b)) =
-                problem.screen_waviness(base, base_values, &orders, half_width, 20.0)?
+            let Some((order, a, b)) = problem.screen_waviness(
+                base,
+                base_values,
+                &orders,
+                half_width,
+                WAVINESS_PROBE_NM,
+            )?
             else {
                 return Ok(None);
             };
@@ -1173,8 +1200,10 @@ fn refit_waviness_order(
     let bracket = |order: f64| ((0.6 * order).max(range_lo), (1.4 * order).min(range_hi));
     let (mut lo, mut hi) = bracket(order);
     let mut best = fit.fitted();
+    // A quarter cycle across the edge span: the lowest order is half a cycle.
+    let apart = 0.5 * range_lo;
     for _ in 0..=WAVINESS_BRACKET_MOVES {
-        best = problem.best_waviness_order_within(&fit.parameters, best, lo, hi)?;
+        best = problem.best_waviness_order_within(&fit.parameters, best, (lo, hi), apart)?;
         let Some(Candidate::EdgeWaviness { order }) = best.set.last().copied() else {
             break;
         };

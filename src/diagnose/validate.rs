@@ -12,14 +12,16 @@
 //!
 //! A fold judges the effect only where it can: the fit on the rest must see the effect
 //! (2σ from zero) and predict a change on the fold of at least a tenth of the fold's
-//! residual. There the held-out residual must fall, and by at least a third of what the
-//! prediction would remove were it exactly right (a proxy fitted to the other part's
-//! idiosyncrasies moves the fold away from the data: that share is then below zero).
+//! residual, and one that stands out of that residual's texture (Δχ² ≥ 4 with the
+//! residual's variance inflated by its correlation length). There the held-out residual
+//! must fall, and by at least a third of what the prediction would remove were it
+//! exactly right (a proxy fitted to the other part's idiosyncrasies moves the fold away
+//! from the data: that share is then below zero).
 //! The spread of the folds' values is a measure of the fit's real reproducibility and
 //! widens its σ.
 
 use super::candidates::Candidate;
-use super::fit::{Problem, member_parameters, width};
+use super::fit::{Problem, inflation, member_parameters, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
 use super::register::Registered;
@@ -31,6 +33,11 @@ use std::rc::Rc;
 const MIN_EFFICIENCY: f64 = 0.3;
 /// Least predicted change on a fold, relative to its residual, for it to judge.
 const MIN_PREDICTED: f64 = 0.1;
+/// Least predicted Σ change² on a fold, in effective points' variances of its residual
+/// (Δχ² = 4, two σ), for it to judge: a change the residual's texture there could make
+/// by itself (a few nm of piston that re-registering moves on a half whose unmodelled
+/// waviness is as large) judges nothing.
+const MIN_PREDICTED_CHI2: f64 = 4.0;
 /// Least share of a side (or half) for the split to be made.
 const MIN_SHARE: f64 = 0.15;
 
@@ -315,7 +322,9 @@ fn judge_fold(
     } else {
         0.0
     };
-    let visible = rms(&change) >= MIN_PREDICTED * rms(&rb);
+    let texture = rms(&rb).powi(2) * inflation(fitted.correlation_length, &change);
+    let visible =
+        rms(&change) >= MIN_PREDICTED * rms(&rb) && predicted >= MIN_PREDICTED_CHI2 * texture;
     let note = match (seen, visible) {
         (false, _) => "fitted on the rest, the effect is not seen (within 2σ of zero)".to_string(),
         (true, false) => "the effect predicts too small a change here to judge".to_string(),
