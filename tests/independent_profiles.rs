@@ -40,7 +40,29 @@ fn diagnose_with(profile: &str, extra: &[&str]) -> serde_json::Value {
         String::from_utf8_lossy(&status.stderr)
     );
     let text = std::fs::read_to_string(out.join("diagnosis.json")).unwrap();
-    serde_json::from_str(&text).unwrap()
+    let d: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_claims_stand_clear(&d);
+    d
+}
+
+/// Every accepted effect stands at least 3σ from zero (its parameters together), as
+/// reported: a claim is never one its own σ doubts.
+fn assert_claims_stand_clear(d: &serde_json::Value) {
+    for a in d["accepted"].as_array().unwrap() {
+        let z: f64 = a["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| (p["value"].as_f64().unwrap() / p["sigma"].as_f64().unwrap()).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            z > 3.0,
+            "{} claimed at {z:.2}σ: {}",
+            a["label"],
+            d["verdict"]["sentence"]
+        );
+    }
 }
 
 /// The verdict's status, its sentence shown when it is another.

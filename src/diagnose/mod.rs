@@ -247,6 +247,7 @@ pub fn diagnose(
     let ambiguous = withdraw_if_ambiguous(&mut found, &indistinguishable, log);
     if fitted.is_line() && check.fits {
         refine_reported(&mut problem, &mut found, log)?;
+        withdraw_if_not_significant(&mut found, log);
     }
     let zones = Zones::new(fitted.max_radius_mm());
     let analysis = ResidualAnalysis {
@@ -693,6 +694,33 @@ fn refine_reported(
         }
         _ => problem.refine_on_finer_rings(first),
     }
+}
+
+/// An accepted effect whose σ the finer rings widened (each σ is at least the move
+/// between the two pitches' fits) until it no longer stands 3σ from zero is the forward
+/// model's resolution, not the part's: the accepted set is withdrawn.
+fn withdraw_if_not_significant(found: &mut Search, log: &dyn Fn(&str)) {
+    let Some(accepted) = &found.accepted else {
+        return;
+    };
+    let doubtful: Vec<Candidate> = accepted
+        .effect_members()
+        .into_iter()
+        .filter(|&m| !search::significant(accepted, m))
+        .map(|m| accepted.set[m])
+        .collect();
+    if doubtful.is_empty() {
+        return;
+    }
+    let why = "fitted again on rings half as far apart, it lies within 3σ of zero".to_string();
+    log(&format!(
+        "{} withdrawn: {why}",
+        search::labels(&accepted.effects())
+    ));
+    for c in doubtful.iter().rev() {
+        found.refused.insert(0, (c.label(), why.clone()));
+    }
+    found.accepted = None;
 }
 
 /// Accepted effects whose gain lies in the marks' shape must leave none of that shape

@@ -1159,7 +1159,7 @@ pub fn evidence(rss_before: f64, k_before: usize, fit: &Fit, n_eff: f64) -> f64 
 }
 
 /// Whether member `member`'s parameters stand 3σ clear of zero together.
-fn significant(fit: &Fit, member: usize) -> bool {
+pub(super) fn significant(fit: &Fit, member: usize) -> bool {
     let (values, sigmas) = fit.values_of(member);
     let z2: f64 = values
         .iter()
