@@ -989,13 +989,16 @@ impl<'a, 'e> Problem<'a, 'e> {
         for (&j, s) in free.iter().zip(sigmas_free) {
             sigmas[j] = s;
         }
-        let noise = self.profile_noise(&evaluation, values.len(), tau);
-        for j in member_parameters(set, |c| *c == Candidate::CentreHeight) {
-            let at = (set, &values[..], parameters[j].bound);
-            if !frozen.contains(&j)
-                && let Some(sigma) = self.boss_sigma(at, j, &noise)?
-            {
-                sigmas[j] = sigma;
+        let heights = member_parameters(set, |c| *c == Candidate::CentreHeight);
+        if !heights.is_empty() {
+            let noise = self.profile_noise(&evaluation, values.len(), tau);
+            for j in heights {
+                let at = (set, &values[..], parameters[j].bound);
+                if !frozen.contains(&j)
+                    && let Some(sigma) = self.boss_sigma(at, j, &noise)?
+                {
+                    sigmas[j] = sigma;
+                }
             }
         }
         let at_bound = values

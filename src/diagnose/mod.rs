@@ -712,15 +712,21 @@ fn withdraw_if_not_significant(found: &mut Search, log: &dyn Fn(&str)) {
     if doubtful.is_empty() {
         return;
     }
-    let why = "fitted again on rings half as far apart, it lies within 3σ of zero".to_string();
-    log(&format!(
-        "{} withdrawn: {why}",
-        search::labels(&accepted.effects())
-    ));
-    for c in doubtful.iter().rev() {
-        found.refused.insert(0, (c.label(), why.clone()));
+    let why = "fitted again on rings half as far apart, it lies within 3σ of zero";
+    withdraw(found, &doubtful, why, log);
+}
+
+/// Withdraws the accepted set, `why` given first in `refused` for each of `members`.
+fn withdraw(found: &mut Search, members: &[Candidate], why: &str, log: &dyn Fn(&str)) {
+    if let Some(accepted) = found.accepted.take() {
+        log(&format!(
+            "{} withdrawn: {why}",
+            search::labels(&accepted.effects())
+        ));
     }
-    found.accepted = None;
+    for c in members.iter().rev() {
+        found.refused.insert(0, (c.label(), why.to_string()));
+    }
 }
 
 /// Accepted effects whose gain lies in the marks' shape must leave none of that shape
@@ -752,11 +758,7 @@ fn withdraw_if_marks_unexplained(
         "it reshapes the marks, yet with it fitted they still differ: {}",
         shape.describe()
     );
-    log(&format!("{} withdrawn: {why}", search::labels(&effects)));
-    for c in effects.iter().rev() {
-        found.refused.insert(0, (c.label(), why.clone()));
-    }
-    found.accepted = None;
+    withdraw(found, &effects, &why, log);
 }
 
 /// The marks' fold of `fit`'s residual as it is judged: with the model on rings half
