@@ -28,6 +28,10 @@ const MAX_WAVINESS_ORDERS: usize = 3;
 const TRIES_PER_ROUND: usize = 3;
 /// Least share of the residual's RMS an accepted effect removes.
 const MIN_REDUCTION: f64 = 0.1;
+/// The lowest share of the residual's white noise (read from its point-to-point
+/// scatter, which errs by a few per cent) a fit can bring the RMS to: below it an effect
+/// would be fitting the noise.
+const NOISE_FLOOR: f64 = 0.95;
 /// The share of the job's own Σr² below which what is accepted masked the singles'
 /// evidence against it (see [`search`]).
 const MASKED_SHARE: f64 = 0.25;
@@ -134,6 +138,10 @@ pub fn search<'a>(
     let mut current: Fit = base.clone();
     while current.effect_members().len() < options.max_effects {
         if !current.effect_members().is_empty() {
+            if !above_noise_floor(&current, fitted) {
+                log("what is accepted leaves white noise alone: no further effect looked for");
+                break;
+            }
             problem.shift = current.frame;
             problem.clear_cache();
         }
@@ -851,6 +859,14 @@ fn partners_round(
 fn leaves_structure(fit: &Fit, m: &Measurement) -> bool {
     let residual = &fit.evaluation.registered.residual_mm;
     zones::rms(residual) > 2.0 * zones::white_noise_mm(m, residual)
+}
+
+/// Whether a further effect could still remove [`MIN_REDUCTION`] of `fit`'s residual
+/// RMS without taking it below [`NOISE_FLOOR`] of its white noise. Where it could not,
+/// no partner would be accepted (see [`too_small`]), and none is fitted.
+fn above_noise_floor(fit: &Fit, m: &Measurement) -> bool {
+    let residual = &fit.evaluation.registered.residual_mm;
+    (1.0 - MIN_REDUCTION) * zones::rms(residual) > NOISE_FLOOR * zones::white_noise_mm(m, residual)
 }
 
 /// One backward pass: the first effect the others explain as well without it is dropped.

@@ -66,6 +66,14 @@ FEED_REF = "contact"
 N_SPIRAL = N_TOTAL = PITCH_C = None
 
 
+def set_geometry(radius_mm, nose_mm, feed_mm, rim_mm):
+    """Sphere radius, nose radius, feed per revolution and the start radius's rim (mm)."""
+    global R, RHO, F, R0, X_START
+    R, RHO, F = radius_mm, nose_mm, feed_mm
+    R0 = rim_mm + 0.01
+    X_START = R0 * (R + RHO) / R
+
+
 def set_feed_ref(ref):
     global FEED_REF, N_SPIRAL, N_TOTAL, PITCH_C
     FEED_REF = ref
@@ -198,7 +206,13 @@ def main():
                     help="edge waviness harmonic A cos(k psi + phi) (repeatable)")
     ap.add_argument("--remove-form", action="store_true",
                     help="take out a least-squares quadratic in the file's x")
+    ap.add_argument("--R-mm", type=float, default=R, help="sphere radius")
+    ap.add_argument("--nose-mm", type=float, default=RHO, help="tool nose radius")
+    ap.add_argument("--feed-um", type=float, default=F * 1000, help="feed per revolution")
+    ap.add_argument("--rim-mm", type=float, default=R0 - 0.01,
+                    help="aperture radius (the spiral starts 10 um outside it)")
     a = ap.parse_args()
+    set_geometry(a.R_mm, a.nose_mm, a.feed_um * 1e-3, a.rim_mm)
     set_feed_ref(a.feed_ref)
     waviness = []
     for spec in a.waviness:
