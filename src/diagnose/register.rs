@@ -494,17 +494,26 @@ impl LineFit {
             if !s.is_finite() {
                 continue;
             }
-            let row = Self::row(m, i, origin, shift);
             let t = m.height_mm[i] - s;
-            for p in 0..3 {
-                rhs[p] += row[p] * t;
-                for q in 0..3 {
-                    normal[p][q] += row[p] * row[q];
-                }
+            // The sums of the rows (1, x, p) (p = r², the power column, only with power):
+            // the constant column's products taken as they are.
+            let x = m.along_mm[i] - origin;
+            normal[0][0] += 1.0;
+            normal[0][1] += x;
+            normal[1][1] += x * x;
+            rhs[0] += t;
+            rhs[1] += x * t;
+            if power {
+                let p = (m.xy_mm[i] - shift).length_squared();
+                normal[0][2] += p;
+                normal[1][2] += x * p;
+                normal[2][2] += p * p;
+                rhs[2] += p * t;
             }
             squares += t * t;
             used += 1;
         }
+        (normal[1][0], normal[2][0], normal[2][1]) = (normal[0][1], normal[0][2], normal[1][2]);
         let normal: Vec<Vec<f64>> = normal[..width]
             .iter()
             .map(|r| r[..width].to_vec())
