@@ -6,6 +6,8 @@
 //! With the form removed, a sphere of R10 over ±0.8 mm keeps only ~5 nm RMS of form, so
 //! a set-up error leaves more smooth residual than the form has: such a part is a set-up
 //! error to diagnose, not another part (these three came back `does_not_fit` before).
+//! The later files (see `tests/data/independent/README.md`) keep the form in, use other
+//! spheres, and one is a map (`turned_sphere_map.py`, the same section model per pixel).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -340,4 +342,19 @@ fn an_r20_cone_of_5um_is_found_above_centre() {
     assert_status(&d, "effects_found");
     assert_sized(accepted(&d, "centre_height"), 5.0);
     assert_axis(&d, 0.137);
+}
+
+/// A 25 × 25 map of 100 µm pixels whose field reaches past the part's rim (corners
+/// 1.7 mm from the middle of a Ø3 mm part; `wide_map_control.csv`, nothing planted,
+/// the axis at file (1.237, 1.177) mm). The axis search had judged every shift on 98 %
+/// of all the points, found none keeping them, and returned a corner of its grid
+/// (`does_not_fit`). Now it keeps 98 % of what its best-covered shift keeps: placed
+/// within a micrometre, nothing claimed.
+#[test]
+fn a_map_reaching_past_the_part_is_placed_not_refused() {
+    let d = diagnose_with("wide_map_control.csv", &["--pixel-um", "100"]);
+    assert_status(&d, "no_effect_beyond_noise");
+    assert_axis(&d, 1.237);
+    let y = d["registration"]["axis_y_mm"].as_f64().unwrap();
+    assert!((y - 1.177).abs() < 1e-3, "axis y at {y} mm, planted 1.177");
 }

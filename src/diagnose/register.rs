@@ -245,42 +245,54 @@ fn register_near(
     // A subsample keeps the scan cheap (a map's scan is two-dimensional).
     let scanned = if direction.is_some() { 4000 } else { 1500 };
     let coarse = every_nth(m, (m.len() / scanned).max(1));
-    // A map's shift may not move its points off the simulated region (judging the rest
-    // alone would favour losing the hard ones); a profile may lose its ends at the rim.
-    let kept = |points: &Measurement| match direction {
-        Some(_) => points.len() / 2,
-        None => points.len() * 98 / 100,
-    };
     // The axis is judged on the bulk of the points: the worst 5 % (an unmodelled local
     // feature, spikes) do not steer it.
-    let objective = |points: &Measurement, shift: DVec2| {
+    let judged = |points: &Measurement, shift: DVec2| {
         let simulated = sim.sample(points, Frame::at(shift).mirrored(mirrored));
-        let (value, used) = if points.is_line() {
+        if points.is_line() {
             line_trimmed(points, &simulated, shift, terms.power, 0.95)
         } else {
             let r = fit_linear(points, &simulated, shift, terms.power);
             (trimmed_mean_square(&r.residual_mm, 0.95), r.used)
-        };
-        if used < kept(points) {
-            return f64::INFINITY;
         }
-        value
     };
     let steps = (search.half_width_mm / search.step_mm).ceil().max(1.0) as i64;
     let offsets: Vec<f64> = (-steps..=steps)
         .map(|k| k as f64 * search.step_mm)
         .collect();
+    let n = offsets.len();
+    let grid_shift = |k: usize| match direction {
+        Some(d) => search.start + offsets[k] * d,
+        None => search.start + DVec2::new(offsets[k % n], offsets[k / n]),
+    };
+    let scan: Vec<(f64, usize)> = (0..if direction.is_some() { n } else { n * n })
+        .map(|k| judged(&coarse, grid_shift(k)))
+        .collect();
+    // A profile may lose its ends at the rim. A map's shift may not move its points off
+    // the simulated region (judging the rest alone would favour losing the hard ones):
+    // it keeps 98 % of what the scan's best-covered shift keeps (all of them where the
+    // part holds the field; fewer where the field reaches past the part).
+    let most = scan.iter().map(|s| s.1).max().unwrap_or(0);
+    let least = |points: &Measurement| match direction {
+        Some(_) => points.len() / 2,
+        None => points.len() * most * 98 / (100 * coarse.len().max(1)),
+    };
+    let kept = |(value, used): (f64, usize), points: &Measurement| {
+        if used < least(points) {
+            f64::INFINITY
+        } else {
+            value
+        }
+    };
+    let objective = |points: &Measurement, shift: DVec2| kept(judged(points, shift), points);
+    let values: Vec<f64> = scan.iter().map(|s| kept(*s, &coarse)).collect();
     let width = search.step_mm;
     let best = match direction {
         Some(d) => {
-            let values: Vec<f64> = offsets
-                .iter()
-                .map(|&a| objective(&coarse, search.start + a * d))
-                .collect();
             let best = local_minima(&values, search.refine)
                 .into_iter()
                 .map(|k| {
-                    let centre = search.start + offsets[k] * d;
+                    let centre = grid_shift(k);
                     let along = |a: f64| objective(m, centre + a * d);
                     let a = golden_section(&along, -width, width, 14);
                     (along(a), centre + a * d)
@@ -296,15 +308,6 @@ fn register_near(
             }
         }
         None => {
-            let n = offsets.len();
-            let values: Vec<f64> = (0..n * n)
-                .map(|k| {
-                    objective(
-                        &coarse,
-                        search.start + DVec2::new(offsets[k % n], offsets[k / n]),
-                    )
-                })
-                .collect();
             // Local minima on the grid: no lower value among the four neighbours.
             let mut minima: Vec<usize> = (0..n * n)
                 .filter(|&k| {
@@ -324,9 +327,8 @@ fn register_near(
                 .into_iter()
                 .take(search.refine)
                 .map(|k| {
-                    let at = search.start + DVec2::new(offsets[k % n], offsets[k / n]);
                     let on_all = |shift: DVec2| objective(m, shift);
-                    refine_shift(m, sim, terms.power, &on_all, at, 0.25 * width)
+                    refine_shift(m, sim, terms.power, &on_all, grid_shift(k), 0.25 * width)
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0))
         }
