@@ -10,7 +10,8 @@ grid's lowest y), one column per x, no header; pixel (0, 0) at file (0, 0), so t
 lies at file (axis + (N - 1) P / 2) um on each axis.
 
     python3 turned_sphere_map.py --out FILE.csv [--n 25 --pixel-um 100
-        --axis-um 37 -23 --d-um 0 --h-um 0 --drift-nm 0 --noise-nm 1 --seed 1]
+        --axis-um 37 -23 --d-um 0 --h-um 0 --drift-nm 0 --noise-nm 1 --seed 1
+        --flank-cone --waviness ORDER:AMPLITUDE_NM:PHASE_DEG --invalid-beyond-mm R]
 """
 import argparse
 
@@ -31,17 +32,27 @@ def main():
     ap.add_argument("--drift-nm", type=float, default=0.0)
     ap.add_argument("--noise-nm", type=float, default=1.0)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--flank-cone", action="store_true")
+    ap.add_argument("--waviness", action="append", default=[],
+                    metavar="ORDER:AMPLITUDE_NM:PHASE_DEG")
+    ap.add_argument("--invalid-beyond-mm", type=float, default=None,
+                    help="pixels further from the axis written as NaN (no return)")
     a = ap.parse_args()
+    waviness = tuple((float(k), float(amp) * 1e-6, np.radians(float(ph)))
+                     for k, amp, ph in (w.split(":") for w in a.waviness))
     middle = (np.arange(a.n) - (a.n - 1) / 2) * a.pixel_um      # um from the middle
     x_um, y_um = np.meshgrid(middle, middle)                      # rows along y
     x = (x_um - a.axis_um[0]) * 1e-3
     y = (y_um - a.axis_um[1]) * 1e-3
     r, psi = np.hypot(x, y), np.arctan2(y, x)
     z = g.surface(r.ravel(), psi.ravel(), h=a.h_um * 1e-3, d=a.d_um * 1e-3,
-                  drift_mm=a.drift_nm * 1e-6).reshape(r.shape)
+                  drift_mm=a.drift_nm * 1e-6, flank_cone=a.flank_cone,
+                  waviness=waviness).reshape(r.shape)
     rng = np.random.default_rng(a.seed)
     z_um = (z * 1000 + 0.3 + 50e-6 * x_um - 30e-6 * y_um
             + rng.normal(0.0, a.noise_nm * 1e-3, z.shape))
+    if a.invalid_beyond_mm is not None:
+        z_um[r > a.invalid_beyond_mm] = np.nan
     np.savetxt(a.out, z_um, delimiter=",", fmt="%.6f")
 
 
