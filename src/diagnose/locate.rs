@@ -934,37 +934,14 @@ fn locate_map(
     options: LocateOptions,
     log: &dyn Fn(&str),
 ) -> Result<Located, DiagnoseError> {
-    let (lo, hi) = m.xy_mm.iter().fold(
-        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
-    let half = 0.5 * (hi - lo);
-    let centre = 0.5 * (hi + lo);
-    let pixel = m.spacing_mm();
-    let marks = mark_spacing_mm(job, m.max_radius_mm() + half.length());
-    let resolved = marks.is_some_and(|f| pixel <= f / 3.0);
+    let (half, centre) = field_of(m);
+    let (field, resolved) = field_search(job, m, centre);
     let scale = options.scale && resolved;
     // The simulation covers every radius an axis inside the field can give.
     let room = half.max_element();
     let mut model = ForwardModel::around(job, m, room, engine)?;
     let surface: SimulatedSurface = model.simulate(&|_| {})?;
-    let search = if options.terms.shift {
-        let reach = half.max_element().max(pixel);
-        let step = match marks {
-            Some(f) if resolved => (f / 6.0).max(reach / 40.0),
-            _ => reach / 12.0,
-        };
-        Some(ShiftSearch {
-            start: centre,
-            half_width_mm: reach,
-            step_mm: step,
-            refine: 3,
-            mirrored: false,
-            comb: None,
-        })
-    } else {
-        None
-    };
+    let search = options.terms.shift.then_some(field);
     log(&format!(
         "locating the map: axis anywhere within its {:.4} × {:.4} mm field",
         2.0 * half.x,
@@ -996,6 +973,39 @@ fn locate_map(
         marks_mm: None,
         axis_range_mm: None,
     })
+}
+
+/// A map's half-extent and middle (mm, in its own frame).
+fn field_of(m: &Measurement) -> (DVec2, DVec2) {
+    let (lo, hi) = m.xy_mm.iter().fold(
+        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    (0.5 * (hi - lo), 0.5 * (hi + lo))
+}
+
+/// The search for a map's axis anywhere in its field, from `start`, and whether its
+/// pixels resolve the process's marks (then the grid steps a sixth of a mark; else the
+/// form and the aliased marks place it, from twelve steps a side).
+pub fn field_search(job: &Job, m: &Measurement, start: DVec2) -> (ShiftSearch, bool) {
+    let (half, _) = field_of(m);
+    let pixel = m.spacing_mm();
+    let marks = mark_spacing_mm(job, m.max_radius_mm() + half.length());
+    let resolved = marks.is_some_and(|f| pixel <= f / 3.0);
+    let reach = half.max_element().max(pixel);
+    let step = match marks {
+        Some(f) if resolved => (f / 6.0).max(reach / 40.0),
+        _ => reach / 12.0,
+    };
+    let search = ShiftSearch {
+        start,
+        half_width_mm: reach,
+        step_mm: step,
+        refine: 3,
+        mirrored: false,
+        comb: None,
+    };
+    (search, resolved)
 }
 
 /// Golden-section search of a map's scale with the axis held (the axis search already

@@ -33,11 +33,17 @@ pub struct Point {
 
 /// The best rate for `candidate` and its cos/sin amplitudes (mm, or rad for a tilt),
 /// with the share of the residual's sum of squares it explains; `None` when the points
-/// cannot carry the signature (no clock, a single revolution).
+/// cannot carry the signature (no clock, a single revolution). On a map no rate is
+/// tried above `nyquist` (cycles per revolution: half the simulation's azimuths): the
+/// simulation samples the clock at its azimuths only, so a rate k and k less a whole
+/// number of azimuths leave the same simulated surface, and a rate past half of them
+/// is the alias of a slower one (a 128/rev feed vibration on 16 azimuths is a
+/// synchronous shift: a decentre's cone).
 pub fn screen_rate(
     candidate: Candidate,
     points: &[Point],
     line: bool,
+    nyquist: f64,
 ) -> Option<(f64, [f64; 2], f64)> {
     let points: Vec<Point> = points
         .iter()
@@ -55,7 +61,10 @@ pub fn screen_rate(
     }
     let total: f64 = points.iter().map(|p| p.residual_mm.powi(2)).sum();
     let explained = |k: f64| project(candidate, &points, k).1;
-    let rates = rate_grid(candidate, revolutions, line);
+    let rates = rate_grid(candidate, revolutions, line, nyquist);
+    if rates.is_empty() {
+        return None;
+    }
     let scores: Vec<f64> = rates.iter().map(|&k| explained(k)).collect();
     let peaks = local_maxima(&scores);
     let mut best = (0.0, f64::NEG_INFINITY);
@@ -94,15 +103,20 @@ pub fn screen_rate(
 
 /// Rates to try: whole orders for a tilt (up to 60); for a vibration steps of a quarter
 /// cycle over the revolutions the data spans, from one such step up to 1 cycle per
-/// revolution on a line or to the job files' bound on a map. A line through the axis
+/// revolution on a line or to the job files' bound on a map; on a map below `nyquist`
+/// (see [`screen_rate`]). A line through the axis
 /// sees the clock at two spindle angles half a turn apart only, t = 2πm or 2πm + π, so
 /// rates k + 2 and 2 − k (with the phase mirrored) leave the same trace as k, and a
 /// profile knows a vibration's rate only modulo that.
-fn rate_grid(candidate: Candidate, revolutions: f64, line: bool) -> Vec<f64> {
+fn rate_grid(candidate: Candidate, revolutions: f64, line: bool, nyquist: f64) -> Vec<f64> {
+    let top = if line {
+        1.0
+    } else {
+        MAX_CYCLES_PER_REV.min(nyquist)
+    };
     if matches!(candidate, Candidate::TiltErrorMotion { .. }) {
-        return (1..=60).map(f64::from).collect();
+        return (1..=60).map(f64::from).filter(|k| *k < top).collect();
     }
-    let top = if line { 1.0 } else { MAX_CYCLES_PER_REV };
     let step = (0.25 / revolutions).max(top / MAX_RATES as f64);
     let count = (top / step).floor() as usize;
     (1..=count).map(|i| i as f64 * step).collect()
@@ -278,7 +292,7 @@ mod tests {
             cycles: 0.0,
             depth: true,
         };
-        let (k, [a, b], share) = screen_rate(candidate, &data, true).unwrap();
+        let (k, [a, b], share) = screen_rate(candidate, &data, true, f64::INFINITY).unwrap();
         assert!((k - 0.37).abs() < 2e-4, "k = {k}");
         // a·cos + b·sin = A·cos(kt + φ): A = 3 nm, φ = 0.5 (a = A cos φ, b = −A sin φ).
         assert!((a.hypot(b) - 3e-6).abs() < 0.1e-6, "A = {}", a.hypot(b));

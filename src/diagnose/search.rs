@@ -961,7 +961,8 @@ fn with_member_last(
 
 /// A strong effect the nominal model lacked can mislead the nominal registration by
 /// whole mark periods — or, on a turned spiral of even feed, by half a mark with the
-/// spiral half a turn round: the single fit is registered again over ±2.5 marks, as it
+/// spiral half a turn round: the single fit is registered again over ±2.5 marks (a map
+/// whose pixels do not resolve the marks over its whole field), as it
 /// is and (where the spiral's azimuth is fitted) half a turn round, and refitted where
 /// that puts the axis if it moved; the better of the two fits is kept. (A turned line
 /// searches those placements in every trial: its registration has an axis comb.)
@@ -980,13 +981,18 @@ fn refit_if_axis_moves(
     if !problem.terms.shift || problem.shift.comb.is_some() {
         return Ok(fit);
     }
-    let wide = ShiftSearch {
-        start: nominal.start,
-        half_width_mm: 2.5 * period_mm,
-        step_mm: 0.125 * period_mm,
-        refine: 3,
-        mirrored: false,
-        comb: None,
+    // A map whose pixels do not resolve the marks was placed by its form alone, which
+    // the effect's own form (a cone) pulled by more than marks: searched over its field.
+    let wide = match super::locate::field_search(job, fitted, nominal.start) {
+        (field, false) if !fitted.is_line() => field,
+        _ => ShiftSearch {
+            start: nominal.start,
+            half_width_mm: 2.5 * period_mm,
+            step_mm: 0.125 * period_mm,
+            refine: 3,
+            mirrored: false,
+            comb: None,
+        },
     };
     let spiral = fit.set.iter().position(|c| *c == Candidate::SpiralAzimuth);
     let turns: &[f64] = if spiral.is_some() {
@@ -1105,7 +1111,9 @@ pub fn fit_new(
             let Some(points) = problem.screen_points(base, base_values)? else {
                 return Ok(None);
             };
-            let Some((rate, [a, b], _)) = super::screen::screen_rate(c, &points, fitted.is_line())
+            let nyquist = 0.5 * problem.model.base_job().azimuths as f64;
+            let Some((rate, [a, b], _)) =
+                super::screen::screen_rate(c, &points, fitted.is_line(), nyquist)
             else {
                 return Ok(None);
             };
