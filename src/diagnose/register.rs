@@ -273,16 +273,12 @@ fn register_near(
     // it keeps 98 % of what the scan's best-covered shift keeps (all of them where the
     // part holds the field; fewer where the field reaches past the part).
     let most = scan.iter().map(|s| s.1).max().unwrap_or(0);
-    let least = |points: &Measurement| match direction {
-        Some(_) => points.len() / 2,
-        None => points.len() * most * 98 / (100 * coarse.len().max(1)),
-    };
     let kept = |(value, used): (f64, usize), points: &Measurement| {
-        if used < least(points) {
-            f64::INFINITY
-        } else {
-            value
-        }
+        let least = match direction {
+            Some(_) => points.len() / 2,
+            None => points.len() * most * 98 / (100 * coarse.len().max(1)),
+        };
+        if used < least { f64::INFINITY } else { value }
     };
     let objective = |points: &Measurement, shift: DVec2| kept(judged(points, shift), points);
     let values: Vec<f64> = scan.iter().map(|s| kept(*s, &coarse)).collect();

@@ -983,9 +983,12 @@ fn refit_if_axis_moves(
     }
     // A map whose pixels do not resolve the marks was placed by its form alone, which
     // the effect's own form (a cone) pulled by more than marks: searched over its field.
-    let wide = match super::locate::field_search(job, fitted, nominal.start) {
-        (field, false) if !fitted.is_line() => field,
-        _ => ShiftSearch {
+    let unresolved_map = (!fitted.is_line())
+        .then(|| super::locate::field_search(job, fitted, nominal.start))
+        .filter(|(_, resolved)| !resolved);
+    let wide = match unresolved_map {
+        Some((field, _)) => field,
+        None => ShiftSearch {
             start: nominal.start,
             half_width_mm: 2.5 * period_mm,
             step_mm: 0.125 * period_mm,
