@@ -12,7 +12,7 @@
 use super::candidates::{Candidate, Parameter};
 use super::forward::{ForwardError, ForwardModel, Frame, SimulatedSurface};
 use super::measurement::Measurement;
-use super::register::{Registered, ShiftSearch, Terms, register};
+use super::register::{Registered, ShiftSearch, Terms, register, register_probe};
 use super::spectrum::LineNoise;
 use super::zones::correlation_length;
 use crate::numeric::{
@@ -260,25 +260,30 @@ pub fn member_parameters(set: &[Candidate], which: impl Fn(&Candidate) -> bool) 
 }
 
 /// Registers `m`, stretched by the set's lateral scale member, to `sim`.
+/// `near`: the trial is a finite-difference probe of the trial registered so
+/// ([`register_probe`]).
 pub(super) fn register_trial(
     m: &Measurement,
     sim: &SimulatedSurface,
     terms: Terms,
     shift: ShiftSearch,
-    set: &[Candidate],
-    values: &[f64],
+    (set, values): (&[Candidate], &[f64]),
+    near: Option<&Registered>,
 ) -> Registered {
     let stretch = stretch_of(set, values);
-    if stretch == 1.0 {
-        return register(m, sim, terms, Some(shift));
-    }
     // Placed about its own axis (no shift) at the stretch: its distances from the axis
     // scaled.
-    let stretched = m.placed(Frame {
-        scale: stretch,
-        ..Frame::IDENTITY
+    let stretched = (stretch != 1.0).then(|| {
+        m.placed(Frame {
+            scale: stretch,
+            ..Frame::IDENTITY
+        })
     });
-    register(&stretched, sim, terms, Some(shift))
+    let m = stretched.as_ref().unwrap_or(m);
+    match near {
+        Some(near) => register_probe(m, sim, terms, shift, near),
+        None => register(m, sim, terms, Some(shift)),
+    }
 }
 
 /// The lateral scale the set's registration members stretch the measurement by.
@@ -381,13 +386,30 @@ impl<'a, 'e> Problem<'a, 'e> {
         set: &[Candidate],
         values: &[f64],
     ) -> Result<Rc<Evaluation>, ForwardError> {
-        let key = cache_key(set, values);
+        self.evaluate_near(set, values, None)
+    }
+
+    /// [`Problem::evaluate`], or with `near` a finite-difference probe of the trial
+    /// registered so ([`register_probe`]).
+    fn evaluate_near(
+        &mut self,
+        set: &[Candidate],
+        values: &[f64],
+        near: Option<&Registered>,
+    ) -> Result<Rc<Evaluation>, ForwardError> {
+        let key = evaluation_key(set, values, near);
         if let Some(hit) = self.cache.get(&key) {
             return Ok(hit.clone());
         }
         let sim = self.simulation(set, values)?;
-        let registered =
-            register_trial(self.measurement, &sim, self.terms, self.shift, set, values);
+        let registered = register_trial(
+            self.measurement,
+            &sim,
+            self.terms,
+            self.shift,
+            (set, values),
+            near,
+        );
         let evaluation = Rc::new(Evaluation {
             values: values.to_vec(),
             registered,
@@ -403,11 +425,23 @@ impl<'a, 'e> Problem<'a, 'e> {
         &mut self,
         trials: &[(Vec<Candidate>, Vec<f64>)],
     ) -> Result<(), ForwardError> {
+        self.evaluate_many_near(trials, None)
+    }
+
+    /// [`Problem::evaluate_many`], or with `near` finite-difference probes of the trial
+    /// registered so.
+    fn evaluate_many_near(
+        &mut self,
+        trials: &[(Vec<Candidate>, Vec<f64>)],
+        near: Option<&Registered>,
+    ) -> Result<(), ForwardError> {
         let mut missing: Vec<&(Vec<Candidate>, Vec<f64>)> = Vec::new();
         for trial in trials {
-            let key = cache_key(&trial.0, &trial.1);
+            let key = evaluation_key(&trial.0, &trial.1, near);
             if !self.cache.contains_key(&key)
-                && !missing.iter().any(|m| cache_key(&m.0, &m.1) == key)
+                && !missing
+                    .iter()
+                    .any(|m| evaluation_key(&m.0, &m.1, near) == key)
             {
                 missing.push(trial);
             }
@@ -443,7 +477,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let registered: Vec<Registered> = missing
             .par_iter()
             .zip(sims)
-            .map(|((set, values), sim)| register_trial(m, sim, terms, shift, set, values))
+            .map(|((set, values), sim)| register_trial(m, sim, terms, shift, (set, values), near))
             .collect();
         for ((set, values), registered) in missing.into_iter().zip(registered) {
             let evaluation = Rc::new(Evaluation {
@@ -451,7 +485,8 @@ impl<'a, 'e> Problem<'a, 'e> {
                 registered,
                 prior_mm: self.prior_term(set, values),
             });
-            self.cache.insert(cache_key(set, values), evaluation);
+            self.cache
+                .insert(evaluation_key(set, values, near), evaluation);
         }
         Ok(())
     }
@@ -528,6 +563,33 @@ impl<'a, 'e> Problem<'a, 'e> {
             fit.correlation_length,
         );
         Ok(sigma / stretch)
+    }
+
+    /// Half the difference between where the two halves of a line put its axis (mm, in
+    /// the placed measurement's frame), each registered alone with `fit`'s model by the
+    /// fits' own search: on a radius the axis lies outside the data and is placed by the
+    /// form's reach and the marks' comb, and an error of the model there (an effect too
+    /// small to accept still bends the form) moves it by teeth that the fit's own σ
+    /// counts as excluded; the halves see the form differently and disagree by it.
+    pub fn axis_split_mm(&mut self, fit: &Fit) -> Result<f64, ForwardError> {
+        let sim = self.simulation(&fit.set, &fit.values)?;
+        let stretch = stretch_of(&fit.set, &fit.values);
+        let stretched = self.measurement.placed(Frame {
+            scale: stretch,
+            ..Frame::IDENTITY
+        });
+        let mut along = stretched.along_mm.clone();
+        along.sort_by(f64::total_cmp);
+        let middle = along[along.len() / 2];
+        let direction = stretched.line_direction();
+        let axis = |lower: bool| {
+            let half = stretched.subset(|i| (stretched.along_mm[i] < middle) == lower);
+            register(&half, &sim, self.terms, Some(self.shift))
+                .shift_mm
+                .dot(direction)
+        };
+        let (a, b) = (axis(true), axis(false));
+        Ok(0.5 * (a - b).abs() / stretch)
     }
 
     /// Makes room for `coming` simulations among those kept.
@@ -899,7 +961,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let h = step(parameters, values, j);
         let mut trial = values.to_vec();
         trial[j] += h;
-        let e = self.evaluate(set, &trial)?;
+        let e = self.evaluate_near(set, &trial, Some(&at.registered))?;
         Ok(self.residual_change(&e, at, h))
     }
 
@@ -927,7 +989,7 @@ impl<'a, 'e> Problem<'a, 'e> {
                 (set.to_vec(), trial)
             })
             .collect();
-        self.evaluate_many(&trials)?;
+        self.evaluate_many_near(&trials, Some(&at.registered))?;
         (0..values.len())
             .map(|j| self.column(set, parameters, values, j, at))
             .collect()
@@ -1433,6 +1495,25 @@ fn job_key(set: &[Candidate], values: &[f64]) -> (String, Vec<u64>) {
         .map(|&j| values[j])
         .collect();
     cache_key(&members, &kept)
+}
+
+/// The key an evaluation is kept by: its trial's, and for a probe the placement it
+/// probes from.
+fn evaluation_key(
+    set: &[Candidate],
+    values: &[f64],
+    near: Option<&Registered>,
+) -> (String, Vec<u64>) {
+    let (mut label, mut bits) = cache_key(set, values);
+    if let Some(near) = near {
+        label.push_str(if near.mirrored {
+            " probe, mirrored"
+        } else {
+            " probe"
+        });
+        bits.extend([near.searched_from_mm.x, near.searched_from_mm.y].map(f64::to_bits));
+    }
+    (label, bits)
 }
 
 fn cache_key(set: &[Candidate], values: &[f64]) -> (String, Vec<u64>) {

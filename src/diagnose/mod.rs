@@ -528,8 +528,11 @@ const MAX_TEETH: usize = 400;
 /// azimuth held; the comb's aliases in). On a radius whose marks placed it, the marks
 /// let the azimuth trade with the axis, which that fit cannot see: there the
 /// placement's own σ (the azimuth free) and the final fit's move from the placement
-/// (the marks alone against the whole model: model error) are added in quadrature — a
-/// move of half a mark or more is to another tooth of the comb, already in its σ.
+/// (the marks alone against the whole model: model error) are added in quadrature. A
+/// move of half a mark or more is to another tooth of the comb: the tooth then depends
+/// on the model, and the two halves' disagreement stands for that move
+/// ([`fit::Problem::axis_split_mm`]); a radius without resolved marks was placed by the
+/// form alone and takes the halves' disagreement always.
 fn line_axis_sigma_mm(
     problem: &mut fit::Problem,
     final_fit: &fit::Fit,
@@ -537,12 +540,19 @@ fn line_axis_sigma_mm(
     m: &Measurement,
 ) -> Result<f64, DiagnoseError> {
     let held = problem.axis_sigma_mm(final_fit)? / located.frame.scale;
-    let Some(mark) = located.marks_mm.filter(|_| !located.crosses_axis(m)) else {
+    if located.crosses_axis(m) {
         return Ok(held);
-    };
+    }
     let moved = final_fit.evaluation.registered.shift_mm.length() / located.frame.scale;
-    let moved = if moved < 0.5 * mark { moved } else { 0.0 };
-    Ok((held * held + located.sigma_shift_mm[0].powi(2) + moved * moved).sqrt())
+    let (placement, moved) = match located.marks_mm {
+        Some(mark) if moved < 0.5 * mark => (located.sigma_shift_mm[0], moved),
+        Some(_) => (
+            located.sigma_shift_mm[0],
+            problem.axis_split_mm(final_fit)? / located.frame.scale,
+        ),
+        None => (0.0, problem.axis_split_mm(final_fit)? / located.frame.scale),
+    };
+    Ok((held * held + placement * placement + moved * moved).sqrt())
 }
 
 /// The axis positions along a turned line that the placement could not tell apart
