@@ -186,18 +186,8 @@ pub fn diagnose(
     .into_iter()
     .filter_map(|(on, c)| on.then_some(c))
     .collect();
-    if spiral
-        && let Shape::Line { azimuth_rad } = measurement.shape
-        && measurement.azimuth_stated
-    {
-        let first = search::registration_base(&mut problem, &members)?;
-        let noise = white_noise_mm(&fitted, &first.evaluation.registered.residual_mm);
-        problem.prior = Some(AzimuthPrior {
-            centre_deg: (azimuth_rad - located.azimuth_rad).to_degrees(),
-            sigma_deg: AZIMUTH_PRIOR_DEG,
-            weight_mm: AZIMUTH_PRIOR_WEIGHT * noise.max(1e-7),
-        });
-        problem.clear_cache();
+    if spiral && measurement.azimuth_stated {
+        believe_stated_azimuth(&mut problem, measurement, &located, &members)?;
     }
     let base = search::registration_base(&mut problem, &members)?;
     let nominal = base.evaluation.registered.clone();
@@ -205,17 +195,7 @@ pub fn diagnose(
     let comparison = compare::compare(&fitted, &nominal, options.terms.power, &spacing);
     let mut check = checks::fit_check(&fitted, &nominal, job, options.terms, period, &comparison);
 
-    let (all_candidates, mut not_diagnosable) = candidates_for(job);
-    if fitted.is_line() && all_candidates.contains(&Candidate::TiltErrorMotion { order: 0.0 }) {
-        not_diagnosable.push(NotDiagnosable {
-            effect: "tilt_error_motion",
-            reason: "along one line its print is a tilt, or a cone across the axis, which registration and the set-up effects take: it needs a map".into(),
-        });
-    }
-    let candidates: Vec<Candidate> = all_candidates
-        .into_iter()
-        .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
-        .collect();
+    let (candidates, not_diagnosable) = candidates_to_try(job, &fitted, options);
     let mut found = if checks::may_search(&check) && !options.compare_only {
         search::search(
             &mut problem,
@@ -293,44 +273,8 @@ pub fn diagnose(
     let before_info = analysis.of(&nominal, nominal_marks);
     let after_info = analysis.of(&after.registered, after_marks);
     let accepted = found.accepted.as_ref();
-    let candidate_results: Vec<CandidateResult> = found
-        .singles
-        .iter()
-        .enumerate()
-        .map(|(rank, (fit, evidence))| {
-            let member = fit.set.len() - 1;
-            let kind = fit.set[member].kind();
-            CandidateResult {
-                rank: rank + 1,
-                accepted: accepted.is_some_and(|f| f.effects().iter().any(|c| c.kind() == kind)),
-                delta_bic: *evidence,
-                explained: 1.0 - fit.evaluation.rss() / rss0.max(1e-300),
-                ..effect_result(fit, member, rss0)
-            }
-        })
-        .collect();
-    let accepted_results: Vec<CandidateResult> = accepted
-        .map(|f| {
-            f.effect_members()
-                .into_iter()
-                .map(|i| effect_result(f, i, rss0))
-                .collect()
-        })
-        .unwrap_or_default();
-    let mut shrinkage = vec![shrink_step(
-        "nominal job",
-        &residual_before,
-        &radii(&fitted, nominal.shift_mm),
-        &zones,
-    )];
-    for step in &found.steps {
-        shrinkage.push(shrink_step(
-            &format!("+ {}", search::labels(&step.set)),
-            &step.evaluation.registered.residual_mm,
-            &radii(&fitted, step.evaluation.registered.shift_mm),
-            &zones,
-        ));
-    }
+    let (candidate_results, accepted_results) = candidate_results(&found, rss0);
+    let shrinkage = shrinkage(&fitted, &nominal, &found, &zones);
     let held = match (&calibration, check.fits) {
         (Some(calibration), true) => {
             Some(judge_held_out(&mut problem, calibration, &base, accepted)?)
@@ -359,28 +303,15 @@ pub fn diagnose(
                 .filter(|_| !ambiguous.is_empty())
         })
         .unwrap_or(&base);
-    let half_turn = if final_fit.evaluation.registered.mirrored {
-        180.0
-    } else {
-        0.0
-    };
-    let turn_deg = half_turn
-        + fit::spiral_turn_deg(&final_fit.set, &final_fit.values, problem.model.base_job());
-    let (stretch, stretch_sigma) = fit::fitted_stretch(final_fit);
-    let mut located = located.with_fitted_scale(stretch, stretch_sigma);
-    if fitted.is_line() && options.terms.shift && check.fits {
-        located.sigma_shift_mm[0] =
-            line_axis_sigma_mm(&mut problem, final_fit, &located, measurement)?;
-    }
-    let registration = RegistrationInfo::new(
-        term_names(options.terms),
-        &located,
-        turn_deg,
-        measurement,
-        &fitted,
+    let judge_axis = fitted.is_line() && options.terms.shift && check.fits;
+    let registration = placement(
+        &mut problem,
+        final_fit,
+        located,
+        (measurement, &fitted),
+        (options.terms, judge_axis),
         nominal.registration,
-        final_fit.evaluation.registered.registration,
-    );
+    )?;
     let diagnosis = Diagnosis {
         schema: SCHEMA,
         toolmark_version: env!("CARGO_PKG_VERSION"),
@@ -429,6 +360,141 @@ pub fn diagnose(
         effects_fragment: fragment,
         fitted,
     })
+}
+
+/// Weighs the spiral's azimuth the profile's file states ([`AzimuthPrior`]), its weight
+/// in units of the white noise the registration alone leaves.
+fn believe_stated_azimuth(
+    problem: &mut Problem,
+    measurement: &Measurement,
+    located: &Located,
+    members: &[Candidate],
+) -> Result<(), DiagnoseError> {
+    let Shape::Line { azimuth_rad } = measurement.shape else {
+        return Ok(());
+    };
+    let first = search::registration_base(problem, members)?;
+    let noise = white_noise_mm(
+        problem.measurement,
+        &first.evaluation.registered.residual_mm,
+    );
+    problem.prior = Some(AzimuthPrior {
+        centre_deg: (azimuth_rad - located.azimuth_rad).to_degrees(),
+        sigma_deg: AZIMUTH_PRIOR_DEG,
+        weight_mm: AZIMUTH_PRIOR_WEIGHT * noise.max(1e-7),
+    });
+    problem.clear_cache();
+    Ok(())
+}
+
+/// The candidates the search tries (those `--only` names, if any) and the effects the
+/// job's process or this measurement cannot diagnose, with why.
+fn candidates_to_try(
+    job: &Job,
+    fitted: &Measurement,
+    options: &Options,
+) -> (Vec<Candidate>, Vec<NotDiagnosable>) {
+    let (all_candidates, mut not_diagnosable) = candidates_for(job);
+    if fitted.is_line() && all_candidates.contains(&Candidate::TiltErrorMotion { order: 0.0 }) {
+        not_diagnosable.push(NotDiagnosable {
+            effect: "tilt_error_motion",
+            reason: "along one line its print is a tilt, or a cone across the axis, which registration and the set-up effects take: it needs a map".into(),
+        });
+    }
+    let candidates = all_candidates
+        .into_iter()
+        .filter(|c| options.only.is_empty() || options.only.iter().any(|o| o == c.kind()))
+        .collect();
+    (candidates, not_diagnosable)
+}
+
+/// Every candidate fitted alone, ranked (whether accepted, its evidence and the share
+/// of Σr² it explains), and the accepted set's effects.
+fn candidate_results(found: &Search, rss0: f64) -> (Vec<CandidateResult>, Vec<CandidateResult>) {
+    let accepted = found.accepted.as_ref();
+    let singles = found
+        .singles
+        .iter()
+        .enumerate()
+        .map(|(rank, (fit, evidence))| {
+            let member = fit.set.len() - 1;
+            let kind = fit.set[member].kind();
+            CandidateResult {
+                rank: rank + 1,
+                accepted: accepted.is_some_and(|f| f.effects().iter().any(|c| c.kind() == kind)),
+                delta_bic: *evidence,
+                explained: 1.0 - fit.evaluation.rss() / rss0.max(1e-300),
+                ..effect_result(fit, member, rss0)
+            }
+        })
+        .collect();
+    let accepted = accepted
+        .map(|f| {
+            f.effect_members()
+                .into_iter()
+                .map(|i| effect_result(f, i, rss0))
+                .collect()
+        })
+        .unwrap_or_default();
+    (singles, accepted)
+}
+
+/// How the residual shrank: the nominal job's, then after each accepted step.
+fn shrinkage(
+    fitted: &Measurement,
+    nominal: &Registered,
+    found: &Search,
+    zones: &Zones,
+) -> Vec<ShrinkageStep> {
+    let first = shrink_step(
+        "nominal job",
+        &nominal.residual_mm,
+        &radii(fitted, nominal.shift_mm),
+        zones,
+    );
+    let steps = found.steps.iter().map(|step| {
+        shrink_step(
+            &format!("+ {}", search::labels(&step.set)),
+            &step.evaluation.registered.residual_mm,
+            &radii(fitted, step.evaluation.registered.shift_mm),
+            zones,
+        )
+    });
+    std::iter::once(first).chain(steps).collect()
+}
+
+/// Where the data lies as `final_fit` places it: the spiral's turn, the fitted lateral
+/// scale and (`judge_axis`, a line whose axis was searched) the axis σ
+/// ([`line_axis_sigma_mm`]).
+fn placement(
+    problem: &mut Problem,
+    final_fit: &Fit,
+    located: Located,
+    (measurement, fitted): (&Measurement, &Measurement),
+    (terms, judge_axis): (Terms, bool),
+    nominal: register::Registration,
+) -> Result<RegistrationInfo, DiagnoseError> {
+    let half_turn = if final_fit.evaluation.registered.mirrored {
+        180.0
+    } else {
+        0.0
+    };
+    let turn_deg = half_turn
+        + fit::spiral_turn_deg(&final_fit.set, &final_fit.values, problem.model.base_job());
+    let (stretch, stretch_sigma) = fit::fitted_stretch(final_fit);
+    let mut located = located.with_fitted_scale(stretch, stretch_sigma);
+    if judge_axis {
+        located.sigma_shift_mm[0] = line_axis_sigma_mm(problem, final_fit, &located, measurement)?;
+    }
+    Ok(RegistrationInfo::new(
+        term_names(terms),
+        &located,
+        turn_deg,
+        measurement,
+        fitted,
+        nominal,
+        final_fit.evaluation.registered.registration,
+    ))
 }
 
 /// What is reported of a residual: where it lies (zones, bands, orders), its noise, and
