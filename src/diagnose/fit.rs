@@ -12,7 +12,7 @@
 use super::candidates::{Candidate, Parameter};
 use super::forward::{ForwardError, ForwardModel, Frame, SimulatedSurface};
 use super::measurement::Measurement;
-use super::register::{Registered, ShiftSearch, Terms, register, register_probe};
+use super::register::{Registered, ShiftSearch, Terms, register};
 use super::spectrum::LineNoise;
 use super::zones::correlation_length;
 use crate::numeric::{
@@ -260,30 +260,25 @@ pub fn member_parameters(set: &[Candidate], which: impl Fn(&Candidate) -> bool) 
 }
 
 /// Registers `m`, stretched by the set's lateral scale member, to `sim`.
-/// `near`: the trial is a finite-difference probe of the trial registered so
-/// ([`register_probe`]).
 pub(super) fn register_trial(
     m: &Measurement,
     sim: &SimulatedSurface,
     terms: Terms,
     shift: ShiftSearch,
-    (set, values): (&[Candidate], &[f64]),
-    near: Option<&Registered>,
+    set: &[Candidate],
+    values: &[f64],
 ) -> Registered {
     let stretch = stretch_of(set, values);
+    if stretch == 1.0 {
+        return register(m, sim, terms, Some(shift));
+    }
     // Placed about its own axis (no shift) at the stretch: its distances from the axis
     // scaled.
-    let stretched = (stretch != 1.0).then(|| {
-        m.placed(Frame {
-            scale: stretch,
-            ..Frame::IDENTITY
-        })
+    let stretched = m.placed(Frame {
+        scale: stretch,
+        ..Frame::IDENTITY
     });
-    let m = stretched.as_ref().unwrap_or(m);
-    match near {
-        Some(near) => register_probe(m, sim, terms, shift, near),
-        None => register(m, sim, terms, Some(shift)),
-    }
+    register(&stretched, sim, terms, Some(shift))
 }
 
 /// The lateral scale the set's registration members stretch the measurement by.
@@ -386,30 +381,13 @@ impl<'a, 'e> Problem<'a, 'e> {
         set: &[Candidate],
         values: &[f64],
     ) -> Result<Rc<Evaluation>, ForwardError> {
-        self.evaluate_near(set, values, None)
-    }
-
-    /// [`Problem::evaluate`], or with `near` a finite-difference probe of the trial
-    /// registered so ([`register_probe`]).
-    fn evaluate_near(
-        &mut self,
-        set: &[Candidate],
-        values: &[f64],
-        near: Option<&Registered>,
-    ) -> Result<Rc<Evaluation>, ForwardError> {
-        let key = evaluation_key(set, values, near);
+        let key = cache_key(set, values);
         if let Some(hit) = self.cache.get(&key) {
             return Ok(hit.clone());
         }
         let sim = self.simulation(set, values)?;
-        let registered = register_trial(
-            self.measurement,
-            &sim,
-            self.terms,
-            self.shift,
-            (set, values),
-            near,
-        );
+        let registered =
+            register_trial(self.measurement, &sim, self.terms, self.shift, set, values);
         let evaluation = Rc::new(Evaluation {
             values: values.to_vec(),
             registered,
@@ -425,23 +403,11 @@ impl<'a, 'e> Problem<'a, 'e> {
         &mut self,
         trials: &[(Vec<Candidate>, Vec<f64>)],
     ) -> Result<(), ForwardError> {
-        self.evaluate_many_near(trials, None)
-    }
-
-    /// [`Problem::evaluate_many`], or with `near` finite-difference probes of the trial
-    /// registered so.
-    fn evaluate_many_near(
-        &mut self,
-        trials: &[(Vec<Candidate>, Vec<f64>)],
-        near: Option<&Registered>,
-    ) -> Result<(), ForwardError> {
         let mut missing: Vec<&(Vec<Candidate>, Vec<f64>)> = Vec::new();
         for trial in trials {
-            let key = evaluation_key(&trial.0, &trial.1, near);
+            let key = cache_key(&trial.0, &trial.1);
             if !self.cache.contains_key(&key)
-                && !missing
-                    .iter()
-                    .any(|m| evaluation_key(&m.0, &m.1, near) == key)
+                && !missing.iter().any(|m| cache_key(&m.0, &m.1) == key)
             {
                 missing.push(trial);
             }
@@ -477,7 +443,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let registered: Vec<Registered> = missing
             .par_iter()
             .zip(sims)
-            .map(|((set, values), sim)| register_trial(m, sim, terms, shift, (set, values), near))
+            .map(|((set, values), sim)| register_trial(m, sim, terms, shift, set, values))
             .collect();
         for ((set, values), registered) in missing.into_iter().zip(registered) {
             let evaluation = Rc::new(Evaluation {
@@ -485,8 +451,7 @@ impl<'a, 'e> Problem<'a, 'e> {
                 registered,
                 prior_mm: self.prior_term(set, values),
             });
-            self.cache
-                .insert(evaluation_key(set, values, near), evaluation);
+            self.cache.insert(cache_key(set, values), evaluation);
         }
         Ok(())
     }
@@ -567,10 +532,12 @@ impl<'a, 'e> Problem<'a, 'e> {
 
     /// Half the difference between where the two halves of a line put its axis (mm, in
     /// the placed measurement's frame), each registered alone with `fit`'s model by the
-    /// fits' own search: on a radius the axis lies outside the data and is placed by the
-    /// form's reach and the marks' comb, and an error of the model there (an effect too
-    /// small to accept still bends the form) moves it by teeth that the fit's own σ
-    /// counts as excluded; the halves see the form differently and disagree by it.
+    /// fits' own search (a jackknife over halves): on a radius the axis lies outside the
+    /// data and is placed by the form's reach and the marks' comb, and an error of the
+    /// model there (an effect too small to accept still bends the form) moves it by teeth
+    /// that the fit's own σ counts as excluded; the halves see the form differently and
+    /// disagree by it. (More segments were tried: a segment without the feature that
+    /// pins the axis wanders by whole teeth, and the spread with it.)
     pub fn axis_split_mm(&mut self, fit: &Fit) -> Result<f64, ForwardError> {
         let sim = self.simulation(&fit.set, &fit.values)?;
         let stretch = stretch_of(&fit.set, &fit.values);
@@ -961,7 +928,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let h = step(parameters, values, j);
         let mut trial = values.to_vec();
         trial[j] += h;
-        let e = self.evaluate_near(set, &trial, Some(&at.registered))?;
+        let e = self.evaluate(set, &trial)?;
         Ok(self.residual_change(&e, at, h))
     }
 
@@ -989,7 +956,7 @@ impl<'a, 'e> Problem<'a, 'e> {
                 (set.to_vec(), trial)
             })
             .collect();
-        self.evaluate_many_near(&trials, Some(&at.registered))?;
+        self.evaluate_many(&trials)?;
         (0..values.len())
             .map(|j| self.column(set, parameters, values, j, at))
             .collect()
@@ -1495,25 +1462,6 @@ fn job_key(set: &[Candidate], values: &[f64]) -> (String, Vec<u64>) {
         .map(|&j| values[j])
         .collect();
     cache_key(&members, &kept)
-}
-
-/// The key an evaluation is kept by: its trial's, and for a probe the placement it
-/// probes from.
-fn evaluation_key(
-    set: &[Candidate],
-    values: &[f64],
-    near: Option<&Registered>,
-) -> (String, Vec<u64>) {
-    let (mut label, mut bits) = cache_key(set, values);
-    if let Some(near) = near {
-        label.push_str(if near.mirrored {
-            " probe, mirrored"
-        } else {
-            " probe"
-        });
-        bits.extend([near.searched_from_mm.x, near.searched_from_mm.y].map(f64::to_bits));
-    }
-    (label, bits)
 }
 
 fn cache_key(set: &[Candidate], values: &[f64]) -> (String, Vec<u64>) {

@@ -86,9 +86,6 @@ pub struct Registered {
     pub shift_mm: DVec2,
     /// The line is read half a turn round (a tooth of the search's comb).
     pub mirrored: bool,
-    /// Where the local search that placed the axis began (mm): the tooth of the
-    /// search's comb it chose; `shift_mm` where nothing was searched.
-    pub searched_from_mm: DVec2,
     /// measured − (simulated + removed terms) per point (mm); NaN where the simulation
     /// has no data.
     pub residual_mm: Vec<f64>,
@@ -120,28 +117,6 @@ pub fn register(
         Some(comb) => register_on_comb(m, sim, terms, search, comb),
         None => register_near(m, sim, terms, search, search.mirrored),
     }
-}
-
-/// Registers `sim` as a small move of the parameters that gave `near` (a
-/// finite-difference probe): on a line searched along a comb, at the tooth `near`
-/// chose, read the same way — the search `register` makes there, without judging every
-/// tooth again (a derivative is taken on one branch of the placement); elsewhere as
-/// `register` does.
-pub fn register_probe(
-    m: &Measurement,
-    sim: &SimulatedSurface,
-    terms: Terms,
-    search: ShiftSearch,
-    near: &Registered,
-) -> Registered {
-    if !terms.shift || search.comb.is_none() || !m.is_line() {
-        return register(m, sim, terms, Some(search));
-    }
-    let at = ShiftSearch {
-        start: near.searched_from_mm,
-        ..search
-    };
-    register_near(m, sim, terms, at, near.mirrored)
 }
 
 /// Registers at the best tooth of `comb`: every tooth judged on a subsample by the
@@ -360,7 +335,6 @@ fn register_near(
     let frame = Frame::at(shift).mirrored(mirrored);
     Registered {
         mirrored,
-        searched_from_mm: search.start,
         ..fit_linear(m, &sim.sample(m, frame), shift, terms.power)
     }
 }
@@ -491,7 +465,6 @@ pub fn fit_linear(m: &Measurement, simulated: &[f64], shift: DVec2, power: bool)
         },
         shift_mm: shift,
         mirrored: false,
-        searched_from_mm: shift,
         residual_mm,
         model_mm,
         rss,
