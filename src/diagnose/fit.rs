@@ -272,13 +272,16 @@ pub(super) fn register_trial(
     if stretch == 1.0 {
         return register(m, sim, terms, Some(shift));
     }
-    // Placed about its own axis (no shift) at the stretch: its distances from the axis
-    // scaled.
-    let stretched = m.placed(Frame {
+    register(&stretched(m, stretch), sim, terms, Some(shift))
+}
+
+/// `m` placed about its own axis (no shift) at `stretch`: its distances from the axis
+/// scaled.
+fn stretched(m: &Measurement, stretch: f64) -> Measurement {
+    m.placed(Frame {
         scale: stretch,
         ..Frame::IDENTITY
-    });
-    register(&stretched, sim, terms, Some(shift))
+    })
 }
 
 /// The lateral scale the set's registration members stretch the measurement by.
@@ -515,10 +518,7 @@ impl<'a, 'e> Problem<'a, 'e> {
     pub fn axis_sigma_mm(&mut self, fit: &Fit) -> Result<f64, ForwardError> {
         let sim = self.simulation(&fit.set, &fit.values)?;
         let stretch = stretch_of(&fit.set, &fit.values);
-        let stretched = self.measurement.placed(Frame {
-            scale: stretch,
-            ..Frame::IDENTITY
-        });
+        let stretched = stretched(self.measurement, stretch);
         let sigma = super::register::axis_sigma_mm(
             &stretched,
             &sim,
@@ -541,10 +541,7 @@ impl<'a, 'e> Problem<'a, 'e> {
     pub fn axis_split_mm(&mut self, fit: &Fit) -> Result<f64, ForwardError> {
         let sim = self.simulation(&fit.set, &fit.values)?;
         let stretch = stretch_of(&fit.set, &fit.values);
-        let stretched = self.measurement.placed(Frame {
-            scale: stretch,
-            ..Frame::IDENTITY
-        });
+        let stretched = stretched(self.measurement, stretch);
         let mut along = stretched.along_mm.clone();
         along.sort_by(f64::total_cmp);
         let middle = along[along.len() / 2];

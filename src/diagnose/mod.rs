@@ -609,14 +609,11 @@ fn line_axis_sigma_mm(
     if located.crosses_axis(m) {
         return Ok(held);
     }
+    let placement = located.marks_mm.map_or(0.0, |_| located.sigma_shift_mm[0]);
     let moved = final_fit.evaluation.registered.shift_mm.length() / located.frame.scale;
-    let (placement, moved) = match located.marks_mm {
-        Some(mark) if moved < 0.5 * mark => (located.sigma_shift_mm[0], moved),
-        Some(_) => (
-            located.sigma_shift_mm[0],
-            problem.axis_split_mm(final_fit)? / located.frame.scale,
-        ),
-        None => (0.0, problem.axis_split_mm(final_fit)? / located.frame.scale),
+    let moved = match located.marks_mm {
+        Some(mark) if moved < 0.5 * mark => moved,
+        _ => problem.axis_split_mm(final_fit)? / located.frame.scale,
     };
     Ok((held * held + placement * placement + moved * moved).sqrt())
 }
