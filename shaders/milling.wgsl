@@ -266,6 +266,20 @@ fn node_world(n: MillingNode) -> vec3<f32> {
     return vec3<f32>(n.x_hi + n.x_lo, n.y_hi + n.y_lo, n.z_hi + n.z_lo);
 }
 
+// The step from node a to node b in the machine frame, as differences of their hi + lo
+// pairs: nearby nodes' hi parts subtract exactly, so the step keeps f32's relative
+// precision however short it is. Its direction is the feed's, from which a tooth's turn
+// is measured: as the difference of the nodes' offsets from the sample (a few mm each,
+// rounded to f32) a 6 µm step lost up to 1.4e-4 rad of it, an edge passed the sample
+// that much early or late, and a leaned flat end's edge marks moved by up to 48 nm.
+fn node_step(a: MillingNode, b: MillingNode) -> vec3<f32> {
+    return vec3<f32>(
+        (b.x_hi - a.x_hi) + (b.x_lo - a.x_lo),
+        (b.y_hi - a.y_hi) + (b.y_lo - a.y_lo),
+        (b.z_hi - a.z_hi) + (b.z_lo - a.z_lo),
+    );
+}
+
 // A pose in the frame: its centre less the sample's core point p + κ·n, and the unit
 // axis.
 struct Pose {
@@ -297,9 +311,10 @@ fn segment_at(p: MillingPass, base: u32, x: f32) -> SegmentPoint {
 const NO_SEGMENT: u32 = 0xffffffffu;
 
 // The segment of a pass last evaluated, in the sample's frame, so consecutive
-// evaluations within one segment read no nodes. Linear: a, b the nodes' offsets;
-// polar: a = (ρ_a − r, δ_a, z_a − z_s), b = the polar steps to the next node, rho = ρ_a.
-// The axes are turned into the frame.
+// evaluations within one segment read no nodes. Linear: a, b the nodes' offsets and
+// `step` the step from a to b (`node_step`); polar: a = (ρ_a − r, δ_a, z_a − z_s), b =
+// the polar steps to the next node, rho = ρ_a. The axes and the step are turned into
+// the frame.
 struct Segment {
     index: u32,
     a: vec3<f32>,
@@ -307,10 +322,11 @@ struct Segment {
     rho: f32,
     axis_a: vec3<f32>,
     axis_b: vec3<f32>,
+    step: vec3<f32>,
 }
 
 fn empty_segment() -> Segment {
-    return Segment(NO_SEGMENT, vec3<f32>(0.0), vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec3<f32>(0.0));
+    return Segment(NO_SEGMENT, vec3<f32>(0.0), vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
 }
 
 fn is_polar(p: MillingPass) -> bool {
@@ -337,6 +353,7 @@ fn load_segment(f: Frame, p: MillingPass, i: u32) -> Segment {
         g.a = node_offset(f, na);
         g.b = node_offset(f, nb);
         g.rho = 0.0;
+        g.step = frame_direction(f, node_step(na, nb));
     }
     return g;
 }
@@ -372,7 +389,7 @@ fn feed_at(f: Frame, p: MillingPass, base: u32, x: f32, seg: ptr<function, Segme
         let cd = cos(delta);
         velocity = vec3<f32>(g.b.x * cd - rho * g.b.y * sd, g.b.x * sd + rho * g.b.y * cd, g.b.z);
     } else {
-        velocity = g.b - g.a;
+        velocity = g.step;
     }
     if dot(velocity, velocity) > 0.0 {
         return normalize(velocity);

@@ -162,8 +162,10 @@ impl LocalPose {
 /// A pass's poses in a sample's frame, interpolated as the planner does: centres
 /// linearly (raster) or in cylindrical coordinates (spiral turns), axes linearly and
 /// normalised. The segment last used is held (the kernel's `Segment`), so consecutive
-/// evaluations within it read no nodes: linear, `a` and `b` the nodes' offsets; polar,
-/// `a` = (ρ_a − r, δ_a, z_a − z_s) and `b` the polar steps to the next node.
+/// evaluations within it read no nodes: linear, `a` and `b` the nodes' offsets and
+/// `step` the machine-frame step from a to b turned into the frame (its direction is
+/// the feed's: the kernel's difference of two offsets a few mm long would lose it);
+/// polar, `a` = (ρ_a − r, δ_a, z_a − z_s) and `b` the polar steps to the next node.
 pub struct PassPoses<'a> {
     frame: &'a SampleFrame,
     span: &'a PassSpan,
@@ -179,6 +181,7 @@ struct Segment {
     rho: f64,
     axis_a: DVec3,
     axis_b: DVec3,
+    step: DVec3,
 }
 
 impl<'a> PassPoses<'a> {
@@ -203,12 +206,13 @@ impl<'a> PassPoses<'a> {
         if self.segment.is_none_or(|s| s.index != i) {
             let frame = self.frame;
             let (na, nb) = (&self.nodes[i], &self.nodes[(i + 1).min(last)]);
-            let (a, b, rho) = if self.polar() {
+            let (a, b, rho, step) = if self.polar() {
                 let z = na.centre.z - frame.height_mm;
                 let a = DVec3::new(na.radius_mm - frame.radius_mm, frame.delta(na), z);
-                (a, na.polar_step, na.radius_mm)
+                (a, na.polar_step, na.radius_mm, DVec3::ZERO)
             } else {
-                (frame.offset(na), frame.offset(nb), 0.0)
+                let step = frame.direction(nb.centre - na.centre);
+                (frame.offset(na), frame.offset(nb), 0.0, step)
             };
             self.segment = Some(Segment {
                 index: i,
@@ -217,6 +221,7 @@ impl<'a> PassPoses<'a> {
                 rho,
                 axis_a: frame.direction(na.axis),
                 axis_b: frame.direction(nb.axis),
+                step,
             });
         }
         (self.segment.expect("just set"), t)
@@ -255,7 +260,7 @@ impl<'a> PassPoses<'a> {
                 s.z,
             )
         } else {
-            g.b - g.a
+            g.step
         };
         velocity.normalize_or_zero()
     }
