@@ -272,6 +272,14 @@ fn a_boss_beside_a_waviness_near_the_noise_claims_no_proxy() {
     assert_status(&d, "effects_found");
     assert_boss(&d, -1.0);
     assert_axis(&d, 0.600);
+    // The boss alone leaves 3.9 nm RMS over 2.0 nm of noise: the verdict says so.
+    let sentence = d["verdict"]["sentence"].as_str().unwrap();
+    if d["accepted"].as_array().unwrap().len() == 1 {
+        assert!(
+            sentence.contains("× the noise") && sentence.contains("something weaker may remain"),
+            "{sentence}"
+        );
+    }
     for a in d["accepted"].as_array().unwrap() {
         match a["effect"].as_str().unwrap() {
             "centre_height" => {}

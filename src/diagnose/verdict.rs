@@ -13,6 +13,9 @@ use super::zones::ZoneStats;
 /// Share of the residual's excess over noise (RMS²) the accepted effects must remove for
 /// the gap to count as explained.
 const EXPLAINED: f64 = 0.8;
+/// Times the white noise above which what the accepted effects leave is said to hold
+/// more than noise, even where the gap counts as explained.
+const LEFT_OVER: f64 = 1.5;
 
 pub fn verdict(
     compared_only: Option<&Comparison>,
@@ -109,6 +112,9 @@ pub fn verdict(
                 sentence.push_str(marks);
             }
             let status = if near_noise || explained >= EXPLAINED {
+                if marks_left.is_none() {
+                    sentence.push_str(&left_over(after, noise));
+                }
                 "effects_found"
             } else {
                 sentence.push_str(&format!(
@@ -179,6 +185,22 @@ pub fn verdict(
             }
         }
     }
+}
+
+/// What the accepted effects leave, said where it stands over [`LEFT_OVER`] times the
+/// white noise `noise` (nm): a weaker effect may be there, which the search did not
+/// accept or try (it tries every candidate beside a large effect only from twice the
+/// noise). Empty otherwise.
+fn left_over(after: &ResidualInfo, noise: f64) -> String {
+    let ratio = after.rms_nm / noise;
+    if ratio <= LEFT_OVER {
+        return String::new();
+    }
+    format!(
+        " What is left, {:.1} nm RMS, is {ratio:.1}× the noise ({noise:.1} nm): no accepted effect explains it, and something weaker may remain{}.",
+        after.rms_nm,
+        where_it_lies(after)
+    )
 }
 
 /// "; most of it in the centre (60 %) and the tool marks band (70 %)".
