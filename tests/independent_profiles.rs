@@ -291,7 +291,7 @@ fn a_boss_beside_a_waviness_near_the_noise_claims_no_proxy() {
                     "{amplitude} ± {sigma} nm for 20"
                 );
             }
-            other => panic!("{other} claimed: {}", d["verdict"]["sentence"]),
+            other => panic!("{other} claimed: {sentence}"),
         }
     }
 }
