@@ -296,6 +296,33 @@ fn a_boss_beside_a_waviness_near_the_noise_claims_no_proxy() {
     }
 }
 
+/// A control on another sphere (`r6_sphere.toml`: R6, 0.4 mm nose, 8 µm/rev), the axis at
+/// file x 0.050 mm (`control_r6_axis_50um.csv`). The placement lands a comb tooth (200 µm)
+/// off with a lateral scale, and the fit moves the axis back and stretches the line: the
+/// axis must be reported where the fit puts it, in the file's own x, within 2σ of the
+/// truth (σ ≥ 1 nm). Before: 146 nm off at ± 5.2 nm — the fit's stretch left out of the
+/// conversion to the file's x.
+#[test]
+fn an_axis_moved_by_the_fit_is_reported_in_the_files_own_x() {
+    let d = diagnose_job("r6_sphere.toml", "control_r6_axis_50um.csv", &[]);
+    assert_status(&d, "no_effect_beyond_noise");
+    let r = &d["registration"];
+    let (axis, sigma) = (
+        r["axis_x_mm"].as_f64().unwrap(),
+        r["axis_x_sigma_mm"].as_f64().unwrap(),
+    );
+    assert!(
+        (axis - 0.050).abs() <= 2.0 * sigma.max(1e-6),
+        "axis at {axis} ± {sigma} mm, planted 0.050"
+    );
+    let scale = r["lateral_scale"].as_f64().unwrap();
+    let scale_sigma = r["lateral_scale_sigma"].as_f64().unwrap();
+    assert!(
+        (scale - 1.0).abs() <= 2.0 * scale_sigma,
+        "scale {scale} ± {scale_sigma}, planted 1"
+    );
+}
+
 /// `d` accepts a centre height of `height` µm: its boss's edge lies between two points
 /// 0.5 µm apart, so it is known to that, and its σ says so.
 fn assert_boss(d: &serde_json::Value, height: f64) {

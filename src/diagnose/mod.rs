@@ -310,7 +310,9 @@ pub fn diagnose(
         located,
         (measurement, &fitted),
         (options.terms, judge_axis),
-        nominal.registration,
+        nominal
+            .registration
+            .unstretched(fit::fitted_stretch(&base).0),
     )?;
     let diagnosis = Diagnosis {
         schema: SCHEMA,
@@ -482,9 +484,21 @@ fn placement(
     let turn_deg = half_turn
         + fit::spiral_turn_deg(&final_fit.set, &final_fit.values, problem.model.base_job());
     let (stretch, stretch_sigma) = fit::fitted_stretch(final_fit);
+    // The σ in the read measurement's mm: through the located scale, the fit's stretch
+    // already taken out.
+    let sigma = if judge_axis {
+        Some(line_axis_sigma_mm(
+            problem,
+            final_fit,
+            &located,
+            measurement,
+        )?)
+    } else {
+        None
+    };
     let mut located = located.with_fitted_scale(stretch, stretch_sigma);
-    if judge_axis {
-        located.sigma_shift_mm[0] = line_axis_sigma_mm(problem, final_fit, &located, measurement)?;
+    if let Some(sigma) = sigma {
+        located.sigma_shift_mm[0] = sigma;
     }
     Ok(RegistrationInfo::new(
         term_names(terms),
@@ -493,7 +507,11 @@ fn placement(
         measurement,
         fitted,
         nominal,
-        final_fit.evaluation.registered.registration,
+        final_fit
+            .evaluation
+            .registered
+            .registration
+            .unstretched(stretch),
     ))
 }
 

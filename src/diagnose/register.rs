@@ -80,6 +80,17 @@ pub struct Registration {
     pub axis_at_um: [f64; 2],
 }
 
+impl Registration {
+    /// The same registration with the axis taken back from a measurement a fit stretched
+    /// by `stretch` (its lateral-scale member) to the measurement before the stretch.
+    pub fn unstretched(self, stretch: f64) -> Self {
+        Self {
+            axis_at_um: self.axis_at_um.map(|a| a / stretch),
+            ..self
+        }
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct Registered {
     pub registration: Registration,
