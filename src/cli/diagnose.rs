@@ -206,6 +206,7 @@ fn run_diagnosis(
             t => t.map(|t| t * 1e-3),
         },
         pixel_averaging: args.pixel_averaging,
+        line_bin_mm: None,
     };
     let placement = Placement {
         azimuth_deg: args.azimuth_deg,

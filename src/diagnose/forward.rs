@@ -399,6 +399,13 @@ pub(super) fn line_rows_through(azimuth_rad: f64) -> Option<(u32, u32)> {
     })
 }
 
+/// Midpoints a binned measurement's point is simulated as the mean of: the mean of a
+/// kinked crest over the run errs by at most a sixty-fourth of the run times the slope
+/// change.
+const BIN_SUBSAMPLES: usize = 8;
+/// Where a binned measurement's averaged trace is tabulated, per interval of the trace.
+const AVERAGED_PER_INTERVAL: usize = 4;
+
 /// A profile through the axis as the instrument records it: signed positions along the
 /// line (mm, increasing; negative beyond the axis) and traced heights (mm).
 #[derive(Debug, Clone)]
@@ -418,12 +425,13 @@ impl Trace {
     }
 
     /// The trace through rows `ahead` (positive positions) and `behind` (negative), seen
-    /// through a stylus tip when there is one.
+    /// through a stylus tip when there is one, and averaged over the measurement's bins
+    /// when it was binned.
     fn through(
         grid: &PolarGrid,
         height_mm: &[f64],
         (ahead, behind): (u32, u32),
-        stylus_tip_mm: Option<f64>,
+        instrument: Instrument,
     ) -> Trace {
         let (mut x, mut z) = (Vec::new(), Vec::new());
         let rings = grid.ring_count();
@@ -449,10 +457,14 @@ impl Trace {
                 z.push(h);
             }
         }
-        if let Some(tip) = stylus_tip_mm {
+        if let Some(tip) = instrument.stylus_tip_mm {
             z = stylus_trace(&x, &z, tip);
         }
-        Trace::new(x, z)
+        let trace = Trace::new(x, z);
+        match instrument.line_bin_mm {
+            Some(width) => trace.averaged(width),
+            None => trace,
+        }
     }
 
     /// The traced height at signed position `s` (mm); NaN off the trace.
@@ -494,6 +506,38 @@ impl Trace {
             })
             .collect()
     }
+
+    /// The trace averaged over `width_mm` about each point (the mean of
+    /// [`BIN_SUBSAMPLES`] midpoints read through [`Piece`], those off the trace left
+    /// out), as a binned measurement sees the surface: tabulated [`AVERAGED_PER_INTERVAL`]
+    /// times per interval of this trace, so that the averaged crests stay resolved.
+    fn averaged(&self, width_mm: f64) -> Trace {
+        let mean_at = |centre: f64| {
+            let (mut sum, mut count) = (0.0, 0usize);
+            for j in 0..BIN_SUBSAMPLES {
+                let offset = ((j as f64 + 0.5) / BIN_SUBSAMPLES as f64 - 0.5) * width_mm;
+                let v = self.at(centre + offset);
+                if v.is_finite() {
+                    sum += v;
+                    count += 1;
+                }
+            }
+            if count > 0 {
+                sum / count as f64
+            } else {
+                f64::NAN
+            }
+        };
+        let mut x = Vec::with_capacity(self.x.len() * AVERAGED_PER_INTERVAL);
+        for pair in self.x.windows(2) {
+            for j in 0..AVERAGED_PER_INTERVAL {
+                x.push(pair[0] + (pair[1] - pair[0]) * j as f64 / AVERAGED_PER_INTERVAL as f64);
+            }
+        }
+        x.extend(self.x.last());
+        let z = x.iter().map(|&u| mean_at(u)).collect();
+        Trace::new(x, z)
+    }
 }
 
 /// A simulated surface: heights along Z at every grid sample, and (for a line) the
@@ -508,7 +552,7 @@ pub struct SimulatedSurface {
     trace: Option<Trace>,
     /// Raster with pixel averaging: the pixel's size (mm).
     pixel_mm: Option<[f64; 2]>,
-    stylus_tip_mm: Option<f64>,
+    instrument: Instrument,
     rings: RingLookup,
 }
 
@@ -521,8 +565,7 @@ impl SimulatedSurface {
         instrument: Instrument,
         pixel_mm: Option<[f64; 2]>,
     ) -> Self {
-        let trace =
-            line_rows.map(|rows| Trace::through(&grid, &height_mm, rows, instrument.stylus_tip_mm));
+        let trace = line_rows.map(|rows| Trace::through(&grid, &height_mm, rows, instrument));
         // Each of a pixel's 3 × 3 midpoints stands for a third of it.
         let height_mm = match pixel_mm {
             Some([dx, dy]) => box_filtered(&grid, &height_mm, dx.min(dy) / 3.0),
@@ -535,7 +578,7 @@ impl SimulatedSurface {
             clock_rad,
             trace,
             pixel_mm,
-            stylus_tip_mm: instrument.stylus_tip_mm,
+            instrument,
         }
     }
 
@@ -547,7 +590,7 @@ impl SimulatedSurface {
             &self.grid,
             &self.height_mm,
             (row % rows, (row + rows / 2) % rows),
-            self.stylus_tip_mm,
+            self.instrument,
         )
     }
 
@@ -956,6 +999,42 @@ mod tests {
         // Python, 0.036 with each arc checked (an interval beside a cusp takes the bent chord).
         assert!((rms_chord - 0.2243).abs() < 0.001, "{rms_chord}");
         assert!(rms < 0.04, "{rms} nm");
+    }
+
+    #[test]
+    fn a_binned_line_sees_the_trace_averaged_over_its_runs() {
+        // The marks of a 0.2 mm nose 8 µm apart (sharp crests, 40 nm tall) on rings
+        // 0.25 µm apart, read as means of 0.5 µm runs: against the marks' own mean over
+        // each run (a 4000-point midpoint sum of the arcs), the averaged trace errs a
+        // tenth of what the point trace does, which misses each crest's rounding.
+        let (rho, feed, width) = (0.2, 0.008, 0.0005);
+        let marks = |x: f64| {
+            let d = x - feed * (x / feed).round();
+            rho - (rho * rho - d * d).sqrt()
+        };
+        let run_mean = |u: f64| {
+            let n = 4000;
+            (0..n)
+                .map(|j| marks(u + ((j as f64 + 0.5) / n as f64 - 0.5) * width))
+                .sum::<f64>()
+                / n as f64
+        };
+        let x: Vec<f64> = (-40..1200).map(|i| i as f64 * 0.00025 + 0.00007).collect();
+        let z: Vec<f64> = x.iter().map(|&v| marks(v)).collect();
+        let point = Trace::new(x, z);
+        let averaged = point.averaged(width);
+        let (mut sq_point, mut sq_averaged, mut n) = (0.0, 0.0, 0.0);
+        for i in 20..560 {
+            let u = i as f64 * 0.0005 + 0.00011;
+            let truth = run_mean(u);
+            sq_point += (point.at(u) - truth).powi(2);
+            sq_averaged += (averaged.at(u) - truth).powi(2);
+            n += 1.0;
+        }
+        let rms = |sq: f64| (sq / n).sqrt() * 1e6;
+        // Measured: the point trace 0.195 nm RMS, the averaged one 0.005.
+        assert!(rms(sq_point) > 0.15, "point trace {} nm", rms(sq_point));
+        assert!(rms(sq_averaged) < 0.02, "averaged {} nm", rms(sq_averaged));
     }
 
     #[test]

@@ -14,7 +14,7 @@
 use super::DiagnoseError;
 use super::fit::uncertainties;
 use super::forward::{ForwardModel, Frame, SimulatedSurface, Trace, shift_room_mm};
-use super::measurement::{Measurement, Shape};
+use super::measurement::{Instrument, Measurement, Shape};
 use super::register::{
     LinearTerms, ShiftSearch, Terms, fit_linear, register, trimmed_mean_of_squares,
     trimmed_mean_square,
@@ -245,7 +245,13 @@ fn locate_line(
     } else {
         line_rows(line_azimuth)?.0
     };
-    let mut model = ForwardModel::covering(job, r_model, rows, m.instrument, engine)?;
+    // The wide scan reads the point trace: averaging it over a binned line's runs (a
+    // tenth of a nanometre at sharp crests) matters to the fits, not to where it lies.
+    let unbinned = Instrument {
+        line_bin_mm: None,
+        ..m.instrument
+    };
+    let mut model = ForwardModel::covering(job, r_model, rows, unbinned, engine)?;
     let surface = model.simulate(&|_| {})?;
     let seen = |trace: Trace| match marks {
         Some(f) => high_passed_trace(trace, 2.5 * f),

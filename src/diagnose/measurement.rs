@@ -26,6 +26,11 @@ pub struct Instrument {
     pub stylus_tip_mm: Option<f64>,
     /// An area instrument's pixels average the surface over their footprint.
     pub pixel_averaging: bool,
+    /// A line whose points are means of runs of this length (mm, along it; see
+    /// [`Measurement::binned`]): the trace is averaged the same way. Set by the
+    /// diagnosis, never read from a file.
+    #[serde(skip)]
+    pub line_bin_mm: Option<f64>,
 }
 
 #[derive(Debug, Clone)]
@@ -221,24 +226,36 @@ impl Measurement {
         }
     }
 
-    /// A line sampled finer than `width_mm` with its points averaged in consecutive bins
-    /// of that width along the line (position and height; the bin keeps its first
-    /// point's row); `None` when the line is not that fine or is a raster. Finer data
-    /// than the simulation's own pitch carries nothing the model can predict, and costs
-    /// time in every comparison.
+    /// A line sampled at least twice as finely as `width_mm` with its points averaged in
+    /// runs of as many neighbours as fit in that width (position and height; the run
+    /// keeps its first point's row), the run's length recorded in the instrument
+    /// (`line_bin_mm`) so that the simulation is averaged alike — a mean of a mark's
+    /// sharp crest is lower than the crest; `None` when the line is not that fine or is
+    /// a raster. Finer data than the simulation's own pitch carries nothing the model
+    /// can predict, and costs time in every comparison.
     pub fn binned(&self, width_mm: f64) -> Option<Measurement> {
-        if !self.is_line() || self.len() < 2 || self.spacing_mm() >= width_mm {
+        let spacing = self.spacing_mm();
+        if !self.is_line() || self.len() < 2 || spacing >= width_mm {
             return None;
         }
-        let mut m = Self::empty(self.shape, self.instrument, self.total_points);
+        // Runs of the same number of neighbours, so that every mean stands for the same
+        // length of line and the simulation can be averaged alike; a gap (invalid
+        // points) ends a run early.
+        let per_bin = (width_mm / spacing + 1e-6).floor() as usize;
+        if per_bin < 2 {
+            return None;
+        }
+        let mut instrument = self.instrument;
+        instrument.line_bin_mm = Some(per_bin as f64 * spacing);
+        let mut m = Self::empty(self.shape, instrument, self.total_points);
         m.file_origin_mm = self.file_origin_mm;
         m.file_per_mm = self.file_per_mm;
         m.azimuth_stated = self.azimuth_stated;
-        let bin_of = |i: usize| (self.along_mm[i] / width_mm).floor() as i64;
+        let gap = |i: usize| (self.along_mm[i] - self.along_mm[i - 1]).abs() > 1.5 * spacing;
         let mut start = 0;
         while start < self.len() {
-            let end = (start..self.len())
-                .find(|&i| bin_of(i) != bin_of(start))
+            let end = (start + 1..self.len())
+                .find(|&i| i - start == per_bin || gap(i))
                 .unwrap_or(self.len());
             let n = (end - start) as f64;
             let mean = |v: &[f64]| v[start..end].iter().sum::<f64>() / n;
@@ -294,11 +311,18 @@ mod tests {
     #[test]
     fn a_fine_line_is_averaged_in_bins_of_the_given_width() {
         // 0, 0.01, …, 0.99 mm with h = x: bins of 0.1 mm hold 10 points each, whose
-        // mean position and height are the bin's midpoint 0.045 + 0.1 k.
+        // mean position and height are the bin's midpoint 0.045 + 0.1 k; each stands
+        // for 0.1 mm of line, and the instrument says so.
         let x: Vec<f64> = (0..100).map(|i| i as f64 * 0.01).collect();
         let m = Measurement::line(&x, &x, 0.0, 0.0, Instrument::default());
-        let b = m.binned(0.1 - 1e-9).unwrap();
+        let b = m.binned(0.1).unwrap();
         assert_eq!(b.len(), 10);
+        assert!((b.instrument.line_bin_mm.unwrap() - 0.1).abs() < 1e-12);
+        // A width that holds 2.5 points takes runs of 2.
+        let c = m.binned(0.025).unwrap();
+        assert_eq!(c.len(), 50);
+        assert!((c.instrument.line_bin_mm.unwrap() - 0.02).abs() < 1e-12);
+        assert!(m.binned(0.015).is_none());
         for (k, (a, h)) in b.along_mm.iter().zip(&b.height_mm).enumerate() {
             let mid = 0.045 + 0.1 * k as f64;
             assert!(

@@ -135,14 +135,14 @@ pub fn diagnose(
 ) -> Result<Outcome, DiagnoseError> {
     let started = Instant::now();
     require_points(measurement)?;
-    let bin_mm = 0.5 * job.pitch_mm;
-    let binned = measurement.binned(bin_mm);
-    if let Some(b) = &binned {
+    let binned = measurement.binned(0.5 * job.pitch_mm);
+    let bin_mm = binned.as_ref().and_then(|b| b.instrument.line_bin_mm);
+    if let (Some(b), Some(width)) = (&binned, bin_mm) {
         log(&format!(
-            "averaging {} points in {} bins of {:.3} µm (half the job's pitch)",
+            "averaging {} points in {} runs of {:.3} µm (up to half the job's pitch; the model averaged alike)",
             measurement.len(),
             b.len(),
-            bin_mm * 1e3
+            width * 1e3
         ));
     }
     let measurement = binned.as_ref().unwrap_or(measurement);
@@ -326,7 +326,7 @@ pub fn diagnose(
             &fitted,
             measurement,
             calibration.as_deref().map(Vec::as_slice),
-            binned.is_some().then_some(bin_mm * 1e3),
+            bin_mm.map(|w| w * 1e3),
         ),
         registration,
         comparison,

@@ -77,8 +77,10 @@ pub struct MeasurementInfo {
     pub points_on_part: usize,
     pub points_fitted: usize,
     pub points_held_out: usize,
-    /// A profile sampled finer than half the job's pitch is averaged in bins this wide
-    /// (µm) before it is diagnosed; the point counts above are then bins.
+    /// A profile sampled at least twice as finely as half the job's pitch is averaged in
+    /// runs of neighbours this long (µm; as many as fit in half the pitch) before it is
+    /// diagnosed, and the model is averaged over the same length; the point counts
+    /// above are then runs.
     pub binned_um: Option<f64>,
     pub extent_mm: f64,
     pub max_radius_mm: f64,

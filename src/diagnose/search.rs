@@ -1185,7 +1185,11 @@ pub fn evidence(rss_before: f64, k_before: usize, fit: &Fit, n_eff: f64) -> f64 
     bic(rss_before, used, n_eff, k_before) - bic(fit.objective, used, n_eff, fit.parameter_count())
 }
 
-/// Whether member `member`'s parameters stand 3σ clear of zero together.
+/// Whether member `member`'s parameters stand 3σ clear of zero together. A centre height
+/// below centre stands 2σ clear: its σ is not a Gaussian width but half the gap between
+/// the measured points its boss's edge lies between (widened by the profile where the
+/// data allow more), so ±2σ spans that gap, and zero beyond it means a measured point
+/// lies on the boss (a 2 µm boss between points 1 µm apart read "within 3σ of zero").
 pub(super) fn significant(fit: &Fit, member: usize) -> bool {
     let (values, sigmas) = fit.values_of(member);
     let z2: f64 = values
@@ -1193,8 +1197,12 @@ pub(super) fn significant(fit: &Fit, member: usize) -> bool {
         .zip(sigmas)
         .map(|(v, s)| (v / s).powi(2))
         .sum();
-    z2.sqrt() > 3.0
+    let boss = fit.set[member] == Candidate::CentreHeight && values[0] < 0.0;
+    z2.sqrt() > if boss { BOSS_CLEAR_SIGMAS } else { 3.0 }
 }
+
+/// How many σ a boss's height must stand clear of zero (see [`significant`]).
+const BOSS_CLEAR_SIGMAS: f64 = 2.0;
 
 pub fn labels(set: &[Candidate]) -> String {
     set.iter()

@@ -224,6 +224,7 @@ impl MeasurementModel {
         Instrument {
             stylus_tip_mm: self.stylus_tip_um.map(|t| t * 1e-3),
             pixel_averaging: self.pixel_averaging,
+            line_bin_mm: None,
         }
     }
 
