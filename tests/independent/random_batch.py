@@ -1,0 +1,151 @@
+#!/usr/bin/env python3
+"""Random batches of independent turned-sphere profiles, and their scores.
+
+A driver around `turned_sphere_profile.py` (the physics is that generator's alone): it
+draws a sphere, nose, feed, aperture, trace length and placement, noise, sampling,
+azimuth, form removal and one planted set-up effect (centre height, X decentre, axial
+drift, or nothing) per case, writes the profile and its job, and later scores the
+diagnoses that `toolmark diagnose` wrote for them — so that the diagnosis is tried on
+parts nobody tuned it on.
+
+  python3 random_batch.py make --seed 1 --count 12 --prefix p --dir DIR
+  for n in DIR/p*.toml; do toolmark diagnose --job $n --measured ${n%.toml}.csv \\
+      --lateral-unit um --height-unit um --remove-power --out ${n%.toml}.out; done
+  python3 random_batch.py score --dir DIR --prefix p
+
+Scores per case: the status, the axis error against the planted one (nm, and in the
+reported σ), the lateral scale (planted 1), and the planted effect's fit (value ± σ,
+error in σ and in %), or what was claimed instead.
+"""
+import argparse
+import json
+import os
+import random
+import subprocess
+import sys
+
+GENERATOR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "turned_sphere_profile.py")
+
+JOB = """version = 1
+name = "random {name}"
+[surface]
+kind = "sphere"
+form = "convex"
+radius_mm = {R}
+aperture_diameter_mm = {aperture}
+[tool]
+kind = "arc_nose"
+nose_radius_mm = {nose}
+included_angle_deg = 120.0
+clearance_angle_deg = 10.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = {feed_mm}
+stock_allowance_mm = 0.002
+[grid]
+azimuths = 16
+"""
+
+
+def draw_effect(rng):
+    """One planted effect: (generator options, truth as toolmark names it)."""
+    kind = rng.choice(["h", "d", "drift", "none", "h", "d"])
+    if kind == "none":
+        return [], {}
+    sign = rng.choice([-1, 1])
+    if kind == "h":
+        v = round(sign * rng.uniform(1.0, 5.0), 2)
+        return ["--h-um", str(v)] + (["--flank-cone"] if v > 0 else []), {"centre_height": v}
+    if kind == "d":
+        v = round(sign * rng.uniform(0.8, 4.0), 2)
+        return ["--d-um", str(v)], {"x_decentre": v}
+    v = round(sign * rng.uniform(150, 500))
+    return ["--drift-nm", str(v)], {"axial_drift": v}
+
+
+def make(args):
+    rng = random.Random(args.seed)
+    os.makedirs(args.dir, exist_ok=True)
+    cases = []
+    for i in range(args.count):
+        R = rng.choice([5, 7, 9, 12, 16, 22, 28])
+        nose = rng.choice([0.2, 0.3, 0.5, 0.8])
+        feed = rng.choice([2, 3, 5, 8, 12])
+        rim = round(rng.uniform(1.0, 2.0), 2)
+        L = round(rim * rng.uniform(0.6, 0.9), 2)
+        axis = rng.randint(-300, 900)
+        options, truth = draw_effect(rng)
+        noise = rng.choice([0.5, 1.0, 2.0, 3.0])
+        step = rng.choice([0.25, 0.5, 1.0])
+        form_removed = rng.random() < 0.4
+        name = "%s%02d" % (args.prefix, i)
+        out = os.path.join(args.dir, name)
+        cmd = [sys.executable, GENERATOR, "--out", out + ".csv", "--R-mm", str(R),
+               "--nose-mm", str(nose), "--feed-um", str(feed), "--rim-mm", str(rim - 0.01),
+               "--L-mm", str(L), "--axis-um", str(axis), "--noise-nm", str(noise),
+               "--step-um", str(step), "--seed", str(1000 + i + 100 * args.seed),
+               "--phi", str(round(rng.random(), 3))] + options
+        if form_removed:
+            cmd.append("--remove-form")
+        subprocess.run(cmd, check=True)
+        with open(out + ".toml", "w") as f:
+            f.write(JOB.format(name=name, R=R, aperture=2 * rim, nose=nose, feed_mm=feed / 1000))
+        cases.append({"name": name, "truth": truth, "axis_um": axis,
+                      "form_removed": form_removed, "command": " ".join(cmd[1:])})
+    with open(os.path.join(args.dir, args.prefix + "cases.json"), "w") as f:
+        json.dump(cases, f, indent=1)
+
+
+def verdict_on(case, d):
+    accepted = [(a["effect"], a["parameters"][0]["value"], a["parameters"][0]["sigma"])
+                for a in d["accepted"]]
+    if not case["truth"]:
+        return "OK" if not accepted else "FALSE CLAIM %s" % [a[0] for a in accepted]
+    (kind, value), = case["truth"].items()
+    mine = [a for a in accepted if a[0] == kind]
+    if not mine:
+        return "MISSED (accepted %s)" % [a[0] for a in accepted]
+    _, v, s = mine[0]
+    text = "%.3f ± %.3f (%.1fσ, %.1f %%)" % (v, s, abs(v - value) / s if s > 0 else float("inf"),
+                                            100 * abs(v / value - 1))
+    extra = [a[0] for a in accepted if a[0] != kind]
+    return text + (" + also %s" % extra if extra else "")
+
+
+def score(args):
+    with open(os.path.join(args.dir, args.prefix + "cases.json")) as f:
+        cases = json.load(f)
+    for c in cases:
+        path = os.path.join(args.dir, c["name"] + ".out", "diagnosis.json")
+        if not os.path.exists(path):
+            print(c["name"], "no diagnosis.json")
+            continue
+        with open(path) as f:
+            d = json.load(f)
+        r = d["registration"]
+        err = (r["axis_x_mm"] * 1e3 - c["axis_um"]) * 1e3
+        sigma = r["axis_x_sigma_mm"] * 1e6
+        print("%s | %s | %s | axis %+.1f nm ± %.1f (%.1fσ) | scale %.5f ± %.5f | %s | %.1f s" % (
+            c["name"], c["truth"] or "nothing", d["verdict"]["status"], err, sigma,
+            abs(err) / sigma if sigma > 0 else float("inf"), r["lateral_scale"],
+            r["lateral_scale_sigma"], verdict_on(c, d), d["run"]["total_s"]))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    sub = ap.add_subparsers(dest="what", required=True)
+    m = sub.add_parser("make")
+    m.add_argument("--seed", type=int, required=True)
+    m.add_argument("--count", type=int, default=12)
+    m.add_argument("--prefix", default="p")
+    m.add_argument("--dir", default=".")
+    s = sub.add_parser("score")
+    s.add_argument("--prefix", default="p")
+    s.add_argument("--dir", default=".")
+    args = ap.parse_args()
+    make(args) if args.what == "make" else score(args)
+
+
+if __name__ == "__main__":
+    main()
