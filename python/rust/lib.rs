@@ -262,6 +262,7 @@ fn diagnose_job(
     let instrument = Instrument {
         stylus_tip_mm: f("stylus_tip_um").map(|t| t * 1e-3),
         pixel_averaging: b("pixel_averaging"),
+        line_bin_mm: None,
     };
     let calibrate_on_mm = match pair("calibrate_on") {
         Some(v) if v.len() == 2 && v[0] < v[1] => Some((v[0], v[1])),
