@@ -203,6 +203,12 @@ impl Candidate {
         }
     }
 
+    /// A centre height of `value` (µm) below centre: the tool leaves an uncut boss at the
+    /// axis, whose edge — and so the height's σ — the data pin only between two points.
+    pub fn is_boss(&self, value: f64) -> bool {
+        *self == Candidate::CentreHeight && value < 0.0
+    }
+
     /// A registration term fitted like an effect, never reported as one.
     pub fn is_registration(&self) -> bool {
         matches!(self, Candidate::SpiralAzimuth | Candidate::LateralScale)

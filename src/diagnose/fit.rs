@@ -788,7 +788,7 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// the data can) — half the point spacing, so that ±2σ spans the whole gap.
     fn boss_edge_sigma(&self, set: &[Candidate], j: usize, value: f64) -> f64 {
         let heights = member_parameters(set, |c| *c == Candidate::CentreHeight);
-        if heights.contains(&j) && value < 0.0 {
+        if heights.contains(&j) && Candidate::CentreHeight.is_boss(value) {
             0.5 * self.measurement.spacing_mm() * 1e3
         } else {
             0.0

@@ -234,17 +234,18 @@ impl Measurement {
     /// a raster. Finer data than the simulation's own pitch carries nothing the model
     /// can predict, and costs time in every comparison.
     pub fn binned(&self, width_mm: f64) -> Option<Measurement> {
-        let spacing = self.spacing_mm();
-        if !self.is_line() || self.len() < 2 || spacing >= width_mm {
+        if !self.is_line() || self.len() < 2 {
             return None;
         }
         // Runs of the same number of neighbours, so that every mean stands for the same
         // length of line and the simulation can be averaged alike; a gap (invalid
         // points) ends a run early.
-        let per_bin = (width_mm / spacing + 1e-6).floor() as usize;
-        if per_bin < 2 {
+        let spacing = self.spacing_mm();
+        let per_bin = (width_mm / spacing + 1e-6).floor();
+        if !(spacing > 0.0 && per_bin >= 2.0) {
             return None;
         }
+        let per_bin = per_bin as usize;
         let mut instrument = self.instrument;
         instrument.line_bin_mm = Some(per_bin as f64 * spacing);
         let mut m = Self::empty(self.shape, instrument, self.total_points);

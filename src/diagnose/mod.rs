@@ -486,16 +486,9 @@ fn placement(
     let (stretch, stretch_sigma) = fit::fitted_stretch(final_fit);
     // The σ in the read measurement's mm: through the located scale, the fit's stretch
     // already taken out.
-    let sigma = if judge_axis {
-        Some(line_axis_sigma_mm(
-            problem,
-            final_fit,
-            &located,
-            measurement,
-        )?)
-    } else {
-        None
-    };
+    let sigma = judge_axis
+        .then(|| line_axis_sigma_mm(problem, final_fit, &located, measurement))
+        .transpose()?;
     let mut located = located.with_fitted_scale(stretch, stretch_sigma);
     if let Some(sigma) = sigma {
         located.sigma_shift_mm[0] = sigma;

@@ -1197,8 +1197,12 @@ pub(super) fn significant(fit: &Fit, member: usize) -> bool {
         .zip(sigmas)
         .map(|(v, s)| (v / s).powi(2))
         .sum();
-    let boss = fit.set[member] == Candidate::CentreHeight && values[0] < 0.0;
-    z2.sqrt() > if boss { BOSS_CLEAR_SIGMAS } else { 3.0 }
+    let clear = if fit.set[member].is_boss(values[0]) {
+        BOSS_CLEAR_SIGMAS
+    } else {
+        3.0
+    };
+    z2.sqrt() > clear
 }
 
 /// How many σ a boss's height must stand clear of zero (see [`significant`]).

@@ -144,7 +144,10 @@ def main():
     s.add_argument("--prefix", default="p")
     s.add_argument("--dir", default=".")
     args = ap.parse_args()
-    make(args) if args.what == "make" else score(args)
+    if args.what == "make":
+        make(args)
+    else:
+        score(args)
 
 
 if __name__ == "__main__":
