@@ -241,50 +241,22 @@ pub fn levenberg_marquardt<P: LeastSquaresProblem>(
                 !(values[j].abs() >= limits.bounds[j] && descent * values[j] > 0.0)
             })
             .collect();
-        let k = free.len();
-        if k == 0 {
+        if free.is_empty() {
             break;
         }
-        let jtj = normal_matrix(&jacobian, &free);
-        let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], &r)).collect();
         let before = problem.rss(&current);
-        let mut improved = false;
-        for _ in 0..8 {
-            let damped: Vec<Vec<f64>> = (0..k)
-                .map(|a| {
-                    (0..k)
-                        .map(|b| jtj[a][b] + if a == b { mu * jtj[a][a] } else { 0.0 })
-                        .collect()
-                })
-                .collect();
-            let Some(step) = solve_linear(&damped, &jtr) else {
-                mu *= 10.0;
-                continue;
-            };
-            let mut trial = values.clone();
-            for (&j, s) in free.iter().zip(&step) {
-                trial[j] = (values[j] + s).clamp(-limits.bounds[j], limits.bounds[j]);
-            }
-            let Some(evaluation) = problem.evaluate(&trial)? else {
-                mu *= 4.0;
-                continue;
-            };
-            let now = problem.rss(&evaluation);
-            if now < before {
-                let gain = 1.0 - now / before;
-                let small = free
-                    .iter()
-                    .zip(&step)
-                    .all(|(&j, s)| s.abs() < limits.small_step[j]);
-                values = trial;
-                current = evaluation;
-                mu = (mu / 3.0).max(1e-9);
-                improved = gain > limits.min_gain && !small;
-                break;
-            }
-            mu *= 4.0;
+        let at = (&values[..], &jacobian[..], &r[..], before);
+        let mut accepted = damped_step(problem, at, &free, &mut mu, limits)?;
+        if accepted.is_none() {
+            accepted = single_steps(problem, at, &free, limits)?;
         }
-        if !improved {
+        let Some((trial, evaluation, small)) = accepted else {
+            break;
+        };
+        let gain = 1.0 - problem.rss(&evaluation) / before;
+        values = trial;
+        current = evaluation;
+        if gain <= limits.min_gain || small {
             break;
         }
         jacobian = problem.jacobian(&values, &current)?;
@@ -294,6 +266,104 @@ pub fn levenberg_marquardt<P: LeastSquaresProblem>(
         state: current,
         jacobian,
     }))
+}
+
+/// Least share of the objective a parameter's own step must promise for
+/// [`single_steps`] to try it.
+const SINGLE_STEP_GAIN: f64 = 1e-3;
+
+/// Where a step starts: the values, the Jacobian and residual there, and the objective.
+type At<'a> = (&'a [f64], &'a [Vec<f64>], &'a [f64], f64);
+
+/// An accepted step: the values, their state, and whether the step was small in every
+/// parameter.
+type Step<S> = Option<(Vec<f64>, S, bool)>;
+
+/// Up to eight damped Gauss–Newton steps in the `free` parameters together (the damping
+/// ×4 after each refused one, ÷3 after the accepted one); the first that lowers the
+/// objective.
+fn damped_step<P: LeastSquaresProblem>(
+    problem: &mut P,
+    (values, jacobian, r, before): At,
+    free: &[usize],
+    mu: &mut f64,
+    limits: &LmLimits,
+) -> Result<Step<P::State>, P::Error> {
+    let k = free.len();
+    let jtj = normal_matrix(jacobian, free);
+    let jtr: Vec<f64> = free.iter().map(|&a| -dot(&jacobian[a], r)).collect();
+    for _ in 0..8 {
+        let damped: Vec<Vec<f64>> = (0..k)
+            .map(|a| {
+                (0..k)
+                    .map(|b| jtj[a][b] + if a == b { *mu * jtj[a][a] } else { 0.0 })
+                    .collect()
+            })
+            .collect();
+        let Some(step) = solve_linear(&damped, &jtr) else {
+            *mu *= 10.0;
+            continue;
+        };
+        let moves: Vec<(usize, f64)> = free.iter().copied().zip(step).collect();
+        if let Some(accepted) = try_step(problem, values, &moves, before, limits)? {
+            *mu = (*mu / 3.0).max(1e-9);
+            return Ok(Some(accepted));
+        }
+        *mu *= 4.0;
+    }
+    Ok(None)
+}
+
+/// Where the joint step fails, each free parameter alone whose own Gauss–Newton step
+/// promises to gain at least [`SINGLE_STEP_GAIN`] of the objective (that step, halved up
+/// to three times): a parameter whose column misleads — a step edge in the model
+/// crossing a sample, whose finite difference is all or nothing — must not hold the
+/// others where they start. (At a minimum no parameter promises that much, and nothing
+/// is tried.)
+fn single_steps<P: LeastSquaresProblem>(
+    problem: &mut P,
+    (values, jacobian, r, before): At,
+    free: &[usize],
+    limits: &LmLimits,
+) -> Result<Step<P::State>, P::Error> {
+    for &j in free {
+        let curvature = dot(&jacobian[j], &jacobian[j]);
+        let slope = dot(&jacobian[j], r);
+        if slope * slope / curvature < SINGLE_STEP_GAIN * before {
+            continue;
+        }
+        let mut step = -slope / curvature;
+        for _ in 0..4 {
+            if let Some(accepted) = try_step(problem, values, &[(j, step)], before, limits)? {
+                return Ok(Some(accepted));
+            }
+            step *= 0.5;
+        }
+    }
+    Ok(None)
+}
+
+/// `values` moved by `moves` (clamped to the bounds), kept when the objective falls
+/// below `before`.
+fn try_step<P: LeastSquaresProblem>(
+    problem: &mut P,
+    values: &[f64],
+    moves: &[(usize, f64)],
+    before: f64,
+    limits: &LmLimits,
+) -> Result<Step<P::State>, P::Error> {
+    let mut trial = values.to_vec();
+    for &(j, s) in moves {
+        trial[j] = (values[j] + s).clamp(-limits.bounds[j], limits.bounds[j]);
+    }
+    let Some(evaluation) = problem.evaluate(&trial)? else {
+        return Ok(None);
+    };
+    if problem.rss(&evaluation) >= before {
+        return Ok(None);
+    }
+    let small = moves.iter().all(|&(j, s)| s.abs() < limits.small_step[j]);
+    Ok(Some((trial, evaluation, small)))
 }
 
 /// The Jacobian columns the data sees (norm above 1e-12 of the largest), but `frozen`.
@@ -513,5 +583,70 @@ mod tests {
                 "dof {dof}: {q} against {table}"
             );
         }
+    }
+
+    /// A line fit a·t + c to points, beside a parameter `b` whose Jacobian column
+    /// misleads (a step in the model: its finite difference is all or nothing; here a
+    /// column t² that promises to explain the points' curvature, where the model's `b`
+    /// only ever adds a wall of 10⁶ once it moves from 0).
+    struct MisleadingStep {
+        t: Vec<f64>,
+        z: Vec<f64>,
+    }
+
+    impl LeastSquaresProblem for MisleadingStep {
+        type State = Vec<f64>;
+        type Error = ();
+        fn evaluate(&mut self, v: &[f64]) -> Result<Option<Vec<f64>>, ()> {
+            let mut r: Vec<f64> = self
+                .t
+                .iter()
+                .zip(&self.z)
+                .map(|(t, z)| v[0] * t + v[1] - z)
+                .collect();
+            r.push(if v[2] != 0.0 { 1e6 } else { 0.0 });
+            Ok(Some(r))
+        }
+        fn residual(&self, state: &Vec<f64>) -> Vec<f64> {
+            state.clone()
+        }
+        fn rss(&self, state: &Vec<f64>) -> f64 {
+            dot(state, state)
+        }
+        fn jacobian(&mut self, _: &[f64], _: &Vec<f64>) -> Result<Vec<Vec<f64>>, ()> {
+            let column = |f: &dyn Fn(f64) -> f64| -> Vec<f64> {
+                self.t.iter().map(|t| f(*t)).chain([0.0]).collect()
+            };
+            Ok(vec![column(&|t| t), column(&|_| 1.0), column(&|t| t * t)])
+        }
+    }
+
+    #[test]
+    fn a_misleading_column_does_not_hold_the_others_where_they_start() {
+        // Points on z = 2t + 1 + 5 t², t symmetric about 0: the least-squares line
+        // is a = 2, c = 1 + 5·mean(t²) (t and t² orthogonal); every joint step moves
+        // b off 0, into its wall, and is refused however damped.
+        let t: Vec<f64> = (0..20).map(|i| (f64::from(i) - 9.5) * 0.1).collect();
+        let z: Vec<f64> = t.iter().map(|t| 2.0 * t + 1.0 + 5.0 * t * t).collect();
+        let mean_t2 = t.iter().map(|t| t * t).sum::<f64>() / t.len() as f64;
+        let mut problem = MisleadingStep { t, z };
+        let limits = LmLimits {
+            iterations: 20,
+            bounds: &[f64::INFINITY; 3],
+            small_step: &[1e-12; 3],
+            min_gain: 1e-12,
+            frozen: &[],
+        };
+        let fit = levenberg_marquardt(&mut problem, vec![0.0; 3], &limits)
+            .unwrap()
+            .unwrap();
+        assert!((fit.values[0] - 2.0).abs() < 1e-9, "{:?}", fit.values);
+        let c = 1.0 + 5.0 * mean_t2;
+        assert!(
+            (fit.values[1] - c).abs() < 1e-9,
+            "{:?} for c = {c}",
+            fit.values
+        );
+        assert_eq!(fit.values[2], 0.0, "{:?}", fit.values);
     }
 }

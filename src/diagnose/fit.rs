@@ -525,7 +525,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             self.terms,
             fit.frame,
             &fit.evaluation.registered,
-            fit.correlation_length,
+            (fit.correlation_length, self.boss_of(fit)),
         );
         Ok(sigma / stretch)
     }
@@ -780,6 +780,15 @@ impl<'a, 'e> Problem<'a, 'e> {
         } else {
             width.max(edge)
         }))
+    }
+
+    /// A fit's boss at the axis, if it has one: its radius and its edges' σ (mm).
+    fn boss_of(&self, fit: &Fit) -> Option<(f64, f64)> {
+        let j = member_parameters(&fit.set, |c| *c == Candidate::CentreHeight)
+            .into_iter()
+            .next()?;
+        let edge_um = self.boss_edge_sigma(&fit.set, j, fit.values[j]);
+        (edge_um > 0.0).then(|| (fit.values[j].abs() * 1e-3, edge_um * 1e-3))
     }
 
     /// A floor on a centre height's σ below centre (µm): its boss's edge, at radius

@@ -19,7 +19,7 @@ use super::register::{
     LinearTerms, ShiftSearch, Terms, fit_linear, register, trimmed_mean_of_squares,
     trimmed_mean_square,
 };
-use super::zones::{correlation_length, gaussian_lowpass_line};
+use super::zones::{correlation_length, gaussian_lowpass_line, rms, white_noise_mm};
 use crate::engine::RemovalEngine;
 use crate::io::job::Job;
 use crate::numeric::try_golden_section;
@@ -44,6 +44,13 @@ const CANDIDATES: usize = 8;
 const POLISHED: usize = 8;
 /// Most lateral scales the wide search tries on each side of 1.
 const SCALE_STEPS: i64 = 24;
+/// Least matched-filter signal to noise of the job's marks for them to place a profile.
+const MARKS_SNR: f64 = 10.0;
+/// A central feature: the high-pass cutoff that takes the form out around it, its
+/// least peak in white-noise σ, and its largest span as a share of the profile.
+const FEATURE_CUTOFF_MM: f64 = 0.05;
+const FEATURE_SIGMAS: f64 = 20.0;
+const FEATURE_SHARE: f64 = 0.02;
 /// Share of the points that must lie on the simulated part in any placement.
 const ON_PART: f64 = 0.9;
 
@@ -106,7 +113,9 @@ impl Located {
     pub fn scale_status(&self) -> &'static str {
         let near_one = (self.frame.scale - 1.0).abs() < 2.0 * self.sigma_scale;
         match (self.scale_fitted, self.scale_at_bound(), near_one) {
-            (false, _, _) => "not searched (the data carries no marks to fix it)",
+            (false, _, _) => {
+                "not searched (--fixed-scale, or no marks in the data stand out to fix it)"
+            }
             (true, true, _) => "at the search bound (±2 %): not a fit",
             (true, false, true) => "fitted, within 2σ of 1",
             (true, false, false) => "fitted",
@@ -213,28 +222,12 @@ fn locate_line(
     }
     let reach = (hi - a_min).max(a_max - lo).min(outer);
     let typical = local_mark_spacing_mm(job, 0.0, reach);
-    // The scale is fixed by marks the profile resolves (six points a mark, six marks).
-    let marks = typical.filter(|f| *f >= 6.0 * m.spacing_mm() && hi - lo >= 6.0 * f);
-    let scale = options.scale && marks.is_some();
+    // Marks the profile resolves (six points a mark, six marks) may place it.
+    let spaced = typical.filter(|f| *f >= 6.0 * m.spacing_mm() && hi - lo >= 6.0 * f);
     let turning = job.process.turning().is_some();
     let room =
         typical.unwrap_or(0.0) + 4.0 * job.pitch_mm + m.instrument.stylus_tip_mm.unwrap_or(0.0);
     let r_model = (reach * (1.0 + SCALE_BOUND) + room).min(outer);
-    log(&format!(
-        "locating the profile: axis anywhere in {:.4}–{:.4} mm of the file{}{}",
-        m.file_position_of(DVec2::new(a_min, 0.0)).x,
-        m.file_position_of(DVec2::new(a_max, 0.0)).x,
-        if turning {
-            ", every azimuth of the spiral"
-        } else {
-            ""
-        },
-        if scale {
-            ", lateral scale within ±2 %"
-        } else {
-            ""
-        }
-    ));
 
     // The wide search on one simulation — every azimuth (turning) or the line's own.
     // Where the profile resolves the marks, they alone place it (the form taken out of
@@ -253,6 +246,32 @@ fn locate_line(
     };
     let mut model = ForwardModel::covering(job, r_model, rows, unbinned, engine)?;
     let surface = model.simulate(&|_| {})?;
+    // Marks too shallow to stand out of the noise place nothing (matching the noise
+    // would); nor do they fix the scale.
+    let marks = spaced.filter(|f| marks_stand_out(m, &surface.trace_along(0), *f, reach));
+    let scale = options.scale && marks.is_some();
+    // Without marks or form to place it, a compact feature far out of the noise — a
+    // centre height's boss or cone — is where the axis is.
+    let (a_min, a_max) = match central_feature(m).filter(|_| marked && marks.is_none()) {
+        Some((centre, half)) => ((centre - half).max(a_min), (centre + half).min(a_max)),
+        None => (a_min, a_max),
+    };
+    log(&format!(
+        "locating the profile: axis anywhere in {:.4}–{:.4} mm of the file{}{}",
+        m.file_position_of(DVec2::new(a_min, 0.0)).x,
+        m.file_position_of(DVec2::new(a_max, 0.0)).x,
+        if turning {
+            ", every azimuth of the spiral"
+        } else {
+            ""
+        },
+        if scale {
+            ", lateral scale within ±2 %"
+        } else {
+            ""
+        }
+    ));
+
     let seen = |trace: Trace| match marks {
         Some(f) => high_passed_trace(trace, 2.5 * f),
         None => trace,
@@ -405,6 +424,62 @@ fn locate_line(
         marks_mm: marks,
         axis_range_mm: Some((a_min, a_max)),
     })
+}
+
+/// Whether the marks of `trace` (a mark `mark_mm` apart, the form taken out as the
+/// wide search does) would stand out of the profile's white noise: their RMS, over the
+/// noise, times the square root of the points (the matched filter's signal to noise)
+/// at least [`MARKS_SNR`].
+fn marks_stand_out(m: &Measurement, trace: &Trace, mark_mm: f64, reach_mm: f64) -> bool {
+    let seen = high_passed_trace(trace.clone(), 2.5 * mark_mm);
+    let inside: Vec<f64> = seen
+        .x
+        .iter()
+        .zip(&seen.z)
+        .filter(|(x, _)| x.abs() <= reach_mm - 2.5 * mark_mm)
+        .map(|(_, z)| *z)
+        .collect();
+    let noise = white_noise_mm(m, &m.height_mm);
+    inside.is_empty() || rms(&inside) * (m.len() as f64).sqrt() >= MARKS_SNR * noise
+}
+
+/// A compact feature of the profile far out of its noise (a boss or a cone at the
+/// axis): where along the line its centre lies, and how far around it to look for the
+/// axis (mm). The profile's points [`FEATURE_CUTOFF_MM`] high-passed, less their median,
+/// a cutoff in from either end (where the filter's one-sided mean lags the form); the
+/// feature is the points above half the largest |value| (of its sign), at least two,
+/// spanning at most [`FEATURE_SHARE`] of the profile, the peak at least
+/// [`FEATURE_SIGMAS`] times the white noise.
+fn central_feature(m: &Measurement) -> Option<(f64, f64)> {
+    let (start, end) = (quantile(&m.along_mm, 0.0), quantile(&m.along_mm, 1.0));
+    let inner: Vec<usize> = (0..m.len())
+        .filter(|&i| (m.along_mm[i] - start).min(end - m.along_mm[i]) > FEATURE_CUTOFF_MM)
+        .collect();
+    if inner.len() < 16 {
+        return None;
+    }
+    let passed = high_passed(m, FEATURE_CUTOFF_MM).height_mm;
+    let median = quantile(&inner.iter().map(|&i| passed[i]).collect::<Vec<_>>(), 0.5);
+    let value = |i: usize| passed[i] - median;
+    let peak = inner
+        .iter()
+        .map(|&i| value(i))
+        .max_by(|a, b| a.abs().total_cmp(&b.abs()))?;
+    if peak.abs() < FEATURE_SIGMAS * white_noise_mm(m, &m.height_mm) {
+        return None;
+    }
+    let at: Vec<f64> = inner
+        .iter()
+        .filter(|&&i| value(i) * peak.signum() >= 0.5 * peak.abs())
+        .map(|&i| m.along_mm[i])
+        .collect();
+    let (lo, hi) = at
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(*x), b.max(*x))
+        });
+    (at.len() >= 2 && hi - lo <= FEATURE_SHARE * (end - start))
+        .then(|| (0.5 * (lo + hi), hi - lo + 10.0 * m.spacing_mm()))
 }
 
 /// Lateral scales the wide search tries: within ±[`SCALE_BOUND`], spaced so that the
@@ -679,7 +754,11 @@ impl ScanPoints {
         let ScanScratch { model, squares } = scratch;
         model.clear();
         squares.clear();
-        let (mut k, mut used) = (0, 0);
+        // The walk starts where the first point falls (the trace spans the whole part,
+        // far more samples than the points).
+        let first = self.along.first().map_or(0.0, |x| (x - along) * scale);
+        let mut k = trace.x.partition_point(|&v| v <= first).saturating_sub(1);
+        let mut used = 0;
         for (x, y) in self.along.iter().zip(&self.height) {
             let u = (x - along) * scale;
             while k + 1 < trace.x.len() && trace.x[k + 1] <= u {

@@ -191,7 +191,12 @@ pub fn diagnose(
     }
     let base = search::registration_base(&mut problem, &members)?;
     let nominal = base.evaluation.registered.clone();
-    let spacing = |from: f64, to: f64| locate::local_mark_spacing_mm(job, from, to);
+    // Marks that placed nothing (lost in the noise) have no spacing to compare.
+    let spacing = |from: f64, to: f64| {
+        located
+            .marks_mm
+            .and_then(|_| locate::local_mark_spacing_mm(job, from, to))
+    };
     let comparison = compare::compare(&fitted, &nominal, options.terms.power, &spacing);
     let mut check = checks::fit_check(&fitted, &nominal, job, options.terms, period, &comparison);
 

@@ -191,32 +191,44 @@ fn register_on_comb(
 /// its correlation length `tau` (points); widened, where the search has a comb, by the
 /// spread of its teeth weighted by their likelihood against the best, exp(−Δχ²/2) — the
 /// teeth the data cannot tell apart count in full.
+///
+/// A boss at the axis (`boss`: its radius and the σ its edges allow, mm) pins the axis
+/// by two steps the data sample only at its points: the curvature is taken without the
+/// points on or beside the boss (a step crossing a point would feign a sub-nanometre
+/// σ), and the edges' own σ joins it as an independent measure.
 pub fn axis_sigma_mm(
     m: &Measurement,
     sim: &SimulatedSurface,
     terms: Terms,
     search: ShiftSearch,
     best: &Registered,
-    tau: f64,
+    (tau, boss): (f64, Option<(f64, f64)>),
 ) -> f64 {
     let direction = m.line_direction();
     let variance = best.rss / best.used.max(1) as f64 * tau.max(1.0);
+    let clear = boss.map_or(0.0, |(radius, _)| radius + 2.0 * m.spacing_mm());
+    let away = m.subset(|i| (m.xy_mm[i] - best.shift_mm).length() > clear);
     let rss_at = |along: f64| {
         let shift = best.shift_mm + along * direction;
         let frame = Frame::at(shift).mirrored(best.mirrored);
-        let r = fit_linear(m, &sim.sample(m, frame), shift, terms.power);
-        if r.used < best.used {
-            f64::INFINITY
-        } else {
-            r.rss
-        }
+        let r = fit_linear(&away, &sim.sample(&away, frame), shift, terms.power);
+        (r.rss, r.used)
     };
+    let (centre, used) = rss_at(0.0);
     let h = search.step_mm;
-    let curvature = (rss_at(h) + rss_at(-h) - 2.0 * best.rss) / (h * h);
-    let local = if curvature > 0.0 && curvature.is_finite() {
+    let [ahead, behind] = [h, -h].map(|a| match rss_at(a) {
+        (rss, n) if n >= used => rss,
+        _ => f64::INFINITY,
+    });
+    let curvature = (ahead + behind - 2.0 * centre) / (h * h);
+    let marks = if curvature > 0.0 && curvature.is_finite() {
         (2.0 * variance / curvature).sqrt()
     } else {
         f64::INFINITY
+    };
+    let local = match boss {
+        Some((_, edge)) => (marks.powi(-2) + edge.powi(-2)).sqrt().recip(),
+        None => marks,
     };
     let Some(comb) = search.comb else {
         return local;

@@ -24,7 +24,7 @@ use super::candidates::Candidate;
 use super::fit::{Problem, inflation, member_parameters, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
-use super::register::Registered;
+use super::register::{Registered, fit_linear};
 use super::zones::rms;
 use glam::DVec2;
 use std::rc::Rc;
@@ -323,8 +323,12 @@ fn judge_fold(
         0.0
     };
     let texture = rms(&rb).powi(2) * inflation(fitted.correlation_length, &change);
-    let visible =
-        rms(&change) >= MIN_PREDICTED * rms(&rb) && predicted >= MIN_PREDICTED_CHI2 * texture;
+    let stands_out = |change: &[f64]| {
+        rms(change) >= MIN_PREDICTED * rms(&rb)
+            && change.iter().map(|d| d * d).sum::<f64>() >= MIN_PREDICTED_CHI2 * texture
+    };
+    let own_change = own_change_on_fold(problem, fold, (set, &fitted.values), base_set.len(), &ra)?;
+    let visible = stands_out(&change) && stands_out(&own_change);
     let note = match (seen, visible) {
         (false, _) => "fitted on the rest, the effect is not seen (within 2σ of zero)".to_string(),
         (true, false) => "the effect predicts too small a change here to judge".to_string(),
@@ -340,4 +344,35 @@ fn judge_fold(
         after_rms_nm: rms(&on_fold(&ra)) * 1e6,
         efficiency,
     })
+}
+
+/// The change the tested effects (`set` from `member` on) make on the fold by
+/// themselves: the set's model with and without them at the same values, less what
+/// placing the fold alone (its own piston, tilt and power) would absorb. Every trial is
+/// registered on all the points, so where an unmodelled effect elsewhere (a boss at the
+/// axis) pulls the model without the effect, the fold's change would otherwise count
+/// that pull as the effect's prediction.
+fn own_change_on_fold(
+    problem: &mut Problem,
+    fold: &Fold,
+    (set, values): (&[Candidate], &[f64]),
+    member: usize,
+    after: &[f64],
+) -> Result<Vec<f64>, ForwardError> {
+    let start: usize = set[..member].iter().map(width).sum();
+    let without = problem.evaluate(&set[..member], &values[..start])?;
+    let without = problem.residual(&without);
+    let m = problem.measurement;
+    let mut change = m.subset(|i| fold.held[i]);
+    change.height_mm = (0..m.len())
+        .filter(|&i| fold.held[i])
+        .map(|i| without[i] - after[i])
+        .collect();
+    let zero = vec![0.0; change.len()];
+    let placed = fit_linear(&change, &zero, problem.shift.start, problem.terms.power);
+    Ok(placed
+        .residual_mm
+        .iter()
+        .map(|v| if v.is_finite() { *v } else { 0.0 })
+        .collect())
 }
