@@ -44,6 +44,11 @@ const CANDIDATES: usize = 8;
 const POLISHED: usize = 8;
 /// Most lateral scales the wide search tries on each side of 1.
 const SCALE_STEPS: i64 = 24;
+/// Placements the form alone would choose, added to the wide search's starts where the
+/// marks rule; and how much better (in mean square) a placement's form must fit than the
+/// marks' choice to be put before it.
+const FORM_STARTS: usize = 2;
+const FORM_RULES_OUT: f64 = 0.1;
 /// Least matched-filter signal to noise of the job's marks for them to place a profile.
 const MARKS_SNR: f64 = 10.0;
 /// A central feature: the high-pass cutoff that takes the form out around it, its
@@ -567,10 +572,13 @@ fn wide_scan(
         })
         .collect();
     minima.sort_by(|a, b| a.value.total_cmp(&b.value));
-    let minima = distinct(minima, apart / 3.0, traces.len(), POLISHED * CANDIDATES);
+    let mut minima = distinct(minima, apart / 3.0, traces.len(), POLISHED * CANDIDATES);
+    let coarse_raw = raw.map(|r| subsample(r, SCAN_POINTS));
+    if let Some(raw) = &coarse_raw {
+        minima.extend(form_starts(raw, &traces[0], &positions, power, apart));
+    }
     let bounds = (positions[0], positions[positions.len() - 1]);
     let free_scale = scales.len() > 1;
-    let coarse_raw = raw.map(|r| subsample(r, SCAN_POINTS));
     let mut starts: Vec<Start> = minima
         .par_iter()
         .map(|start| {
@@ -602,8 +610,53 @@ fn wide_scan(
     {
         let split = starts.partition_point(|s| s.value <= 1.5 * first);
         starts[..split].sort_by(|a, b| a.with_form.total_cmp(&b.with_form));
+        promote_by_form(&mut starts, |s| s.with_form);
     }
     distinct(starts, apart / 3.0, traces.len(), CANDIDATES)
+}
+
+/// Where the form alone would put the axis: the best [`FORM_STARTS`] local minima of
+/// the objective with the form in (`raw`, the trace as simulated, scale 1) over
+/// `positions`, distinct by a third of `apart`. On a decentred part the job's marks
+/// cannot align on both sides of the axis, and placements that leave the line on one
+/// side align them better than the true one; the form tells them apart.
+fn form_starts(
+    raw: &Measurement,
+    trace: &ScanTrace,
+    positions: &[f64],
+    power: bool,
+    apart: f64,
+) -> Vec<Start> {
+    let points = ScanPoints::new(raw);
+    let mut scratch = ScanScratch::default();
+    let values: Vec<f64> = positions
+        .iter()
+        .map(|&a| points.objective(&trace.simulated, a, 1.0, power, &mut scratch))
+        .collect();
+    let mut found: Vec<Start> = local_minima(&values)
+        .into_iter()
+        .map(|k| Start {
+            value: values[k],
+            with_form: values[k],
+            trace: 0,
+            along: positions[k],
+            scale: 1.0,
+        })
+        .collect();
+    found.sort_by(|a, b| a.value.total_cmp(&b.value));
+    distinct(found, apart / 3.0, 1, FORM_STARTS)
+}
+
+/// Moves to the front the item whose form fits far better ([`FORM_RULES_OUT`]) than the
+/// first's: the marks cannot outvote a form that rules a placement out.
+fn promote_by_form<T>(items: &mut [T], form: impl Fn(&T) -> f64) {
+    let Some(first) = items.first().map(&form) else {
+        return;
+    };
+    let best = (0..items.len()).min_by(|&a, &b| form(&items[a]).total_cmp(&form(&items[b])));
+    if let Some(k) = best.filter(|&k| form(&items[k]) < FORM_RULES_OUT * first) {
+        items[..=k].rotate_right(1);
+    }
 }
 
 /// A line fit as a placement of the measurement.
@@ -641,6 +694,7 @@ fn distinct_placements(
             .partition(|p| p.1.objective <= 1.5 * first);
         alike.sort_by(|a, b| a.1.with_form.total_cmp(&b.1.with_form));
         placements = alike.into_iter().chain(rest).collect();
+        promote_by_form(&mut placements, |p| p.1.with_form);
     }
     let close = |a: &Placement, b: &Placement| {
         let turn = (a.azimuth_rad - b.azimuth_rad).rem_euclid(TAU);

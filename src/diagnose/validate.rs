@@ -323,23 +323,30 @@ fn judge_fold(
         0.0
     };
     let texture = rms(&rb).powi(2) * inflation(fitted.correlation_length, &change);
-    let stands_out = |change: &[f64]| {
-        rms(change) >= MIN_PREDICTED * rms(&rb)
-            && change.iter().map(|d| d * d).sum::<f64>() >= MIN_PREDICTED_CHI2 * texture
+    let visible =
+        rms(&change) >= MIN_PREDICTED * rms(&rb) && predicted >= MIN_PREDICTED_CHI2 * texture;
+    // A fold the effect's own change hardly reaches cannot refute it: what it "failed
+    // to predict" there is the placement's pull.
+    let refutes = efficiency < MIN_EFFICIENCY;
+    let reached = !refutes || {
+        let own_change =
+            own_change_on_fold(problem, fold, (set, &fitted.values), base_set.len(), &ra)?;
+        rms(&own_change) >= MIN_PREDICTED * rms(&rb)
     };
-    let own_change = own_change_on_fold(problem, fold, (set, &fitted.values), base_set.len(), &ra)?;
-    let visible = stands_out(&change) && stands_out(&own_change);
-    let note = match (seen, visible) {
-        (false, _) => "fitted on the rest, the effect is not seen (within 2σ of zero)".to_string(),
-        (true, false) => "the effect predicts too small a change here to judge".to_string(),
-        (true, true) => String::new(),
+    let note = match (seen, visible, reached) {
+        (false, _, _) => "fitted on the rest, the effect is not seen (within 2σ of zero)",
+        (true, false, _) => "the effect predicts too small a change here to judge",
+        (true, true, false) => {
+            "the effect's own change here is too small to judge; the rest is the placement's"
+        }
+        (true, true, true) => "",
     };
     Ok(FoldCheck {
         fold: fold.name.clone(),
         points: fold.held.iter().filter(|h| **h).count(),
         values: own.to_vec(),
-        judged: seen && visible,
-        note,
+        judged: seen && visible && reached,
+        note: note.to_string(),
         before_rms_nm: rms(&rb) * 1e6,
         after_rms_nm: rms(&on_fold(&ra)) * 1e6,
         efficiency,
