@@ -782,6 +782,46 @@ impl<'a, 'e> Problem<'a, 'e> {
         }))
     }
 
+    /// One σ of the lateral scale (relative to 1) in `fit`, widened by its aliases: the
+    /// scales at which the marks (`mark_mm` apart) at the line's far end lie one and two
+    /// whole marks further along, which a profile with little else to go by barely tells
+    /// from the best — each weighted by its likelihood against the best, exp(−Δχ²/2), as
+    /// the axis comb's teeth are.
+    pub fn scale_sigma_with_aliases(
+        &mut self,
+        fit: &Fit,
+        mark_mm: f64,
+    ) -> Result<f64, ForwardError> {
+        let (_, sigma) = fitted_stretch(fit);
+        let Some(&j) = member_parameters(&fit.set, |c| *c == Candidate::LateralScale).first()
+        else {
+            return Ok(sigma);
+        };
+        let axis = fit.evaluation.registered.shift_mm;
+        let reach = self
+            .measurement
+            .xy_mm
+            .iter()
+            .map(|p| (*p - axis).length())
+            .fold(0.0, f64::max);
+        if reach <= 0.0 || !sigma.is_finite() {
+            return Ok(sigma);
+        }
+        let variance = fit.objective / fit.effective_points.max(1.0);
+        let (mut weight, mut spread) = (1.0, 0.0);
+        for k in [-2.0, -1.0, 1.0, 2.0] {
+            let alias = k * mark_mm / reach;
+            let mut values = fit.values.clone();
+            values[j] += alias * 1e6;
+            let evaluation = self.evaluate(&fit.set, &values)?;
+            let rise = (self.rss(&evaluation) - fit.objective).max(0.0);
+            let w = (-rise / (2.0 * variance)).exp();
+            weight += w;
+            spread += w * alias * alias;
+        }
+        Ok((sigma * sigma + spread / weight).sqrt())
+    }
+
     /// A fit's boss at the axis, if it has one: its radius and its edges' σ (mm).
     fn boss_of(&self, fit: &Fit) -> Option<(f64, f64)> {
         let j = member_parameters(&fit.set, |c| *c == Candidate::CentreHeight)

@@ -488,7 +488,10 @@ fn placement(
     };
     let turn_deg = half_turn
         + fit::spiral_turn_deg(&final_fit.set, &final_fit.values, problem.model.base_job());
-    let (stretch, stretch_sigma) = fit::fitted_stretch(final_fit);
+    let (stretch, mut stretch_sigma) = fit::fitted_stretch(final_fit);
+    if let Some(mark) = located.marks_mm.filter(|_| located.scale_fitted) {
+        stretch_sigma = problem.scale_sigma_with_aliases(final_fit, mark)?;
+    }
     // The σ in the read measurement's mm: through the located scale, the fit's stretch
     // already taken out.
     let sigma = judge_axis
