@@ -253,11 +253,15 @@ fn locate_line(
     let surface = model.simulate(&|_| {})?;
     // Marks too shallow to stand out of the noise place nothing (matching the noise
     // would); nor do they fix the scale.
-    let marks = spaced.filter(|f| marks_stand_out(m, &surface.trace_along(0), *f, reach));
+    let noise = white_noise_mm(m, &m.height_mm);
+    let marks = spaced.filter(|f| marks_stand_out(m, noise, &surface.trace_along(0), *f, reach));
     let scale = options.scale && marks.is_some();
     // Without marks or form to place it, a compact feature far out of the noise — a
     // centre height's boss or cone — is where the axis is.
-    let (a_min, a_max) = match central_feature(m).filter(|_| marked && marks.is_none()) {
+    let feature = (marked && marks.is_none())
+        .then(|| central_feature(m, noise))
+        .flatten();
+    let (a_min, a_max) = match feature {
         Some((centre, half)) => ((centre - half).max(a_min), (centre + half).min(a_max)),
         None => (a_min, a_max),
     };
@@ -432,10 +436,16 @@ fn locate_line(
 }
 
 /// Whether the marks of `trace` (a mark `mark_mm` apart, the form taken out as the
-/// wide search does) would stand out of the profile's white noise: their RMS, over the
-/// noise, times the square root of the points (the matched filter's signal to noise)
-/// at least [`MARKS_SNR`].
-fn marks_stand_out(m: &Measurement, trace: &Trace, mark_mm: f64, reach_mm: f64) -> bool {
+/// wide search does) would stand out of the profile's white noise `noise_mm`: their
+/// RMS, over the noise, times the square root of the points (the matched filter's
+/// signal to noise) at least [`MARKS_SNR`].
+fn marks_stand_out(
+    m: &Measurement,
+    noise_mm: f64,
+    trace: &Trace,
+    mark_mm: f64,
+    reach_mm: f64,
+) -> bool {
     let seen = high_passed_trace(trace.clone(), 2.5 * mark_mm);
     let inside: Vec<f64> = seen
         .x
@@ -444,8 +454,7 @@ fn marks_stand_out(m: &Measurement, trace: &Trace, mark_mm: f64, reach_mm: f64) 
         .filter(|(x, _)| x.abs() <= reach_mm - 2.5 * mark_mm)
         .map(|(_, z)| *z)
         .collect();
-    let noise = white_noise_mm(m, &m.height_mm);
-    inside.is_empty() || rms(&inside) * (m.len() as f64).sqrt() >= MARKS_SNR * noise
+    inside.is_empty() || rms(&inside) * (m.len() as f64).sqrt() >= MARKS_SNR * noise_mm
 }
 
 /// A compact feature of the profile far out of its noise (a boss or a cone at the
@@ -454,9 +463,9 @@ fn marks_stand_out(m: &Measurement, trace: &Trace, mark_mm: f64, reach_mm: f64) 
 /// a cutoff in from either end (where the filter's one-sided mean lags the form); the
 /// feature is the points above half the largest |value| (of its sign), at least two,
 /// spanning at most [`FEATURE_SHARE`] of the profile, the peak at least
-/// [`FEATURE_SIGMAS`] times the white noise.
-fn central_feature(m: &Measurement) -> Option<(f64, f64)> {
-    let (start, end) = (quantile(&m.along_mm, 0.0), quantile(&m.along_mm, 1.0));
+/// [`FEATURE_SIGMAS`] times the white noise `noise_mm`.
+fn central_feature(m: &Measurement, noise_mm: f64) -> Option<(f64, f64)> {
+    let (start, end) = extent(&m.along_mm);
     let inner: Vec<usize> = (0..m.len())
         .filter(|&i| (m.along_mm[i] - start).min(end - m.along_mm[i]) > FEATURE_CUTOFF_MM)
         .collect();
@@ -470,7 +479,7 @@ fn central_feature(m: &Measurement) -> Option<(f64, f64)> {
         .iter()
         .map(|&i| value(i))
         .max_by(|a, b| a.abs().total_cmp(&b.abs()))?;
-    if peak.abs() < FEATURE_SIGMAS * white_noise_mm(m, &m.height_mm) {
+    if peak.abs() < FEATURE_SIGMAS * noise_mm {
         return None;
     }
     let at: Vec<f64> = inner
@@ -478,13 +487,18 @@ fn central_feature(m: &Measurement) -> Option<(f64, f64)> {
         .filter(|&&i| value(i) * peak.signum() >= 0.5 * peak.abs())
         .map(|&i| m.along_mm[i])
         .collect();
-    let (lo, hi) = at
+    let (lo, hi) = extent(&at);
+    (at.len() >= 2 && hi - lo <= FEATURE_SHARE * (end - start))
+        .then(|| (0.5 * (lo + hi), hi - lo + 10.0 * m.spacing_mm()))
+}
+
+/// The least and the greatest of `values`.
+fn extent(values: &[f64]) -> (f64, f64) {
+    values
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
             (a.min(*x), b.max(*x))
-        });
-    (at.len() >= 2 && hi - lo <= FEATURE_SHARE * (end - start))
-        .then(|| (0.5 * (lo + hi), hi - lo + 10.0 * m.spacing_mm()))
+        })
 }
 
 /// Lateral scales the wide search tries: within ±[`SCALE_BOUND`], spaced so that the

@@ -206,12 +206,15 @@ pub fn axis_sigma_mm(
 ) -> f64 {
     let direction = m.line_direction();
     let variance = best.rss / best.used.max(1) as f64 * tau.max(1.0);
-    let clear = boss.map_or(0.0, |(radius, _)| radius + 2.0 * m.spacing_mm());
-    let away = m.subset(|i| (m.xy_mm[i] - best.shift_mm).length() > clear);
+    let away = boss.map(|(radius, _)| {
+        let clear = radius + 2.0 * m.spacing_mm();
+        m.subset(|i| (m.xy_mm[i] - best.shift_mm).length() > clear)
+    });
+    let judged = away.as_ref().unwrap_or(m);
     let rss_at = |along: f64| {
         let shift = best.shift_mm + along * direction;
         let frame = Frame::at(shift).mirrored(best.mirrored);
-        let r = fit_linear(&away, &sim.sample(&away, frame), shift, terms.power);
+        let r = fit_linear(judged, &sim.sample(judged, frame), shift, terms.power);
         (r.rss, r.used)
     };
     let (centre, used) = rss_at(0.0);
