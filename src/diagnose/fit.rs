@@ -1389,11 +1389,33 @@ fn scan_values(origin: f64, scale: f64, bound: f64) -> Vec<f64> {
 /// the scale bends the form (a stretched sphere has more power), so a scale fitted
 /// beside one effect can hold what a new one explains, and held there along the scan
 /// it hides it.
+///
+/// Where the set also holds an effect that moves the marks (a decentre, paired with the
+/// spiral's turn that moves them back: [`apply_set`]), every start is taken again half a
+/// turn round the spiral: on a diameter the job as given places the marks alike at an
+/// azimuth and half a turn from it (each side's marks move by half a feed, in
+/// opposite directions along the radius), and which of the two the effect needs only
+/// the effect can tell.
 fn scan_starts(set: &[Candidate], start: Vec<f64>, scan: &[usize]) -> Vec<Vec<f64>> {
     if scan.is_empty() {
         return vec![start];
     }
-    with_unit_scale(set, start)
+    let starts = with_unit_scale(set, start);
+    if !set.iter().any(|c| c.mark_shift_mm(&[1.0; 4]) != 0.0) {
+        return starts;
+    }
+    let azimuth = member_parameters(set, |c| *c == Candidate::SpiralAzimuth);
+    if azimuth.is_empty() {
+        return starts;
+    }
+    let turned = starts.iter().map(|s| {
+        let mut s = s.clone();
+        for &j in &azimuth {
+            s[j] -= 180.0_f64.copysign(s[j]);
+        }
+        s
+    });
+    starts.clone().into_iter().chain(turned).collect()
 }
 
 /// `start`, and — where the set fits the lateral scale and `start` has it away from 1 —

@@ -473,6 +473,14 @@ fn shrinkage(
 /// Where the data lies as `final_fit` places it: the spiral's turn, the fitted lateral
 /// scale and (`judge_axis`, a line whose axis was searched) the axis σ
 /// ([`line_axis_sigma_mm`]).
+/// The smallest one σ the fitted lateral scale is reported with (relative to 1): the
+/// forward model's own error. On a decentred R7 sphere (the fourth random batch's s05)
+/// toolmark and the independent section model differ by 0.02 nm RMS, which a scale
+/// 6.6e-5 from the truth takes up — fitted at 1.000066 ± 0.000005 under 0.05 nm of noise,
+/// 1.000083 ± 0.000013 under 0.5 nm; the other decentres of that batch came back 3–5e-5
+/// off at ± 1–2e-5. No profile tells the scale finer than this model error.
+const SCALE_SIGMA_FLOOR: f64 = 1e-4;
+
 fn placement(
     problem: &mut Problem,
     final_fit: &Fit,
@@ -491,6 +499,9 @@ fn placement(
     let (stretch, mut stretch_sigma) = fit::fitted_stretch(final_fit);
     if let Some(mark) = located.marks_mm.filter(|_| located.scale_fitted) {
         stretch_sigma = problem.scale_sigma_with_aliases(final_fit, mark)?;
+    }
+    if located.scale_fitted {
+        stretch_sigma = stretch_sigma.max(SCALE_SIGMA_FLOOR);
     }
     // The σ in the read measurement's mm: through the located scale, the fit's stretch
     // already taken out.

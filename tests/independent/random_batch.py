@@ -4,7 +4,8 @@
 A driver around `turned_sphere_profile.py` (the physics is that generator's alone): it
 draws a sphere, nose, feed, aperture, trace length and placement, noise, sampling,
 azimuth, form removal and one planted set-up effect (centre height, X decentre, axial
-drift, or nothing) per case, writes the profile and its job, and later scores the
+drift, or nothing; with `--effects wide` also an edge waviness, and a centre height with
+a waviness or a decentre with a drift) per case, writes the profile and its job, and later scores the
 diagnoses that `toolmark diagnose` wrote for them — so that the diagnosis is tried on
 parts nobody tuned it on.
 
@@ -48,11 +49,35 @@ azimuths = 16
 """
 
 
-def draw_effect(rng):
-    """One planted effect: (generator options, truth as toolmark names it)."""
-    kind = rng.choice(["h", "d", "drift", "none", "h", "d"])
+def draw_effect(rng, wide=False):
+    """One planted effect: (generator options, truth as toolmark names it).
+
+    `wide`: also an edge waviness alone and the pairs a centre height + waviness and a
+    decentre + drift (each part of a pair drawn as alone)."""
+    kinds = ["h", "d", "drift", "none", "h", "d"]
+    if wide:
+        kinds = ["h", "d", "drift", "none", "w", "h+w", "d+drift"]
+    kind = rng.choice(kinds)
+    if "+" in kind:
+        options, truth = [], {}
+        for part in kind.split("+"):
+            o, t = draw_one(rng, part)
+            options += o
+            truth.update(t)
+        return options, truth
+    return draw_one(rng, kind)
+
+
+def draw_one(rng, kind):
+    """One effect of `kind` (h, d, drift, w or none): (generator options, truth)."""
     if kind == "none":
         return [], {}
+    if kind == "w":
+        order = rng.randint(10, 45)
+        amplitude = round(rng.uniform(15, 60))
+        phase = rng.randint(0, 359)
+        return (["--waviness", "%d:%d:%d" % (order, amplitude, phase)],
+                {"edge_waviness": amplitude, "waviness_order": order})
     sign = rng.choice([-1, 1])
     if kind == "h":
         v = round(sign * rng.uniform(1.0, 5.0), 2)
@@ -75,7 +100,7 @@ def make(args):
         rim = round(rng.uniform(1.0, 2.0), 2)
         L = round(rim * rng.uniform(0.6, 0.9), 2)
         axis = rng.randint(-300, 900)
-        options, truth = draw_effect(rng)
+        options, truth = draw_effect(rng, args.effects == "wide")
         noise = rng.choice([0.5, 1.0, 2.0, 3.0])
         step = rng.choice([0.25, 0.5, 1.0])
         form_removed = rng.random() < 0.4
@@ -97,20 +122,37 @@ def make(args):
         json.dump(cases, f, indent=1)
 
 
+def fitted(a):
+    """An accepted effect's size and σ: its first parameter, or for a waviness the
+    amplitude of its cos and sin parts (nm) with its order."""
+    p = a["parameters"]
+    if a["effect"] != "edge_waviness":
+        return p[0]["value"], p[0]["sigma"], None
+    c, s = p[0]["value"], p[1]["value"]
+    amplitude = (c * c + s * s) ** 0.5
+    sigma = ((c * p[0]["sigma"]) ** 2 + (s * p[1]["sigma"]) ** 2) ** 0.5 / max(amplitude, 1e-12)
+    return amplitude, sigma, a.get("order")
+
+
 def verdict_on(case, d):
-    accepted = [(a["effect"], a["parameters"][0]["value"], a["parameters"][0]["sigma"])
-                for a in d["accepted"]]
-    if not case["truth"]:
+    accepted = [(a["effect"],) + fitted(a) for a in d["accepted"]]
+    truth = {k: v for k, v in case["truth"].items() if k != "waviness_order"}
+    if not truth:
         return "OK" if not accepted else "FALSE CLAIM %s" % [a[0] for a in accepted]
-    (kind, value), = case["truth"].items()
-    mine = [a for a in accepted if a[0] == kind]
-    if not mine:
-        return "MISSED (accepted %s)" % [a[0] for a in accepted]
-    _, v, s = mine[0]
-    text = "%.3f ± %.3f (%.1fσ, %.1f %%)" % (v, s, abs(v - value) / s if s > 0 else float("inf"),
-                                            100 * abs(v / value - 1))
-    extra = [a[0] for a in accepted if a[0] != kind]
-    return text + (" + also %s" % extra if extra else "")
+    texts = []
+    for kind, value in truth.items():
+        mine = [a for a in accepted if a[0] == kind]
+        if not mine:
+            texts.append("MISSED %s" % kind)
+            continue
+        _, v, s, order = mine[0]
+        text = "%s %.3f ± %.3f (%.1fσ, %.1f %%)" % (
+            kind, v, s, abs(v - value) / s if s > 0 else float("inf"), 100 * abs(v / value - 1))
+        if order is not None:
+            text += " order %.1f (planted %d)" % (order, case["truth"]["waviness_order"])
+        texts.append(text)
+    extra = [a[0] for a in accepted if a[0] not in truth]
+    return "; ".join(texts) + (" + also %s" % extra if extra else "")
 
 
 def score(args):
@@ -140,6 +182,9 @@ def main():
     m.add_argument("--count", type=int, default=12)
     m.add_argument("--prefix", default="p")
     m.add_argument("--dir", default=".")
+    m.add_argument("--effects", choices=["setup", "wide"], default="setup",
+                   help="setup: one set-up effect or none (batches p-s); wide: also a "
+                        "waviness and two pairs")
     s = sub.add_parser("score")
     s.add_argument("--prefix", default="p")
     s.add_argument("--dir", default=".")
