@@ -602,6 +602,7 @@ impl<'a, 'e> Problem<'a, 'e> {
                 values = self.scan(set, &parameters, &values, j, &others)?;
             }
             let (values, jacobian) = self.levenberg_marquardt(set, &parameters, values, &[])?;
+            let (values, jacobian) = self.round_the_turn(set, &parameters, values, jacobian)?;
             let fit = self.finish(set, parameters.clone(), values, &jacobian, &[])?;
             if best.as_ref().is_none_or(|b| fit.objective < b.objective) {
                 best = Some(fit);
@@ -624,6 +625,44 @@ impl<'a, 'e> Problem<'a, 'e> {
         }
         self.widen_to_profile(&mut fit)?;
         Ok(fit)
+    }
+
+    /// Where the fit left the spiral's azimuth at its bound (half a turn either way), the
+    /// same azimuth from the other side: the turn is periodic and the bound only keeps
+    /// it in one turn, so a fit started near half a turn ([`scan_starts`]) that leans
+    /// past it goes on from there. The better of the two is kept.
+    fn round_the_turn(
+        &mut self,
+        set: &[Candidate],
+        parameters: &[Parameter],
+        values: Vec<f64>,
+        jacobian: Vec<Vec<f64>>,
+    ) -> Result<(Vec<f64>, Vec<Vec<f64>>), ForwardError> {
+        let at_bound = member_parameters(set, |c| *c == Candidate::SpiralAzimuth)
+            .into_iter()
+            .filter(|&j| values[j].abs() >= 0.98 * parameters[j].bound)
+            .collect::<Vec<_>>();
+        if at_bound.is_empty() {
+            return Ok((values, jacobian));
+        }
+        let mut wrapped = values.clone();
+        for &j in &at_bound {
+            wrapped[j] -= 360.0_f64.copysign(wrapped[j]);
+        }
+        let (other, other_jacobian) = self.levenberg_marquardt(set, parameters, wrapped, &[])?;
+        let here = {
+            let e = self.evaluate(set, &values)?;
+            self.rss(&e)
+        };
+        let there = {
+            let e = self.evaluate(set, &other)?;
+            self.rss(&e)
+        };
+        Ok(if there < here {
+            (other, other_jacobian)
+        } else {
+            (values, jacobian)
+        })
     }
 
     /// Fits `fit`'s set again on rings half as far apart, from where it ended, and
