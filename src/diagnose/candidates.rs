@@ -195,11 +195,17 @@ impl Candidate {
         }
     }
 
+    /// Whether the effect moves a turned part's marks along the radius.
+    pub fn moves_marks(&self) -> bool {
+        *self == Candidate::XDecentre
+    }
+
     /// How far the effect moves a turned part's marks out along the radius (mm).
     pub fn mark_shift_mm(&self, values: &[f64]) -> f64 {
-        match self {
-            Candidate::XDecentre => values[0] * 1e-3,
-            _ => 0.0,
+        if self.moves_marks() {
+            values[0] * 1e-3
+        } else {
+            0.0
         }
     }
 

@@ -645,10 +645,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         if at_bound.is_empty() {
             return Ok((values, jacobian));
         }
-        let mut wrapped = values.clone();
-        for &j in &at_bound {
-            wrapped[j] -= 360.0_f64.copysign(wrapped[j]);
-        }
+        let wrapped = turned_toward_zero(&values, &at_bound, 360.0);
         let (other, other_jacobian) = self.levenberg_marquardt(set, parameters, wrapped, &[])?;
         let here = {
             let e = self.evaluate(set, &values)?;
@@ -1439,22 +1436,28 @@ fn scan_starts(set: &[Candidate], start: Vec<f64>, scan: &[usize]) -> Vec<Vec<f6
     if scan.is_empty() {
         return vec![start];
     }
-    let starts = with_unit_scale(set, start);
-    if !set.iter().any(|c| c.mark_shift_mm(&[1.0; 4]) != 0.0) {
-        return starts;
-    }
+    let mut starts = with_unit_scale(set, start);
     let azimuth = member_parameters(set, |c| *c == Candidate::SpiralAzimuth);
-    if azimuth.is_empty() {
+    if azimuth.is_empty() || !set.iter().any(Candidate::moves_marks) {
         return starts;
     }
-    let turned = starts.iter().map(|s| {
-        let mut s = s.clone();
-        for &j in &azimuth {
-            s[j] -= 180.0_f64.copysign(s[j]);
-        }
-        s
-    });
-    starts.clone().into_iter().chain(turned).collect()
+    let turned: Vec<Vec<f64>> = starts
+        .iter()
+        .map(|s| turned_toward_zero(s, &azimuth, 180.0))
+        .collect();
+    starts.extend(turned);
+    starts
+}
+
+/// `values` with each of the spiral-azimuth members `azimuth` turned by `deg` toward
+/// (and past) zero: the same line half a turn round (180°), or the same azimuth read
+/// from the other side of the bound (360°).
+fn turned_toward_zero(values: &[f64], azimuth: &[usize], deg: f64) -> Vec<f64> {
+    let mut turned = values.to_vec();
+    for &j in azimuth {
+        turned[j] -= deg.copysign(turned[j]);
+    }
+    turned
 }
 
 /// `start`, and — where the set fits the lateral scale and `start` has it away from 1 —

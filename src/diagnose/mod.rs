@@ -470,9 +470,6 @@ fn shrinkage(
     std::iter::once(first).chain(steps).collect()
 }
 
-/// Where the data lies as `final_fit` places it: the spiral's turn, the fitted lateral
-/// scale and (`judge_axis`, a line whose axis was searched) the axis σ
-/// ([`line_axis_sigma_mm`]).
 /// The smallest one σ the fitted lateral scale is reported with (relative to 1): the
 /// forward model's own error. On a decentred R7 sphere (the fourth random batch's s05)
 /// toolmark and the independent section model differ by 0.02 nm RMS, which a scale
@@ -481,6 +478,9 @@ fn shrinkage(
 /// off at ± 1–2e-5. No profile tells the scale finer than this model error.
 const SCALE_SIGMA_FLOOR: f64 = 1e-4;
 
+/// Where the data lies as `final_fit` places it: the spiral's turn, the fitted lateral
+/// scale and (`judge_axis`, a line whose axis was searched) the axis σ
+/// ([`line_axis_sigma_mm`]).
 fn placement(
     problem: &mut Problem,
     final_fit: &Fit,
