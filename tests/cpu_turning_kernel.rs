@@ -122,7 +122,8 @@ drift_mm = 0.0003
             effects,
         ),
     );
-    // An edge off its circle goes through the twin itself: the check is the dispatch.
+    // An edge off its circle on centre: its passes' bounds in lanes, the full entries
+    // where the twin makes them.
     assert_same_bits(
         "waviness, decentre, radius error",
         example_with(
@@ -205,11 +206,14 @@ azimuths = 4
 kind = "edge_waviness"
 harmonics = [{ order = 20, amplitude_mm = 0.00005, phase_deg = 10.0 }]
 "#;
+    let on_centre = Job::from_toml_str(fine, "fine").expect("valid job");
+    assert_same_bits("fine feed, wavy edge, on centre (lanes)", on_centre.clone());
     for (name, job) in [
         (
             "on centre",
             example_with("asphere_xz_with_errors.toml", &small, ""),
         ),
+        ("fine feed, on centre", on_centre),
         (
             "above centre",
             example_with("asphere_xz_with_errors.toml", &small, above),

@@ -488,16 +488,23 @@ impl Trace {
         let x = &self.x;
         let first = along.first().map_or(0.0, |s| (s - s0) * scale);
         let mut k = x.partition_point(|v| *v <= first).saturating_sub(1);
+        // Points a few samples apart: each walk starts a step as long as the last one
+        // (the sample found is the same from any start).
+        let mut stride: isize = 0;
+        let last = x.len().saturating_sub(1);
         along
             .iter()
             .map(|s| {
                 let u = (s - s0) * scale;
+                let from = k;
+                k = k.saturating_add_signed(stride).min(last);
                 while k > 0 && x[k] > u {
                     k -= 1;
                 }
                 while k + 1 < x.len() && x[k + 1] <= u {
                     k += 1;
                 }
+                stride = k as isize - from as isize;
                 if k + 1 < x.len() && x[k] <= u {
                     self.pieces[k].at(u - x[k])
                 } else {

@@ -520,13 +520,19 @@ struct ScanTrace {
     azimuth_rad: f64,
     simulated: Trace,
     judged: Trace,
+    /// The two as the wide search reads them.
+    simulated_line: ScanLine,
+    judged_line: ScanLine,
 }
 
 impl ScanTrace {
     fn new(azimuth_rad: f64, simulated: Trace, seen: &dyn Fn(Trace) -> Trace) -> Self {
+        let judged = seen(simulated.clone());
         Self {
             azimuth_rad,
-            judged: seen(simulated.clone()),
+            simulated_line: ScanLine::new(&simulated),
+            judged_line: ScanLine::new(&judged),
+            judged,
             simulated,
         }
     }
@@ -571,7 +577,7 @@ fn wide_scan(
             let mut scratch = ScanScratch::default();
             let values: Vec<f64> = positions
                 .iter()
-                .map(|&a| points.objective(&traces[t].judged, a, s, power, &mut scratch))
+                .map(|&a| points.objective(&traces[t].judged_line, a, s, power, &mut scratch))
                 .collect();
             local_minima(&values)
                 .into_iter()
@@ -645,7 +651,7 @@ fn form_starts(
     let mut scratch = ScanScratch::default();
     let values: Vec<f64> = positions
         .iter()
-        .map(|&a| points.objective(&trace.simulated, a, 1.0, power, &mut scratch))
+        .map(|&a| points.objective(&trace.simulated_line, a, 1.0, power, &mut scratch))
         .collect();
     let mut found: Vec<Start> = local_minima(&values)
         .into_iter()
@@ -786,11 +792,36 @@ fn line_objective(m: &Measurement, trace: &Trace, along: f64, scale: f64, power:
     trimmed_mean_square(&r.residual_mm, 0.95)
 }
 
-/// A profile's points as the wide search judges them: positions ascending, heights.
+/// A profile's points as the wide search judges them: positions ascending, heights,
+/// and the positions less their mean (the tilt's column).
 struct ScanPoints {
     along: Vec<f64>,
     height: Vec<f64>,
-    centre: f64,
+    centred: Vec<f64>,
+}
+
+/// A trace as the wide search reads it: its samples and each interval's slope, so that
+/// a point's height is one multiply-add from the sample below it.
+struct ScanLine {
+    x: Vec<f64>,
+    z: Vec<f64>,
+    slope: Vec<f64>,
+}
+
+impl ScanLine {
+    fn new(trace: &Trace) -> Self {
+        let slope = trace
+            .x
+            .windows(2)
+            .zip(trace.z.windows(2))
+            .map(|(x, z)| (z[1] - z[0]) / (x[1] - x[0]))
+            .collect();
+        Self {
+            x: trace.x.clone(),
+            z: trace.z.clone(),
+            slope,
+        }
+    }
 }
 
 impl ScanPoints {
@@ -801,70 +832,71 @@ impl ScanPoints {
         let centre = along.iter().sum::<f64>() / along.len().max(1) as f64;
         Self {
             height: order.iter().map(|&i| m.height_mm[i]).collect(),
+            centred: along.iter().map(|x| x - centre).collect(),
             along,
-            centre,
         }
     }
 
     /// As [`line_objective`], without allocating: the trace is walked along the
-    /// ascending positions and the linear terms solved from their normal equations
-    /// (`scratch` holds the model and the squared residuals).
+    /// ascending positions, the piston, tilt (and power) solved from their normal
+    /// equations' sums, and the trimmed mean taken of the squared residuals (`scratch`
+    /// holds the differences from the trace and their squares).
     fn objective(
         &self,
-        trace: &Trace,
+        line: &ScanLine,
         along: f64,
         scale: f64,
         power: bool,
         scratch: &mut ScanScratch,
     ) -> f64 {
-        let width = if power { 3 } else { 2 };
-        let (mut normal, mut rhs) = ([[0.0; 3]; 3], [0.0; 3]);
-        let ScanScratch { model, squares } = scratch;
-        model.clear();
+        let ScanScratch { targets, squares } = scratch;
+        targets.clear();
         squares.clear();
+        let x = &line.x;
+        let last = x.len().saturating_sub(1);
         // The walk starts where the first point falls (the trace spans the whole part,
         // far more samples than the points).
-        let first = self.along.first().map_or(0.0, |x| (x - along) * scale);
-        let mut k = trace.x.partition_point(|&v| v <= first).saturating_sub(1);
-        let mut used = 0;
-        for (x, y) in self.along.iter().zip(&self.height) {
-            let u = (x - along) * scale;
-            while k + 1 < trace.x.len() && trace.x[k + 1] <= u {
+        let first = self.along.first().map_or(0.0, |p| (p - along) * scale);
+        let mut k = x.partition_point(|&v| v <= first).saturating_sub(1);
+        // The points are about evenly spaced: each starts a step as long as the last.
+        let mut stride = 0;
+        let mut sums = NormalSums::default();
+        for ((p, y), d) in self.along.iter().zip(&self.height).zip(&self.centred) {
+            let u = (p - along) * scale;
+            let from = k;
+            k = (k + stride).min(last);
+            while k > from && x[k] > u {
+                k -= 1;
+            }
+            while k < last && x[k + 1] <= u {
                 k += 1;
             }
-            let value = if k + 1 < trace.x.len() && trace.x[k] <= u {
-                let t = (u - trace.x[k]) / (trace.x[k + 1] - trace.x[k]);
-                trace.z[k] + t * (trace.z[k + 1] - trace.z[k])
+            stride = k - from;
+            let target = if k < last && x[k] <= u {
+                y - (line.z[k] + (u - x[k]) * line.slope[k])
             } else {
                 f64::NAN
             };
-            model.push(value);
-            if value.is_finite() {
-                used += 1;
-                let row = [1.0, x - self.centre, (x - along) * (x - along)];
-                let target = y - value;
-                for a in 0..width {
-                    rhs[a] += row[a] * target;
-                    for b in a..width {
-                        normal[a][b] += row[a] * row[b];
-                    }
-                }
+            targets.push(target);
+            if target.is_finite() {
+                let q = if power {
+                    (p - along) * (p - along)
+                } else {
+                    0.0
+                };
+                sums.add(*d, q, target);
             }
         }
-        if (used as f64) < ON_PART * self.along.len() as f64 {
+        if (sums.count as f64) < ON_PART * self.along.len() as f64 {
             return f64::INFINITY;
         }
-        let matrix: Vec<Vec<f64>> = (0..width)
-            .map(|a| (0..width).map(|b| normal[a.min(b)][a.max(b)]).collect())
-            .collect();
-        let Some(c) = crate::numeric::solve_linear(&matrix, &rhs[..width]) else {
+        let Some([c0, c1, c2]) = sums.solve(power) else {
             return f64::INFINITY;
         };
-        for ((x, y), m) in self.along.iter().zip(&self.height).zip(model.iter()) {
-            if m.is_finite() {
-                let p = (x - along) * (x - along);
-                let fitted = c[0] + c[1] * (x - self.centre) + if power { c[2] * p } else { 0.0 };
-                let r = y - m - fitted;
+        for ((p, d), t) in self.along.iter().zip(&self.centred).zip(targets.iter()) {
+            if t.is_finite() {
+                let q = (p - along) * (p - along);
+                let r = t - (c0 + c1 * d + c2 * q);
                 if r.is_finite() {
                     squares.push(r * r);
                 }
@@ -874,10 +906,62 @@ impl ScanPoints {
     }
 }
 
+/// The normal equations' sums of a piston, a tilt (column `d`) and a power (column `q`)
+/// fitted to targets `t`.
+#[derive(Default)]
+struct NormalSums {
+    count: usize,
+    d: f64,
+    dd: f64,
+    q: f64,
+    dq: f64,
+    qq: f64,
+    t: f64,
+    dt: f64,
+    qt: f64,
+}
+
+impl NormalSums {
+    fn add(&mut self, d: f64, q: f64, t: f64) {
+        self.count += 1;
+        self.d += d;
+        self.dd += d * d;
+        self.q += q;
+        self.dq += d * q;
+        self.qq += q * q;
+        self.t += t;
+        self.dt += d * t;
+        self.qt += q * t;
+    }
+
+    /// Piston, tilt and power (0 without `power`); None when singular.
+    fn solve(&self, power: bool) -> Option<[f64; 3]> {
+        let n = self.count as f64;
+        if !power {
+            let det = n * self.dd - self.d * self.d;
+            if det.abs() <= 1e-300 || !det.is_finite() {
+                return None;
+            }
+            return Some([
+                (self.t * self.dd - self.d * self.dt) / det,
+                (n * self.dt - self.d * self.t) / det,
+                0.0,
+            ]);
+        }
+        let matrix = vec![
+            vec![n, self.d, self.q],
+            vec![self.d, self.dd, self.dq],
+            vec![self.q, self.dq, self.qq],
+        ];
+        let c = crate::numeric::solve_linear(&matrix, &[self.t, self.dt, self.qt])?;
+        Some([c[0], c[1], c[2]])
+    }
+}
+
 /// Buffers [`ScanPoints::objective`] reuses from call to call.
 #[derive(Default)]
 struct ScanScratch {
-    model: Vec<f64>,
+    targets: Vec<f64>,
     squares: Vec<f64>,
 }
 

@@ -150,7 +150,7 @@ pub fn branch_dexel(
 
 /// How far a pass's bound must lie above the height to be skipped (mm): the bound and
 /// the entry are each correctly rounded, so an ulp of disorder must not skip a pass.
-const PRUNE_MARGIN_MM: f64 = 1e-12;
+pub(super) const PRUNE_MARGIN_MM: f64 = 1e-12;
 
 /// Where an edge departs from its circle (waviness, a measured edge), its entry needs
 /// arctangents (~70 ns a pair); there, on centre and without spring-back (the surface

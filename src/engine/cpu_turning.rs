@@ -19,11 +19,14 @@
 //!   [`SpringBack::after`](super::scene::SpringBack::after) as the twin: the passes of a
 //!   lane run in the twin's order, so the sequential rule holds lane-wise).
 //!
-//! Left to the scalar twin: edges that depart from their circle (waviness, measured
-//! edges: the hit angle needs an arctangent), the flank branch (the few rings inside
+//! An edge that departs from its circle (waviness, a measured edge: the hit angle needs
+//! an arctangent) runs in lanes on centre without spring-back as the twin prunes it:
+//! each pass's bound (the circle holding the whole edge) in lanes, the twin's own full
+//! entry only where the bound reaches below the lowest entry. Left to the scalar twin:
+//! such an edge off centre or with spring-back, the flank branch (the few rings inside
 //! |y₀|) and a pass that falls exactly on the table's last node.
 
-use super::cpu::{RAY_REFINEMENTS, branch_dexel, pass_entry};
+use super::cpu::{PRUNE_MARGIN_MM, RAY_REFINEMENTS, branch_dexel, pass_entry};
 use super::scene::{Branch, PASS_ID_STRIDE, RevRange, SpringBack, TurningScene};
 use crate::field::NO_PASS;
 use crate::geometry::tool::{EdgeSolver, tip_direction};
@@ -291,7 +294,9 @@ impl<'a> TurningKernel<'a> {
         let blocks = depths.chunks_mut(LANES).zip(passes.chunks_mut(LANES));
         for (block, (depths, passes)) in blocks.enumerate() {
             let ring = first_ring + block * LANES;
-            let (depth, pass) = if self.scalar_only {
+            // An edge off its circle runs in lanes only where the twin prunes its passes
+            // (on centre, no spring-back).
+            let (depth, pass) = if self.scalar_only && (SPRING_BACK || on_centre.is_none()) {
                 self.scalar_block(azimuth_rad, ring)
             } else if let Some(row) = &on_centre {
                 self.block::<false, SPRING_BACK>(azimuth_rad, ring, row)
@@ -353,13 +358,17 @@ impl<'a> TurningKernel<'a> {
                     ..window
                 };
             }
-            self.run::<OFF_CENTRE, SPRING_BACK>(
-                first_ring,
-                branch,
-                &windows,
-                &mut best,
-                &mut best_pass,
-            );
+            if self.scalar_only {
+                self.run_off_circle(first_ring, branch, &windows, &mut best, &mut best_pass);
+            } else {
+                self.run::<OFF_CENTRE, SPRING_BACK>(
+                    first_ring,
+                    branch,
+                    &windows,
+                    &mut best,
+                    &mut best_pass,
+                );
+            }
             for (l, window) in windows.iter().enumerate() {
                 if let Some(rev) = window.table_end {
                     self.table_end_pass(
@@ -459,6 +468,116 @@ impl<'a> TurningKernel<'a> {
                 best_pass[l] = if changed { pass_id } else { best_pass[l] };
             }
         }
+    }
+
+    /// [`Self::run`] for an edge off its circle (waviness, a measured edge), on centre
+    /// without spring-back, as the twin prunes it (`cpu::prune_limit`): every pass's
+    /// [`EdgeSolver::entry_bound`] in lanes (a circle holding the whole edge: one square
+    /// root), the full entry (arctangents) only where the bound reaches below the lane's
+    /// limit — the lowest entry so far, and the entry of the pass whose bound is lowest.
+    /// A pass whose bound lies above an entry some pass reaches cannot be the lowest, so
+    /// the samples are the twin's to the bit; its full entries are the twin's own.
+    fn run_off_circle(
+        &self,
+        first_ring: usize,
+        branch: Branch,
+        windows: &[PassWindow; LANES],
+        best: &mut Lanes,
+        best_pass: &mut [u32; LANES],
+    ) {
+        let live = windows.iter().filter(|w| w.first <= w.last);
+        let (Some(first), Some(last)) = (
+            live.clone().map(|w| w.first).min(),
+            live.map(|w| w.last).max(),
+        ) else {
+            return;
+        };
+        let ray = RayLanes::new(&self.rings, first_ring);
+        // The lowest bound of each lane, and its pass's full entry: the limit.
+        let mut lowest = [(f64::INFINITY, None); LANES];
+        for rev in first..=last {
+            let bounds = self.bounds(&ray, branch, windows, rev);
+            for l in 0..LANES {
+                if bounds[l] < lowest[l].0 {
+                    lowest[l] = (bounds[l], Some(rev));
+                }
+            }
+        }
+        let mut limit = *best;
+        for l in 0..LANES {
+            if let Some(rev) = lowest[l].1
+                && let Some(d) = self.full_entry(first_ring + l, branch, &windows[l], rev)
+            {
+                limit[l] = limit[l].min(d);
+            }
+        }
+        for rev in first..=last {
+            let bounds = self.bounds(&ray, branch, windows, rev);
+            for l in 0..LANES {
+                if bounds[l] > limit[l].min(best[l]) + PRUNE_MARGIN_MM {
+                    continue;
+                }
+                if let Some(d) = self.full_entry(first_ring + l, branch, &windows[l], rev)
+                    && d < best[l]
+                {
+                    best[l] = d;
+                    best_pass[l] = rev as u32 * PASS_ID_STRIDE + branch as u32;
+                }
+            }
+        }
+    }
+
+    /// [`EdgeSolver::entry_bound`] of pass `rev` in every lane: +∞ outside the lane's
+    /// window and where the ray misses the circle (NaN kept: the twin enters those).
+    #[inline(always)]
+    fn bounds(
+        &self,
+        ray: &RayLanes,
+        branch: Branch,
+        windows: &[PassWindow; LANES],
+        rev: i64,
+    ) -> Lanes {
+        let window = &windows[0];
+        let steps = self.scene.poses.steps_per_rev as i64;
+        let node = (window.node0 + rev * steps).clamp(0, self.nodes.x.len() as i64 - 1);
+        let (x, z, b) = self.nodes.lerp(node as usize, window.t);
+        let tip = self.tip(branch, b);
+        let sign = branch.x_sign();
+        let edge = &self.edge;
+        let mut bounds = [f64::INFINITY; LANES];
+        for l in 0..LANES {
+            let from_pivot = [ray.lateral[l] - sign * x, ray.height[l] - z];
+            let direction = [ray.direction_x[l], ray.normal_y[l]];
+            let (d, _, discriminant) = circle_root(
+                from_pivot,
+                direction,
+                ray.direction_squared[l],
+                tip,
+                edge,
+                edge.outer_radius_mm,
+            );
+            let inside = rev >= windows[l].first && rev <= windows[l].last;
+            // The twin skips a pass only where the discriminant is negative (NaN enters).
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
+            let enters = !(discriminant < 0.0);
+            bounds[l] = if inside && enters { d } else { f64::INFINITY };
+        }
+        bounds
+    }
+
+    /// The twin's entry of pass `rev` into ring `ring`'s ray (its own pose and edge).
+    fn full_entry(
+        &self,
+        ring: usize,
+        branch: Branch,
+        window: &PassWindow,
+        rev: i64,
+    ) -> Option<f64> {
+        let steps = self.scene.poses.steps_per_rev as i64;
+        let node = (window.node0 + rev * steps) as usize;
+        let poses = &self.scene.poses.poses;
+        let pose = poses[node].lerp(poses[node + 1], window.t);
+        pass_entry(self.scene, &self.edge, ring, pose, branch)
     }
 
     /// The tip direction in a branch's frame for B = `b_rad`.
@@ -571,20 +690,7 @@ impl<'a> TurningKernel<'a> {
     ) -> (f64, bool) {
         let edge = &self.edge;
         let radius = edge.circle_radius_mm;
-        let w = [
-            from_pivot[0] + edge.tip_offset_mm * tip[0],
-            from_pivot[1] + edge.tip_offset_mm * tip[1],
-        ];
-        let b = w[0] * m[0] + w[1] * m[1];
-        let c = (w[0] * w[0] + w[1] * w[1]) - radius * radius;
-        let discriminant = b * b - m_squared * c;
-        let root = discriminant.sqrt();
-        let (numerator, denominator) = if b < 0.0 {
-            (c, root - b)
-        } else {
-            (-b - root, m_squared)
-        };
-        let d = numerator / denominator;
+        let (d, w, discriminant) = circle_root(from_pivot, m, m_squared, tip, edge, radius);
         let hit = [w[0] + d * m[0], w[1] + d * m[1]];
         // Negated as in the twin, whose `if x < y { return None }` lets NaN through.
         #[allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -592,6 +698,34 @@ impl<'a> TurningKernel<'a> {
             && !(hit[0] * tip[0] + hit[1] * tip[1] < radius * edge.cos_half_span);
         (d, hit)
     }
+}
+
+/// The lower root of the ray `from_pivot + d·m` in the circle of `radius` about the
+/// edge's arc centre (`circle_entry`'s arithmetic): (d, the origin from that centre, the
+/// discriminant).
+#[inline(always)]
+fn circle_root(
+    from_pivot: [f64; 2],
+    m: [f64; 2],
+    m_squared: f64,
+    tip: [f64; 2],
+    edge: &EdgeSolver,
+    radius: f64,
+) -> (f64, [f64; 2], f64) {
+    let w = [
+        from_pivot[0] + edge.tip_offset_mm * tip[0],
+        from_pivot[1] + edge.tip_offset_mm * tip[1],
+    ];
+    let b = w[0] * m[0] + w[1] * m[1];
+    let c = (w[0] * w[0] + w[1] * w[1]) - radius * radius;
+    let discriminant = b * b - m_squared * c;
+    let root = discriminant.sqrt();
+    let (numerator, denominator) = if b < 0.0 {
+        (c, root - b)
+    } else {
+        (-b - root, m_squared)
+    };
+    (numerator / denominator, w, discriminant)
 }
 
 /// One pass's pose per lane: the nose centre and the tip direction in the branch's frame.

@@ -272,6 +272,7 @@ fn reachable_revolutions(
         .iter()
         .map(|ring| (ring.radius_mm * ring.radius_mm - y0 * y0).max(0.0).sqrt())
         .collect();
+    let blocks = RingBlocks::new(grid, &laterals);
     let revs = (0..rev_count)
         .into_par_iter()
         .fold(
@@ -280,7 +281,8 @@ fn reachable_revolutions(
                 let k = first_rev + rev as i64;
                 if let Some(bounds) = revolution_bounds(poses, TAU * (k - 1) as f64, TAU * k as f64)
                 {
-                    revolution_reach(grid, &laterals, &bounds, reach, y0, |ring, branch| {
+                    let rings = (grid, &laterals[..], &blocks);
+                    revolution_reach(rings, &bounds, reach, y0, |ring, branch| {
                         revs[ring][branch as usize].include(rev)
                     });
                 }
@@ -308,8 +310,7 @@ fn reachable_revolutions(
 /// Calls `reached(ring, branch)` for every ring and branch one revolution of bounding
 /// box `bounds` reaches.
 fn revolution_reach(
-    grid: &PolarGrid,
-    laterals: &[f64],
+    (grid, laterals, blocks): (&PolarGrid, &[f64], &RingBlocks),
     bounds: &Bounds,
     reach: f64,
     y0: f64,
@@ -329,14 +330,25 @@ fn revolution_reach(
             (-bounds.x_max, -bounds.x_min)
         };
         let first_ring = laterals.partition_point(|&q| q < x_lo - reach);
-        let end_ring = laterals.partition_point(|&q| q <= x_hi + reach);
-        let window = first_ring..end_ring.max(first_ring);
-        let candidates = grid.rings[window.clone()].iter().zip(&laterals[window]);
-        for (index, (ring, &q)) in (first_ring..).zip(candidates) {
-            let dx = (x_lo - q).max(q - x_hi).max(0.0);
-            if edge_reaches(ring) && within(dx, dz(ring), reach) {
-                reached(index, branch);
+        let end_ring = laterals
+            .partition_point(|&q| q <= x_hi + reach)
+            .max(first_ring);
+        let mut start = first_ring;
+        while start < end_ring {
+            let block = start / RING_BLOCK;
+            let end = ((block + 1) * RING_BLOCK).min(end_ring);
+            if blocks.out_of_reach(block, bounds, (x_lo, x_hi), reach) {
+                start = end;
+                continue;
             }
+            let candidates = grid.rings[start..end].iter().zip(&laterals[start..end]);
+            for (index, (ring, &q)) in (start..).zip(candidates) {
+                let dx = (x_lo - q).max(q - x_hi).max(0.0);
+                if edge_reaches(ring) && within(dx, dz(ring), reach) {
+                    reached(index, branch);
+                }
+            }
+            start = end;
         }
     }
     // The flank touches the pip where the edge spans the axis (|x| < R).
@@ -351,6 +363,56 @@ fn revolution_reach(
                 reached(index, Branch::Flank);
             }
         }
+    }
+}
+
+/// Rings per block of [`RingBlocks`].
+const RING_BLOCK: usize = 32;
+
+/// Consecutive rings in blocks, each with the span of its laterals and heights: a
+/// revolution whose bounding box lies out of reach of a block's span reaches none of
+/// its rings (each ring's distances are at least the block's, and IEEE arithmetic is
+/// monotonic, so the ring-by-ring test would refuse every one), and the block is skipped.
+struct RingBlocks {
+    lateral: Vec<(f64, f64)>,
+    height: Vec<(f64, f64)>,
+}
+
+impl RingBlocks {
+    fn new(grid: &PolarGrid, laterals: &[f64]) -> Self {
+        let span = |values: &mut dyn Iterator<Item = f64>| {
+            values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            })
+        };
+        RingBlocks {
+            lateral: laterals
+                .chunks(RING_BLOCK)
+                .map(|c| span(&mut c.iter().copied()))
+                .collect(),
+            height: grid
+                .rings
+                .chunks(RING_BLOCK)
+                .map(|c| span(&mut c.iter().map(|r| r.height_mm)))
+                .collect(),
+        }
+    }
+
+    /// Whether no ring of `block` lies within `reach` of the box (`x_lo..x_hi` the
+    /// branch's lateral span) by [`within`]'s own rule.
+    fn out_of_reach(
+        &self,
+        block: usize,
+        bounds: &Bounds,
+        (x_lo, x_hi): (f64, f64),
+        reach: f64,
+    ) -> bool {
+        let (q_lo, q_hi) = self.lateral[block];
+        let (h_lo, h_hi) = self.height[block];
+        let dx = (x_lo - q_hi).max(q_lo - x_hi).max(0.0);
+        let dz = (bounds.z_min - h_hi).max(h_lo - bounds.z_max).max(0.0);
+        // NaN spans (no such ring) never skip.
+        dx * dx + dz * dz > reach * reach * (1.0 + 1e-12)
     }
 }
 
@@ -405,4 +467,93 @@ fn revolution_bounds(poses: &PoseTable, c_from: f64, c_to: f64) -> Option<Bounds
         bounds.z_max = bounds.z_max.max(pose.z_mm);
     }
     bounds.x_min.is_finite().then_some(bounds)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::Scene;
+    use crate::io::job::Job;
+
+    /// Every ring tested against every revolution's box by [`within`], no window and no
+    /// blocks: what [`reachable_revolutions`] must find.
+    fn every_ring(
+        grid: &PolarGrid,
+        poses: &PoseTable,
+        (first_rev, rev_count): (i64, u32),
+        reach: f64,
+        y0: f64,
+    ) -> Vec<[RevRange; 3]> {
+        let mut revs = vec![[RevRange::EMPTY; 3]; grid.ring_count()];
+        for rev in 0..rev_count {
+            let k = first_rev + rev as i64;
+            let Some(b) = revolution_bounds(poses, TAU * (k - 1) as f64, TAU * k as f64) else {
+                continue;
+            };
+            for (i, ring) in grid.rings.iter().enumerate() {
+                let q = (ring.radius_mm * ring.radius_mm - y0 * y0).max(0.0).sqrt();
+                let edge = y0 == 0.0 || ring.radius_mm > y0.abs();
+                let dz = (b.z_min - ring.height_mm)
+                    .max(ring.height_mm - b.z_max)
+                    .max(0.0);
+                for (branch, (lo, hi)) in [
+                    (Branch::Direct, (b.x_min, b.x_max)),
+                    (Branch::Mirrored, (-b.x_max, -b.x_min)),
+                ] {
+                    let dx = (lo - q).max(q - hi).max(0.0);
+                    if edge && within(dx, dz, reach) {
+                        revs[i][branch as usize].include(rev);
+                    }
+                }
+                if y0 < 0.0 && !edge && b.x_min < reach && b.x_max > -reach && dz <= reach {
+                    revs[i][Branch::Flank as usize].include(rev);
+                }
+            }
+        }
+        revs
+    }
+
+    #[test]
+    fn skipped_ring_blocks_change_no_reachable_range() {
+        let job = Job::from_toml_str(
+            r#"version = 1
+[surface]
+kind = "sphere"
+form = "convex"
+radius_mm = 3.0
+aperture_diameter_mm = 1.0
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.1
+included_angle_deg = 120.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.005
+stock_allowance_mm = 0.002
+[grid]
+pitch_um = 0.5
+azimuths = 4
+"#,
+            "reach",
+        )
+        .expect("valid job");
+        let scenes = crate::run::prepare_scenes(&job);
+        let Some(Scene::Turning(scene)) = scenes.first() else {
+            panic!("a turning scene");
+        };
+        let first_rev = (scene.poses.start_angle_rad / TAU).ceil() as i64;
+        let revs = (first_rev, scene.rev_count);
+        let mut reached = 0;
+        for (reach, y0) in [(0.103, 0.0), (0.103, 0.004), (0.103, -0.004), (0.02, 0.0)] {
+            let found =
+                reachable_revolutions(&scene.grid, &scene.poses, first_rev, revs.1, reach, y0);
+            let expected = every_ring(&scene.grid, &scene.poses, revs, reach, y0);
+            for (ring, (f, e)) in found.iter().zip(&expected).enumerate() {
+                assert_eq!(f.revs, *e, "reach {reach}, y0 {y0}: ring {ring}");
+                reached += e.iter().filter(|r| !r.is_empty()).count();
+            }
+        }
+        assert!(reached > 1000, "only {reached} ring ranges reached");
+    }
 }
