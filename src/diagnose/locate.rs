@@ -520,9 +520,9 @@ struct ScanTrace {
     azimuth_rad: f64,
     simulated: Trace,
     judged: Trace,
-    /// The two as the wide search reads them.
-    simulated_line: ScanLine,
-    judged_line: ScanLine,
+    /// Each trace's interval slopes, as the wide search reads them.
+    simulated_slopes: Vec<f64>,
+    judged_slopes: Vec<f64>,
 }
 
 impl ScanTrace {
@@ -530,8 +530,8 @@ impl ScanTrace {
         let judged = seen(simulated.clone());
         Self {
             azimuth_rad,
-            simulated_line: ScanLine::new(&simulated),
-            judged_line: ScanLine::new(&judged),
+            simulated_slopes: interval_slopes(&simulated),
+            judged_slopes: interval_slopes(&judged),
             judged,
             simulated,
         }
@@ -577,7 +577,15 @@ fn wide_scan(
             let mut scratch = ScanScratch::default();
             let values: Vec<f64> = positions
                 .iter()
-                .map(|&a| points.objective(&traces[t].judged_line, a, s, power, &mut scratch))
+                .map(|&a| {
+                    points.objective(
+                        (&traces[t].judged, &traces[t].judged_slopes),
+                        a,
+                        s,
+                        power,
+                        &mut scratch,
+                    )
+                })
                 .collect();
             local_minima(&values)
                 .into_iter()
@@ -651,7 +659,15 @@ fn form_starts(
     let mut scratch = ScanScratch::default();
     let values: Vec<f64> = positions
         .iter()
-        .map(|&a| points.objective(&trace.simulated_line, a, 1.0, power, &mut scratch))
+        .map(|&a| {
+            points.objective(
+                (&trace.simulated, &trace.simulated_slopes),
+                a,
+                1.0,
+                power,
+                &mut scratch,
+            )
+        })
         .collect();
     let mut found: Vec<Start> = local_minima(&values)
         .into_iter()
@@ -800,28 +816,15 @@ struct ScanPoints {
     centred: Vec<f64>,
 }
 
-/// A trace as the wide search reads it: its samples and each interval's slope, so that
-/// a point's height is one multiply-add from the sample below it.
-struct ScanLine {
-    x: Vec<f64>,
-    z: Vec<f64>,
-    slope: Vec<f64>,
-}
-
-impl ScanLine {
-    fn new(trace: &Trace) -> Self {
-        let slope = trace
-            .x
-            .windows(2)
-            .zip(trace.z.windows(2))
-            .map(|(x, z)| (z[1] - z[0]) / (x[1] - x[0]))
-            .collect();
-        Self {
-            x: trace.x.clone(),
-            z: trace.z.clone(),
-            slope,
-        }
-    }
+/// Each interval's slope of `trace`, so that the wide search reads a point's height as
+/// one multiply-add from the sample below it.
+fn interval_slopes(trace: &Trace) -> Vec<f64> {
+    trace
+        .x
+        .windows(2)
+        .zip(trace.z.windows(2))
+        .map(|(x, z)| (z[1] - z[0]) / (x[1] - x[0]))
+        .collect()
 }
 
 impl ScanPoints {
@@ -843,7 +846,7 @@ impl ScanPoints {
     /// holds the differences from the trace and their squares).
     fn objective(
         &self,
-        line: &ScanLine,
+        (trace, slopes): (&Trace, &[f64]),
         along: f64,
         scale: f64,
         power: bool,
@@ -852,7 +855,7 @@ impl ScanPoints {
         let ScanScratch { targets, squares } = scratch;
         targets.clear();
         squares.clear();
-        let x = &line.x;
+        let x = &trace.x;
         let last = x.len().saturating_sub(1);
         // The walk starts where the first point falls (the trace spans the whole part,
         // far more samples than the points).
@@ -873,7 +876,7 @@ impl ScanPoints {
             }
             stride = k - from;
             let target = if k < last && x[k] <= u {
-                y - (line.z[k] + (u - x[k]) * line.slope[k])
+                y - (trace.z[k] + (u - x[k]) * slopes[k])
             } else {
                 f64::NAN
             };

@@ -411,14 +411,9 @@ impl<'a> TurningKernel<'a> {
         best: &mut Lanes,
         best_pass: &mut [u32; LANES],
     ) {
-        let live = windows.iter().filter(|w| w.first <= w.last);
-        let (Some(first), Some(last)) = (
-            live.clone().map(|w| w.first).min(),
-            live.map(|w| w.last).max(),
-        ) else {
+        let Some((first, last)) = revolutions(windows) else {
             return;
         };
-        let steps = self.scene.poses.steps_per_rev as i64;
         let sign = branch.x_sign();
         let ray = RayLanes::new(&self.rings, first_ring);
         let (lane_first, lane_last) = (windows.map(|w| w.first), windows.map(|w| w.last));
@@ -426,17 +421,12 @@ impl<'a> TurningKernel<'a> {
             let mut pose = PoseLanes::default();
             if OFF_CENTRE {
                 for (l, window) in windows.iter().enumerate() {
-                    let node = (window.node0 + rev * steps).clamp(0, self.nodes.x.len() as i64 - 1);
-                    let (x, z, b) = self.nodes.lerp(node as usize, window.t);
-                    let [tip_x, tip_y] = self.tip(branch, b);
+                    let (x, z, [tip_x, tip_y]) = self.pose(window, rev, branch);
                     (pose.x[l], pose.z[l], pose.tip_x[l], pose.tip_y[l]) = (x, z, tip_x, tip_y);
                 }
             } else {
                 // One pose (and tip) for the whole block.
-                let window = &windows[0];
-                let node = (window.node0 + rev * steps).clamp(0, self.nodes.x.len() as i64 - 1);
-                let (x, z, b) = self.nodes.lerp(node as usize, window.t);
-                let [tip_x, tip_y] = self.tip(branch, b);
+                let (x, z, [tip_x, tip_y]) = self.pose(&windows[0], rev, branch);
                 pose = PoseLanes {
                     x: [x; LANES],
                     z: [z; LANES],
@@ -485,11 +475,7 @@ impl<'a> TurningKernel<'a> {
         best: &mut Lanes,
         best_pass: &mut [u32; LANES],
     ) {
-        let live = windows.iter().filter(|w| w.first <= w.last);
-        let (Some(first), Some(last)) = (
-            live.clone().map(|w| w.first).min(),
-            live.map(|w| w.last).max(),
-        ) else {
+        let Some((first, last)) = revolutions(windows) else {
             return;
         };
         let ray = RayLanes::new(&self.rings, first_ring);
@@ -537,11 +523,8 @@ impl<'a> TurningKernel<'a> {
         windows: &[PassWindow; LANES],
         rev: i64,
     ) -> Lanes {
-        let window = &windows[0];
-        let steps = self.scene.poses.steps_per_rev as i64;
-        let node = (window.node0 + rev * steps).clamp(0, self.nodes.x.len() as i64 - 1);
-        let (x, z, b) = self.nodes.lerp(node as usize, window.t);
-        let tip = self.tip(branch, b);
+        // On centre one pose serves the block.
+        let (x, z, tip) = self.pose(&windows[0], rev, branch);
         let sign = branch.x_sign();
         let edge = &self.edge;
         let mut bounds = [f64::INFINITY; LANES];
@@ -578,6 +561,16 @@ impl<'a> TurningKernel<'a> {
         let poses = &self.scene.poses.poses;
         let pose = poses[node].lerp(poses[node + 1], window.t);
         pass_entry(self.scene, &self.edge, ring, pose, branch)
+    }
+
+    /// Pass `rev`'s pose in a lane's `window`: the nose centre (x, z) and the tip
+    /// direction in the branch's frame.
+    #[inline(always)]
+    fn pose(&self, window: &PassWindow, rev: i64, branch: Branch) -> (f64, f64, [f64; 2]) {
+        let steps = self.scene.poses.steps_per_rev as i64;
+        let node = (window.node0 + rev * steps).clamp(0, self.nodes.x.len() as i64 - 1);
+        let (x, z, b) = self.nodes.lerp(node as usize, window.t);
+        (x, z, self.tip(branch, b))
     }
 
     /// The tip direction in a branch's frame for B = `b_rad`.
@@ -698,6 +691,15 @@ impl<'a> TurningKernel<'a> {
             && !(hit[0] * tip[0] + hit[1] * tip[1] < radius * edge.cos_half_span);
         (d, hit)
     }
+}
+
+/// The revolutions any lane's window holds (first, last); `None` when none does.
+fn revolutions(windows: &[PassWindow; LANES]) -> Option<(i64, i64)> {
+    let live = windows.iter().filter(|w| w.first <= w.last);
+    Some((
+        live.clone().map(|w| w.first).min()?,
+        live.map(|w| w.last).max()?,
+    ))
 }
 
 /// The lower root of the ray `from_pivot + d·m` in the circle of `radius` about the
