@@ -498,11 +498,35 @@ fn a_decentre_on_a_diameter_is_fitted_half_a_turn_round_where_it_lies() {
         "decentre_2.11um_r5_feed8_diameter.csv",
         &["--remove-power"],
     );
-    assert_status(&d, "effects_found");
-    assert_sized(accepted(&d, "x_decentre"), 2.11);
+    assert_decentre_alone(&d, 2.11, 0.75, 0.113);
+}
+
+/// The decentre alone within 2σ and 10 % of `truth` (µm), under `left_nm` RMS left (the
+/// noise is 0.5 nm), the axis where the generator put it (file x, mm).
+fn assert_decentre_alone(d: &serde_json::Value, truth: f64, left_nm: f64, axis_mm: f64) {
+    assert_status(d, "effects_found");
+    assert_sized(accepted(d, "x_decentre"), truth);
     let left = d["residual_after"]["rms_nm"].as_f64().unwrap();
-    assert!(left < 0.75, "{left} nm RMS left (noise 0.5 nm)");
-    assert_axis(&d, 0.113);
+    assert!(left < left_nm, "{left} nm RMS left (noise 0.5 nm)");
+    assert_axis(d, axis_mm);
+}
+
+/// A +1.11 µm decentre on an R28 sphere, 0.8 mm nose, 5 µm/rev, a diameter at 1 µm
+/// points (random-batch draw u02). An edge waviness of order 50.9 — a third of a cycle
+/// over the 2° of edge the part's slopes use: a bend — leaves the decentre's print;
+/// fitted beside it, its linear σ widened the decentre's to 0.57 µm (1.9σ) and the
+/// look-alike alone was kept as an equal explanation (`ambiguous`, nothing claimed),
+/// though alone it explains the data far worse (ΔBIC −718). A look-alike refuted alone
+/// now widens the σ by the move it makes: the decentre alone, within 2σ and 10 %, the
+/// noise left.
+#[test]
+fn a_decentre_on_a_long_radius_is_not_taken_for_a_bend_of_the_edge() {
+    let d = diagnose_job(
+        "r28_nose08_sphere.toml",
+        "decentre_1.11um_r28_nose08_diameter.csv",
+        &["--remove-power"],
+    );
+    assert_decentre_alone(&d, 1.11, 0.6, 0.103);
 }
 
 /// A 25 × 25 map of 100 µm pixels whose field reaches past the part's rim (corners

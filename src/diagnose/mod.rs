@@ -902,10 +902,7 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
         return Vec::new();
     };
     let tied = if let Some(alternative) = &found.alternative {
-        vec![
-            search::labels(&accepted.set),
-            search::labels(&alternative.set),
-        ]
+        search::distinct_labels(accepted, alternative).to_vec()
     } else {
         let Some((best, _)) = found.singles.first() else {
             return Vec::new();
