@@ -174,11 +174,16 @@ impl Fit {
             .collect()
     }
 
+    /// Where one member's parameters lie in `values`, `sigmas` and `parameters`.
+    pub fn parameter_span(&self, member: usize) -> std::ops::Range<usize> {
+        let start: usize = self.set[..member].iter().map(width).sum();
+        start..start + width(&self.set[member])
+    }
+
     /// The values and sigmas of one member of the set.
     pub fn values_of(&self, member: usize) -> (&[f64], &[f64]) {
-        let start: usize = self.set[..member].iter().map(width).sum();
-        let end = start + width(&self.set[member]);
-        (&self.values[start..end], &self.sigmas[start..end])
+        let span = self.parameter_span(member);
+        (&self.values[span.clone()], &self.sigmas[span])
     }
 }
 

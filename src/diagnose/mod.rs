@@ -34,7 +34,7 @@ pub mod zones;
 use crate::engine::RemovalEngine;
 use crate::io::job::Job;
 use candidates::{Candidate, NotDiagnosable, candidates_for};
-use fit::{AzimuthPrior, Fit, Problem, width};
+use fit::{AzimuthPrior, Fit, Problem};
 use forward::{ForwardError, ForwardModel};
 use glam::DVec2;
 use locate::Located;
@@ -731,8 +731,8 @@ fn calibration_mask(
 fn effect_result(fit: &Fit, i: usize, rss0: f64) -> CandidateResult {
     let c = fit.set[i];
     let (values, sigmas) = fit.values_of(i);
-    let start: usize = fit.set[..i].iter().map(width).sum();
-    let at_bound = &fit.at_bound[start..start + values.len()];
+    let span = fit.parameter_span(i);
+    let at_bound = &fit.at_bound[span.clone()];
     let mut description = c.describe(values, sigmas);
     if at_bound.iter().any(|b| *b) {
         description.push_str(" — at the search bound, not a fit");
@@ -744,7 +744,7 @@ fn effect_result(fit: &Fit, i: usize, rss0: f64) -> CandidateResult {
         parameters: values
             .iter()
             .zip(sigmas)
-            .zip(&fit.parameters[start..start + values.len()])
+            .zip(&fit.parameters[span])
             .zip(at_bound)
             .map(|(((v, s), p), b)| ParameterValue {
                 name: p.name.into(),

@@ -442,7 +442,7 @@ fn mirrored_member(
     }
     let orders = OrderRange::new(job, problem.measurement);
     for &m in members.iter().filter(|&&m| width(&current.set[m]) == 1) {
-        let j: usize = current.set[..m].iter().map(width).sum();
+        let j = current.parameter_span(m).start;
         let mut start = current.values.clone();
         start[j] = -start[j];
         let mirrored = problem.fit(&current.set, start, &[])?;
@@ -487,10 +487,13 @@ pub fn labels_with_values(fit: &Fit) -> String {
     fit.effect_members()
         .into_iter()
         .map(|m| {
-            let (values, _) = fit.values_of(m);
-            let j: usize = fit.set[..m].iter().map(width).sum();
-            match values {
-                [v] => format!("{} ({v:.3} {})", fit.set[m].label(), fit.parameters[j].unit),
+            let span = fit.parameter_span(m);
+            match fit.values[span.clone()] {
+                [v] => format!(
+                    "{} ({v:.3} {})",
+                    fit.set[m].label(),
+                    fit.parameters[span.start].unit
+                ),
                 _ => fit.set[m].label(),
             }
         })
@@ -607,20 +610,24 @@ fn widen_for_look_alikes(
             .take(LOOK_ALIKES)
             .map(|(f, _)| f.set[f.set.len() - 1])
             .collect();
-        let span = {
-            let start: usize = accepted.set[..member].iter().map(width).sum();
-            start..start + width(&accepted.set[member])
-        };
+        let span = accepted.parameter_span(member);
         for c in look_alikes {
             let Some(beside) = fit_new(problem, &accepted.set, &accepted.values, c, job, fitted)?
             else {
                 continue;
             };
-            let mut widened = accepted.clone();
-            for j in span.clone() {
-                let moved = (beside.values[j] - accepted.values[j]).abs();
-                widened.sigmas[j] = accepted.sigmas[j].max(beside.sigmas[j]).max(moved);
-            }
+            // The member's σs widened to the distance it moved beside the look-alike,
+            // and (`by_sigma`) to its σ there.
+            let widened_by = |by_sigma: bool| {
+                let mut widened = accepted.clone();
+                for j in span.clone() {
+                    let moved = (beside.values[j] - accepted.values[j]).abs();
+                    let sigma = if by_sigma { beside.sigmas[j] } else { 0.0 };
+                    widened.sigmas[j] = accepted.sigmas[j].max(sigma).max(moved);
+                }
+                widened
+            };
+            let mut widened = widened_by(true);
             if !significant(&widened, member) {
                 let instead = with_member_last(problem, &beside, member, false)?;
                 let gain = evidence(
@@ -633,11 +640,7 @@ fn widen_for_look_alikes(
                 // the look-alike is the linear width of a direction the data close
                 // before zero: where the move it makes leaves the member clear, the σ
                 // is widened by the move alone.
-                let mut moved_only = accepted.clone();
-                for j in span.clone() {
-                    let moved = (beside.values[j] - accepted.values[j]).abs();
-                    moved_only.sigmas[j] = accepted.sigmas[j].max(moved);
-                }
+                let moved_only = widened_by(false);
                 if gain <= -TIE_EVIDENCE && significant(&moved_only, member) {
                     log(&format!(
                         "{} alone explains less than {} (ΔBIC {gain:.1}): it widens that σ by the move it makes",
@@ -824,9 +827,7 @@ fn not_a_fit(fit: &Fit, member: usize, orders: OrderRange) -> Option<String> {
     if let Some(why) = order_at_bound(fit.set[member], orders) {
         return Some(why);
     }
-    let start: usize = fit.set[..member].iter().map(width).sum();
-    let n = width(&fit.set[member]);
-    if let Some(j) = (start..start + n).find(|&j| fit.at_bound[j]) {
+    if let Some(j) = fit.parameter_span(member).find(|&j| fit.at_bound[j]) {
         let p = &fit.parameters[j];
         return Some(format!(
             "{} {:.4} {} sits at its search bound (±{:.4} {}): not a fit",
@@ -893,8 +894,7 @@ fn order_at_bound(c: Candidate, range: OrderRange) -> Option<String> {
 /// Whether the member's only fault is its doubt: within its bounds and removing enough of
 /// the residual, but within 3σ of zero.
 fn only_doubtful(fit: &Fit, member: usize, before: f64, orders: OrderRange) -> bool {
-    let start: usize = fit.set[..member].iter().map(width).sum();
-    let within_bounds = (start..start + width(&fit.set[member])).all(|j| !fit.at_bound[j])
+    let within_bounds = fit.parameter_span(member).all(|j| !fit.at_bound[j])
         && order_at_bound(fit.set[member], orders).is_none();
     within_bounds && !significant(fit, member) && too_small(before, fit.objective).is_none()
 }
@@ -916,7 +916,7 @@ fn too_small(before: f64, after: f64) -> Option<String> {
 
 /// A fold-tested effect's σ is at least half the spread of its values over the folds.
 fn widen_sigmas(fit: &mut Fit, member: usize, spread: &[f64]) {
-    let start: usize = fit.set[..member].iter().map(width).sum();
+    let start = fit.parameter_span(member).start;
     for (j, s) in spread.iter().enumerate() {
         if s.is_finite() && fit.sigmas[start + j].is_finite() {
             fit.sigmas[start + j] = fit.sigmas[start + j].max(*s);
