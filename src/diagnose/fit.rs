@@ -12,7 +12,7 @@
 use super::candidates::{Candidate, Parameter};
 use super::forward::{ForwardError, ForwardModel, Frame, SimulatedSurface};
 use super::measurement::Measurement;
-use super::register::{Registered, ShiftSearch, Terms, register};
+use super::register::{Registered, ShiftSearch, Terms, register, register_beside};
 use super::spectrum::LineNoise;
 use super::zones::correlation_length;
 use crate::numeric::{
@@ -270,14 +270,19 @@ pub(super) fn register_trial(
     sim: &SimulatedSurface,
     terms: Terms,
     shift: ShiftSearch,
-    set: &[Candidate],
-    values: &[f64],
+    (set, values): (&[Candidate], &[f64]),
+    near: Option<&Registered>,
 ) -> Registered {
     let stretch = stretch_of(set, values);
-    if stretch == 1.0 {
-        return register(m, sim, terms, Some(shift));
+    let placed = if stretch == 1.0 {
+        std::borrow::Cow::Borrowed(m)
+    } else {
+        std::borrow::Cow::Owned(stretched(m, stretch))
+    };
+    match near {
+        Some(near) => register_beside(&placed, sim, terms, shift, near),
+        None => register(&placed, sim, terms, Some(shift)),
     }
-    register(&stretched(m, stretch), sim, terms, Some(shift))
 }
 
 /// `m` placed about its own axis (no shift) at `stretch`: its distances from the axis
@@ -395,7 +400,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         }
         let sim = self.simulation(set, values)?;
         let registered =
-            register_trial(self.measurement, &sim, self.terms, self.shift, set, values);
+            register_trial(self.measurement, &sim, self.terms, self.shift, (set, values), None);
         let evaluation = Rc::new(Evaluation {
             values: values.to_vec(),
             registered,
@@ -410,6 +415,17 @@ impl<'a, 'e> Problem<'a, 'e> {
     pub fn evaluate_many(
         &mut self,
         trials: &[(Vec<Candidate>, Vec<f64>)],
+    ) -> Result<(), ForwardError> {
+        self.evaluate_trials(trials, None)
+    }
+
+    /// As [`Problem::evaluate_many`]; with `near`, each trial is a finite-difference
+    /// step from the trial registered `near` and is registered beside it
+    /// ([`register_beside`]).
+    fn evaluate_trials(
+        &mut self,
+        trials: &[(Vec<Candidate>, Vec<f64>)],
+        near: Option<&Registered>,
     ) -> Result<(), ForwardError> {
         let mut missing: Vec<&(Vec<Candidate>, Vec<f64>)> = Vec::new();
         for trial in trials {
@@ -451,7 +467,9 @@ impl<'a, 'e> Problem<'a, 'e> {
         let registered: Vec<Registered> = missing
             .par_iter()
             .zip(sims)
-            .map(|((set, values), sim)| register_trial(m, sim, terms, shift, set, values))
+            .map(|((set, values), sim)| {
+                register_trial(m, sim, terms, shift, (set, values), near)
+            })
             .collect();
         for ((set, values), registered) in missing.into_iter().zip(registered) {
             let evaluation = Rc::new(Evaluation {
@@ -1043,7 +1061,7 @@ impl<'a, 'e> Problem<'a, 'e> {
                 (set.to_vec(), trial)
             })
             .collect();
-        self.evaluate_many(&trials)?;
+        self.evaluate_trials(&trials, Some(&at.registered))?;
         (0..values.len())
             .map(|j| self.column(set, parameters, values, j, at))
             .collect()

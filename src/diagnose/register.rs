@@ -130,6 +130,46 @@ pub fn register(
     }
 }
 
+/// Registers `sim` — a trial a finite-difference step from the one registered `near` —
+/// with the axis re-optimised beside `near`'s: the same tooth and reading, the shift
+/// within one `search.step_mm` either side by the measure that placed `near` last (Σr²
+/// where a comb's teeth were polished, the trimmed mean otherwise). The optimum moves
+/// continuously with the step, so the whole search would find this one (or, where it
+/// flipped to another tooth, a column no derivative can come from). A map, or a line
+/// whose axis is not searched, is registered as `register` does.
+pub fn register_beside(
+    m: &Measurement,
+    sim: &SimulatedSurface,
+    terms: Terms,
+    search: ShiftSearch,
+    near: &Registered,
+) -> Registered {
+    if !terms.shift || !m.is_line() {
+        return register(m, sim, terms, Some(search));
+    }
+    let (direction, mirrored) = (m.line_direction(), near.mirrored);
+    let objective = |a: f64| {
+        let shift = near.shift_mm + a * direction;
+        let simulated = sim.sample(m, Frame::at(shift).mirrored(mirrored));
+        let (value, used) = if search.comb.is_some() {
+            line_rss(m, &simulated, shift, terms.power)
+        } else {
+            line_trimmed(m, &simulated, shift, terms.power, 0.95)
+        };
+        if used < m.len() / 2 {
+            f64::INFINITY
+        } else {
+            value
+        }
+    };
+    let a = golden_section(&objective, -search.step_mm, search.step_mm, 14);
+    let shift = near.shift_mm + a * direction;
+    Registered {
+        mirrored,
+        ..fit_linear(m, &sim.sample(m, Frame::at(shift).mirrored(mirrored)), shift, terms.power)
+    }
+}
+
 /// Registers at the best tooth of `comb`: every tooth judged on a subsample by the
 /// residual it leaves (Σr², the fits' own measure, not the trimmed one the local
 /// search uses: what tells teeth apart is often a few points at the axis) over the
