@@ -399,8 +399,14 @@ impl<'a, 'e> Problem<'a, 'e> {
             return Ok(hit.clone());
         }
         let sim = self.simulation(set, values)?;
-        let registered =
-            register_trial(self.measurement, &sim, self.terms, self.shift, (set, values), None);
+        let registered = register_trial(
+            self.measurement,
+            &sim,
+            self.terms,
+            self.shift,
+            (set, values),
+            None,
+        );
         let evaluation = Rc::new(Evaluation {
             values: values.to_vec(),
             registered,
@@ -416,29 +422,63 @@ impl<'a, 'e> Problem<'a, 'e> {
         &mut self,
         trials: &[(Vec<Candidate>, Vec<f64>)],
     ) -> Result<(), ForwardError> {
-        self.evaluate_trials(trials, None)
-    }
-
-    /// As [`Problem::evaluate_many`]; with `near`, each trial is a finite-difference
-    /// step from the trial registered `near` and is registered beside it
-    /// ([`register_beside`]).
-    fn evaluate_trials(
-        &mut self,
-        trials: &[(Vec<Candidate>, Vec<f64>)],
-        near: Option<&Registered>,
-    ) -> Result<(), ForwardError> {
-        let mut missing: Vec<&(Vec<Candidate>, Vec<f64>)> = Vec::new();
+        let mut missing: Vec<(Vec<Candidate>, Vec<f64>)> = Vec::new();
         for trial in trials {
             let key = cache_key(&trial.0, &trial.1);
             if !self.cache.contains_key(&key)
                 && !missing.iter().any(|m| cache_key(&m.0, &m.1) == key)
             {
-                missing.push(trial);
+                missing.push(trial.clone());
             }
         }
         self.forget_simulations(missing.len());
+        self.simulate_all(&missing)?;
+        let registered = self.register_all(&missing, None);
+        for ((set, values), registered) in missing.into_iter().zip(registered) {
+            let evaluation = Rc::new(Evaluation {
+                prior_mm: self.prior_term(&set, &values),
+                values,
+                registered,
+            });
+            self.cache
+                .insert(cache_key(&set, &evaluation.values), evaluation);
+        }
+        Ok(())
+    }
+
+    /// The finite-difference steps `steps` of `set` from `at`, each registered beside
+    /// `at` ([`register_beside`]), and last `at` itself registered the same way: the
+    /// columns taken between them carry no part of the whole search's own tolerance,
+    /// and a step that changes nothing gives a zero column. Not cached (a later
+    /// evaluation at the same values searches the whole comb).
+    fn evaluate_beside(
+        &mut self,
+        set: &[Candidate],
+        steps: Vec<Vec<f64>>,
+        at: &Evaluation,
+    ) -> Result<Vec<Evaluation>, ForwardError> {
+        let mut trials: Vec<(Vec<Candidate>, Vec<f64>)> =
+            steps.into_iter().map(|v| (set.to_vec(), v)).collect();
+        trials.push((set.to_vec(), at.values.clone()));
+        self.forget_simulations(trials.len());
+        self.simulate_all(&trials)?;
+        let registered = self.register_all(&trials, Some(&at.registered));
+        Ok(trials
+            .into_iter()
+            .zip(registered)
+            .map(|((set, values), registered)| Evaluation {
+                prior_mm: self.prior_term(&set, &values),
+                values,
+                registered,
+            })
+            .collect())
+    }
+
+    /// Simulates the trials whose jobs are not kept yet, side by side where the engine
+    /// allows.
+    fn simulate_all(&mut self, trials: &[(Vec<Candidate>, Vec<f64>)]) -> Result<(), ForwardError> {
         let mut to_simulate: Vec<&(Vec<Candidate>, Vec<f64>)> = Vec::new();
-        for trial in &missing {
+        for trial in trials {
             let key = job_key(&trial.0, &trial.1);
             if !self.simulations.contains_key(&key)
                 && !to_simulate.iter().any(|t| job_key(&t.0, &t.1) == key)
@@ -459,27 +499,25 @@ impl<'a, 'e> Problem<'a, 'e> {
         for ((set, values), sim) in to_simulate.into_iter().zip(sims) {
             self.simulations.insert(job_key(set, values), Rc::new(sim));
         }
-        let sims: Vec<&SimulatedSurface> = missing
+        Ok(())
+    }
+
+    /// The trials (simulated) registered side by side; beside `near` where given.
+    fn register_all(
+        &self,
+        trials: &[(Vec<Candidate>, Vec<f64>)],
+        near: Option<&Registered>,
+    ) -> Vec<Registered> {
+        let sims: Vec<&SimulatedSurface> = trials
             .iter()
             .map(|(set, values)| self.simulations[&job_key(set, values)].as_ref())
             .collect();
         let (m, terms, shift) = (self.measurement, self.terms, self.shift);
-        let registered: Vec<Registered> = missing
+        trials
             .par_iter()
             .zip(sims)
-            .map(|((set, values), sim)| {
-                register_trial(m, sim, terms, shift, (set, values), near)
-            })
-            .collect();
-        for ((set, values), registered) in missing.into_iter().zip(registered) {
-            let evaluation = Rc::new(Evaluation {
-                values: values.clone(),
-                registered,
-                prior_mm: self.prior_term(set, values),
-            });
-            self.cache.insert(cache_key(set, values), evaluation);
-        }
-        Ok(())
+            .map(|((set, values), sim)| register_trial(m, sim, terms, shift, (set, values), near))
+            .collect()
     }
 
     /// The simulation of the job `set` at `values` makes (kept for trials that differ
@@ -1054,17 +1092,25 @@ impl<'a, 'e> Problem<'a, 'e> {
         values: &[f64],
         at: &Evaluation,
     ) -> Result<Vec<Vec<f64>>, ForwardError> {
-        let trials: Vec<(Vec<Candidate>, Vec<f64>)> = (0..values.len())
-            .map(|j| {
+        let steps: Vec<f64> = (0..values.len())
+            .map(|j| step(parameters, values, j))
+            .collect();
+        let trials: Vec<Vec<f64>> = steps
+            .iter()
+            .enumerate()
+            .map(|(j, h)| {
                 let mut trial = values.to_vec();
-                trial[j] += step(parameters, values, j);
-                (set.to_vec(), trial)
+                trial[j] += h;
+                trial
             })
             .collect();
-        self.evaluate_trials(&trials, Some(&at.registered))?;
-        (0..values.len())
-            .map(|j| self.column(set, parameters, values, j, at))
-            .collect()
+        let mut moved = self.evaluate_beside(set, trials, at)?;
+        let base = moved.pop().expect("the base registered last");
+        Ok(moved
+            .iter()
+            .zip(&steps)
+            .map(|(e, h)| self.residual_change(e, &base, *h))
+            .collect())
     }
 
     fn levenberg_marquardt(

@@ -166,7 +166,12 @@ pub fn register_beside(
     let shift = near.shift_mm + a * direction;
     Registered {
         mirrored,
-        ..fit_linear(m, &sim.sample(m, Frame::at(shift).mirrored(mirrored)), shift, terms.power)
+        ..fit_linear(
+            m,
+            &sim.sample(m, Frame::at(shift).mirrored(mirrored)),
+            shift,
+            terms.power,
+        )
     }
 }
 

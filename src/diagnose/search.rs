@@ -1139,15 +1139,14 @@ fn refit_if_axis_moves(
         let sim = problem
             .model
             .simulate(&|job| super::fit::apply_set(&fit.set, &values, job))?;
-        let again =
-            super::fit::register_trial(
-                fitted,
-                &sim,
-                problem.terms,
-                wide,
-                (&fit.set, &values),
-                None,
-            );
+        let again = super::fit::register_trial(
+            fitted,
+            &sim,
+            problem.terms,
+            wide,
+            (&fit.set, &values),
+            None,
+        );
         if best.as_ref().is_none_or(|b| again.rss < b.0) {
             best = Some((again.rss, values, again.shift_mm));
         }
