@@ -32,6 +32,11 @@ const GOLDEN_STEPS: usize = 10;
 const WAVINESS_ORDER_STEPS: usize = 6;
 /// Most orders of a waviness order's grid (see [`Problem::best_waviness_order_within`]).
 const WAVINESS_GRID_ORDERS: usize = 8;
+/// Jacobians a fit takes at most.
+const LM_ITERATIONS: usize = 12;
+/// Jacobians a waviness order's fit on the order grid takes at most: the grid only
+/// brackets the best order for the golden section, whose fits run to the end.
+const GRID_ITERATIONS: usize = 3;
 /// Amplitude (nm) of the harmonics whose responses project a waviness order's residual.
 pub const WAVINESS_PROBE_NM: f64 = 20.0;
 /// Simulations a problem keeps for re-registration.
@@ -1120,10 +1125,22 @@ impl<'a, 'e> Problem<'a, 'e> {
         values: Vec<f64>,
         frozen: &[usize],
     ) -> Result<(Vec<f64>, Vec<Vec<f64>>), ForwardError> {
+        self.levenberg_marquardt_within(set, parameters, values, frozen, LM_ITERATIONS)
+    }
+
+    /// As [`Problem::levenberg_marquardt`], with at most `iterations` Jacobians.
+    fn levenberg_marquardt_within(
+        &mut self,
+        set: &[Candidate],
+        parameters: &[Parameter],
+        values: Vec<f64>,
+        frozen: &[usize],
+        iterations: usize,
+    ) -> Result<(Vec<f64>, Vec<Vec<f64>>), ForwardError> {
         let bounds: Vec<f64> = parameters.iter().map(|p| p.bound).collect();
         let small_step: Vec<f64> = parameters.iter().map(|p| 1e-4 * p.scale).collect();
         let limits = LmLimits {
-            iterations: 12,
+            iterations,
             bounds: &bounds,
             small_step: &small_step,
             min_gain: 1e-6,
@@ -1324,7 +1341,13 @@ impl<'a, 'e> Problem<'a, 'e> {
                 self.waviness_at(base_set, base_values, order, WAVINESS_PROBE_NM, &r0)?;
             let mut start = base_values.to_vec();
             start.extend([a, b]);
-            scores.push(self.fit_order(parameters, &at(order), start, &mut best)?);
+            scores.push(self.fit_order(
+                parameters,
+                &at(order),
+                start,
+                &mut best,
+                GRID_ITERATIONS,
+            )?);
         }
         let i = (0..count)
             .min_by(|&a, &b| scores[a].total_cmp(&scores[b]))
@@ -1332,7 +1355,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         try_golden_section(
             |order| {
                 let start = best.values.clone();
-                self.fit_order(parameters, &at(order), start, &mut best)
+                self.fit_order(parameters, &at(order), start, &mut best, LM_ITERATIONS)
             },
             grid[i.saturating_sub(1)],
             grid[(i + 1).min(count - 1)],
@@ -1349,10 +1372,12 @@ impl<'a, 'e> Problem<'a, 'e> {
         trial: &[Candidate],
         start: Vec<f64>,
         best: &mut Fitted,
+        iterations: usize,
     ) -> Result<f64, ForwardError> {
         let mut lowest = f64::INFINITY;
         for start in with_unit_scale(trial, start) {
-            let (values, _) = self.levenberg_marquardt(trial, parameters, start, &[])?;
+            let (values, _) =
+                self.levenberg_marquardt_within(trial, parameters, start, &[], iterations)?;
             let e = self.evaluate(trial, &values)?;
             let objective = self.rss(&e);
             lowest = lowest.min(objective);
