@@ -572,3 +572,30 @@ fn a_decentre_and_a_drift_on_coarse_maps_are_told_apart() {
         assert_map_axis(&d);
     }
 }
+
+/// Form removed, a +4 µm boss (above centre) beside an edge waviness of order 34, 50 nm
+/// (`centre_height_4um_waviness_o34_50nm_form_removed.csv`, a diameter, the axis at file
+/// x 0.095 mm). Each alone bends to imitate the other and falls short of the evidence an
+/// effect needs (the boss alone ΔBIC 4), so the verdict was `unexplained_residual`; on a
+/// finer draw of the same family, `does_not_fit` (the smooth residual beyond the little
+/// form left after the power, which no single candidate explained). The boss must be
+/// offered a partner and the pair found: the boss within 5 % and 3σ, the waviness's order
+/// within 5 % and its amplitude within 10 % and 3σ of the truth.
+#[test]
+fn a_boss_beside_a_waviness_on_a_form_removed_profile_is_found_as_the_pair() {
+    let d = diagnose("centre_height_4um_waviness_o34_50nm_form_removed.csv");
+    assert_status(&d, "effects_found");
+    let p = &accepted_effect(&d, "centre_height")["parameters"][0];
+    let (boss, sigma) = (p["value"].as_f64().unwrap(), p["sigma"].as_f64().unwrap());
+    assert!(
+        (boss / 4.0 - 1.0).abs() <= 0.05 && (boss - 4.0).abs() <= 3.0 * sigma,
+        "boss {boss} ± {sigma} µm for 4"
+    );
+    let (order, amplitude, a_sigma) = waviness(&d);
+    assert!((order / 34.0 - 1.0).abs() <= 0.05, "order {order} for 34");
+    assert!(
+        (amplitude / 50.0 - 1.0).abs() <= 0.1 && (amplitude - 50.0).abs() <= 3.0 * a_sigma,
+        "{amplitude} ± {a_sigma} nm for 50"
+    );
+    assert_axis(&d, 0.095);
+}

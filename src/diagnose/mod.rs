@@ -215,15 +215,21 @@ pub fn diagnose(
     } else {
         Search::default()
     };
-    let singles: Vec<(String, &[f64])> = found
+    // What may settle a departure from the form: each candidate alone, and what the
+    // search accepted (two effects can each bend the other's print alone).
+    let explanations: Vec<(String, &[f64])> = found
         .singles
         .iter()
-        .map(|(fit, _)| {
-            let residual = fit.evaluation.registered.residual_mm.as_slice();
-            (search::labels(&fit.set[fit.set.len() - 1..]), residual)
-        })
+        .map(|(fit, _)| (search::labels(&fit.set[fit.set.len() - 1..]), fit))
+        .chain(
+            found
+                .accepted
+                .iter()
+                .map(|fit| (search::labels(&fit.effects()), fit)),
+        )
+        .map(|(label, fit)| (label, fit.evaluation.registered.residual_mm.as_slice()))
         .collect();
-    checks::settle_form(&mut check, &fitted, period, &singles);
+    checks::settle_form(&mut check, &fitted, period, &explanations);
     if !check.fits {
         found = Search::default();
     }
@@ -896,12 +902,23 @@ fn judged_mark_shape(
 /// When the first candidate has rivals the data cannot tell from it, or another set of
 /// effects explains the data as well as the accepted one (`found.alternative`), nothing
 /// is accepted: acting on one of two causes that leave the same print is a coin toss
-/// that may make the next part worse. Returns the tied labels, the first first.
+/// that may make the next part worse. Where the two sets share the effects of an
+/// earlier step and differ only in what was added after it, that step stays accepted
+/// (both explanations hold it). Returns the tied labels, the first first.
 fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&str)) -> Vec<String> {
     let Some(accepted) = &found.accepted else {
         return Vec::new();
     };
     let tied = if let Some(alternative) = &found.alternative {
+        if let Some((shared, tied)) = shared_step(found, accepted, alternative) {
+            log(&format!(
+                "{} cannot be told apart on this measurement: {} (held by both) accepted",
+                tied.join(", "),
+                search::labels(&shared.effects())
+            ));
+            found.accepted = Some(shared);
+            return tied;
+        }
         search::distinct_labels(accepted, alternative).to_vec()
     } else {
         let Some((best, _)) = found.singles.first() else {
@@ -921,6 +938,49 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
     ));
     found.accepted = None;
     tied
+}
+
+/// The last accepted step whose effects both `accepted` and `alternative` hold, when
+/// the two differ in nothing else but effects added after it; with the labels of
+/// those differing effects (accepted's first).
+fn shared_step(found: &Search, accepted: &Fit, alternative: &Fit) -> Option<(Fit, Vec<String>)> {
+    let (a, b) = (accepted.effects(), alternative.effects());
+    let shared: Vec<Candidate> = a.iter().filter(|c| b.contains(c)).copied().collect();
+    let step = found.steps.iter().rev().find(|step| {
+        let held = step.effects();
+        !held.is_empty() && held.iter().all(|c| shared.contains(c))
+    })?;
+    let held = step.effects();
+    let beyond = |set: &[Candidate]| -> String {
+        search::labels(
+            &set.iter()
+                .filter(|c| !held.contains(c))
+                .copied()
+                .collect::<Vec<_>>(),
+        )
+    };
+    let tied = [beyond(&a), beyond(&b)];
+    if tied.iter().any(|t| t.is_empty()) {
+        return None;
+    }
+    // What the step holds moves as either further effect is added: its σ covers that.
+    let mut step = step.clone();
+    for member in step.effect_members() {
+        let values = step.values_of(member).0.to_vec();
+        let mut spread = vec![0.0_f64; values.len()];
+        for other in [accepted, alternative] {
+            if let Some(at) = other.set.iter().position(|c| *c == step.set[member]) {
+                for (s, (v, w)) in spread
+                    .iter_mut()
+                    .zip(values.iter().zip(other.values_of(at).0))
+                {
+                    *s = s.max((v - w).abs());
+                }
+            }
+        }
+        search::widen_sigmas(&mut step, member, &spread);
+    }
+    Some((step, tied.to_vec()))
 }
 
 /// Candidates the data cannot tell from the best: evidence within [`TIE_EVIDENCE`] of

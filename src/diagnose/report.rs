@@ -45,7 +45,8 @@ pub struct Diagnosis {
     /// Candidates that explain the data as well as the first (the data cannot tell them apart).
     pub indistinguishable: Vec<String>,
     /// With an `ambiguous` verdict, the explanations (effects joined by " + ") the data
-    /// cannot tell apart, the one the search accepted first; empty otherwise.
+    /// cannot tell apart, the one the search accepted first; with effects accepted, the
+    /// effects beyond them that two equally good sets differ in; empty otherwise.
     pub ambiguous: Vec<String>,
     pub held_out: Option<HeldOut>,
     pub verdict: Verdict,

@@ -170,8 +170,10 @@ pub fn search<'a>(
         ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
         let mut taken = None;
         let mut refused = Vec::new();
+        let mut weak = None;
         for (mut fit, e) in ranked.into_iter().take(TRIES_PER_ROUND) {
             if e <= options.min_evidence {
+                weak = (e > 0.0).then_some(fit);
                 break;
             }
             let member = fit.set.len() - 1;
@@ -196,6 +198,17 @@ pub fn search<'a>(
                 taken = Some(fit);
                 break;
             }
+            refused.push(fit);
+        }
+        // Nothing refused, yet more than noise left: the best single short of the
+        // evidence can be bent by a second effect it hides (a centre height's boss beside
+        // an edge waviness on a profile whose form was removed): it is offered a partner.
+        if refused.is_empty()
+            && leaves_structure(&current, fitted)
+            && let Some(fit) = weak
+            && not_a_fit(&fit, fit.set.len() - 1, orders).is_none()
+            && too_small(rss_before, fit.objective).is_none()
+        {
             refused.push(fit);
         }
         let taken = match taken {
@@ -710,7 +723,8 @@ fn refit_every_order(
 /// When no effect of a round predicts the data it was not fitted on alone, two present
 /// together can still be the cause — each fitted alone bends to imitate the other, and
 /// that bend does not carry to unseen data (a centre height beside an edge waviness,
-/// two waviness orders). The strongest effect refused for that is given the best
+/// two waviness orders), or each alone falls short of the evidence. The strongest effect
+/// refused for that (or, where none was, the best single short of the evidence) is given the best
 /// partner of all the candidates (one that explains nothing alone included), and the
 /// two are accepted together when the pair beats
 /// `current` on BIC by more than the evidence threshold, both are fits, the partner
@@ -915,7 +929,7 @@ fn too_small(before: f64, after: f64) -> Option<String> {
 }
 
 /// A fold-tested effect's σ is at least half the spread of its values over the folds.
-fn widen_sigmas(fit: &mut Fit, member: usize, spread: &[f64]) {
+pub(super) fn widen_sigmas(fit: &mut Fit, member: usize, spread: &[f64]) {
     let start = fit.parameter_span(member).start;
     for (j, s) in spread.iter().enumerate() {
         if s.is_finite() && fit.sigmas[start + j].is_finite() {

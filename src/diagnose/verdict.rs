@@ -104,6 +104,13 @@ pub fn verdict(
                     h.points, h.before_rms_nm, h.after_rms_nm
                 ));
             }
+            if !ambiguous.is_empty() {
+                sentence.push_str(&format!(
+                    " Beyond {}, {} would explain about as much more: this measurement cannot tell them apart, so neither is claimed.",
+                    if members.len() == 1 { "it" } else { "them" },
+                    ambiguous.join(" or ")
+                ));
+            }
             let mut advice: Vec<String> = members
                 .iter()
                 .map(|&i| f.set[i].advice(f.values_of(i).0))
