@@ -255,10 +255,11 @@ fn scan_edge(ring: Ring, first: u32, last: u32, phase: f32, sign: f32, branch: u
 }
 
 // Flank passes over the pip of a tool above centre (branch 2): the flank meets the sample
-// at machine (0, −r), (|y₀| − r)·tan(clearance) above the edge's height at x = 0.
+// at machine (0, −r), (|y₀| − r)·tan(clearance) above the real edge's height at x = 0
+// (its deviation w(ψ) there included).
 fn scan_flank(ring: Ring, first: u32, last: u32, phase: f32, best_in: Best) -> Best {
     var best = best_in;
-    let radius = params.nose_radius_mm + params.radius_error_mm;
+    let circle = params.nose_radius_mm + params.radius_error_mm;
     let behind = abs(params.edge_plane_y_mm) - ring.r_hi;
     let slope_factor = ring.normal_z + ring.normal_r * params.tan_clearance;
     for (var rev = first; rev <= last; rev = rev + 1u) {
@@ -270,10 +271,19 @@ fn scan_flank(ring: Ring, first: u32, last: u32, phase: f32, best_in: Best) -> B
         let p1 = poses[pn.node + 1];
         let t = pn.t;
         let b_rad = p0.b_rad + t * (p1.b_rad - p0.b_rad);
-        let offset = params.tip_offset_mm * tip_direction(b_rad);
+        let tip = tip_direction(b_rad);
+        let offset = params.tip_offset_mm * tip;
         let centre_x = (p0.x_hi + p0.x_lo) + t * ((p1.x_hi - p0.x_hi) + (p1.x_lo - p0.x_lo)) - offset.x;
-        if abs(centre_x) >= radius {
+        if abs(centre_x) >= circle {
             continue;
+        }
+        var radius = circle;
+        if params.deviation_count > 0u {
+            let hit = vec2<f32>(-centre_x, -sqrt(circle * circle - centre_x * centre_x));
+            radius = circle + deviation_at(atan2(hit.x * tip.y - hit.y * tip.x, dot(hit, tip)));
+            if abs(centre_x) >= radius {
+                continue;
+            }
         }
         let centre_above = (p0.z_hi - ring.z_hi) + (p0.z_lo - ring.z_lo)
             + t * ((p1.z_hi - p0.z_hi) + (p1.z_lo - p0.z_lo)) - offset.y;

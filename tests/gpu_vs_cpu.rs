@@ -29,6 +29,19 @@ fn centre_height_above_and_below_gpu_matches_cpu() {
             ),
         );
     }
+    // Above centre beside a wavy edge: the flank falls from the real edge at x = 0.
+    compare(
+        "convex sphere, centre height 0.004 mm beside an edge waviness",
+        example_with(
+            "convex_sphere.toml",
+            r#"[[effects]]
+kind = "centre_height"
+height_mm = 0.004
+[[effects]]
+kind = "edge_waviness"
+harmonics = [{ order = 33, amplitude_mm = 0.000035, phase_deg = 26.0 }]"#,
+        ),
+    );
 }
 
 #[test]

@@ -579,8 +579,9 @@ fn a_decentre_and_a_drift_on_coarse_maps_are_told_apart() {
 /// effect needs (the boss alone ΔBIC 4), so the verdict was `unexplained_residual`; on a
 /// finer draw of the same family, `does_not_fit` (the smooth residual beyond the little
 /// form left after the power, which no single candidate explained). The boss must be
-/// offered a partner and the pair found: the boss within 5 % and 3σ, the waviness's order
-/// within 5 % and its amplitude within 10 % and 3σ of the truth.
+/// offered a partner and the pair found: the boss within 5 % and 2σ (its cone hung from
+/// the real, wavy edge; from the nominal circle it came out 3.935 ± 0.030 µm), the
+/// waviness's order within 5 % and its amplitude within 10 % and 3σ of the truth.
 #[test]
 fn a_boss_beside_a_waviness_on_a_form_removed_profile_is_found_as_the_pair() {
     let d = diagnose("centre_height_4um_waviness_o34_50nm_form_removed.csv");
@@ -588,7 +589,7 @@ fn a_boss_beside_a_waviness_on_a_form_removed_profile_is_found_as_the_pair() {
     let p = &accepted_effect(&d, "centre_height")["parameters"][0];
     let (boss, sigma) = (p["value"].as_f64().unwrap(), p["sigma"].as_f64().unwrap());
     assert!(
-        (boss / 4.0 - 1.0).abs() <= 0.05 && (boss - 4.0).abs() <= 3.0 * sigma,
+        (boss / 4.0 - 1.0).abs() <= 0.05 && (boss - 4.0).abs() <= 2.0 * sigma,
         "boss {boss} ± {sigma} µm for 4"
     );
     let (order, amplitude, a_sigma) = waviness(&d);
@@ -598,4 +599,49 @@ fn a_boss_beside_a_waviness_on_a_form_removed_profile_is_found_as_the_pair() {
         "{amplitude} ± {a_sigma} nm for 50"
     );
     assert_axis(&d, 0.095);
+}
+
+/// A +3.26 µm boss (above centre: the flank's clearance face trims the core to a cone)
+/// beside an edge waviness of order 33, 35 nm, phase 26°
+/// (`boss_3.26um_waviness_o33_35nm_r5_nose08.csv`, 1 nm of noise). Compared with both
+/// planted effects carried, the job must leave only the noise: the generator hangs the
+/// cone from the real, wavy edge (the tool set at its tip); toolmark hung it from the
+/// edge's nominal circle, w(0) = 31.5 nm higher — 3.62 nm RMS and 40.6 nm PV left at the
+/// axis, and a boss fitted beside a waviness 119σ from its truth. Now 1.02 nm RMS,
+/// 5.9 nm PV: asserted within 1.2 nm RMS and 10 nm PV.
+#[test]
+fn a_boss_above_centre_beside_a_waviness_hangs_its_cone_from_the_real_edge() {
+    let out: PathBuf = Path::new(env!("CARGO_TARGET_TMPDIR")).join("independent-flank-cone");
+    let _ = std::fs::remove_dir_all(&out);
+    let status = Command::new(env!("CARGO_BIN_EXE_toolmark"))
+        .arg("compare-profile")
+        .arg(Path::new(DATA).join("r5_nose08_feed3_sphere.toml"))
+        .arg("--measured")
+        .arg(Path::new(DATA).join("boss_3.26um_waviness_o33_35nm_r5_nose08.csv"))
+        .args([
+            "--lateral-unit",
+            "um",
+            "--height-unit",
+            "um",
+            "--remove-power",
+        ])
+        .arg("--effects")
+        .arg(Path::new(DATA).join("boss_3.26um_waviness_o33_35nm_planted.toml"))
+        .args(["--engine", "cpu", "--out"])
+        .arg(&out)
+        .output()
+        .expect("toolmark runs");
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let text = std::fs::read_to_string(out.join("diagnosis.json")).unwrap();
+    let d: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let left = &d["residual_before"];
+    let (rms, pv) = (
+        left["rms_nm"].as_f64().unwrap(),
+        left["pv_nm"].as_f64().unwrap(),
+    );
+    assert!(rms <= 1.2 && pv <= 10.0, "{rms} nm RMS, {pv} nm PV left");
 }

@@ -7,7 +7,7 @@
 //!
 //! | effect | parameter | what it does in the model |
 //! | --- | --- | --- |
-//! | centre height | h (+ = above centre) | the edge lies in the plane y = −h instead of through the axis: no edge point reaches r < \|h\|; above centre the flank straddles the axis and trims the pip to a cone of slope tan(clearance), below centre it stays a cylinder |
+//! | centre height | h (+ = above centre) | the edge lies in the plane y = −h instead of through the axis: no edge point reaches r < \|h\|; above centre the flank straddles the axis and trims the pip to a cone of slope tan(clearance) falling from the real edge (an edge deviation included), below centre it stays a cylinder |
 //! | X decentre | δ (+ = stops short of the axis) | every nose-centre X is δ larger than programmed |
 //! | nose-radius error | e | the real edge radius is R + e, the tool set at its tip |
 //! | edge waviness | w(ψ) harmonics or a measured edge | the edge radius varies along the edge, ψ from the tip |

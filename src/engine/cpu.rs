@@ -297,14 +297,23 @@ fn edge_entry(
 
 /// Entry of a pip sample's dexel ray into the flank of a tool above centre: the flank
 /// passes the sample at machine (0, −r), |y₀| − r behind the rake plane, where it stands
-/// (|y₀| − r)·tan(clearance) above the edge's height at x = 0.
+/// (|y₀| − r)·tan(clearance) above the edge's height at x = 0 — the real edge's, its
+/// deviation w(ψ) there included (the flank falls from the edge the tool was set by).
 fn flank_entry(scene: &TurningScene, ring: &Ring, pose: ToolPose) -> Option<f64> {
     let edge = &scene.edge;
-    let centre =
-        DVec2::new(pose.x_mm, pose.z_mm) - edge.tip_offset_mm() * tip_direction(pose.b_rad);
-    let radius = edge.nominal_radius_mm + edge.radius_error_mm;
+    let tip = tip_direction(pose.b_rad);
+    let centre = DVec2::new(pose.x_mm, pose.z_mm) - edge.tip_offset_mm() * tip;
+    let mut radius = edge.nominal_radius_mm + edge.radius_error_mm;
     if centre.x.abs() >= radius {
         return None;
+    }
+    if !edge.deviation.is_zero() {
+        // ψ of the circle's point at x = 0, measured as the edge solver measures it.
+        let hit = DVec2::new(-centre.x, -(radius * radius - centre.x * centre.x).sqrt());
+        radius = edge.radius_at((hit.x * tip.y - hit.y * tip.x).atan2(hit.dot(tip)));
+        if centre.x.abs() >= radius {
+            return None;
+        }
     }
     let behind = scene.edge_plane_y_mm.abs() - ring.radius_mm;
     let flank_above_sample = (centre.y - ring.height_mm)
