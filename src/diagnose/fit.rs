@@ -122,6 +122,9 @@ pub struct Fit {
     pub at_bound: Vec<bool>,
     /// Where registration looked for the axis in this fit.
     pub frame: ShiftSearch,
+    /// One σ of each edge waviness member's order (in set order; the order is fitted
+    /// outside the Jacobian, its column joining the σs' estimate): ∞ when unobservable.
+    pub order_sigmas: Vec<f64>,
 }
 
 /// A set, its values and the objective they leave: a fit before its σs.
@@ -186,6 +189,34 @@ impl Fit {
     }
 
     /// The values and sigmas of one member of the set.
+    /// `member` at its values in words (with its order's σ where it is a waviness).
+    pub fn describe(&self, member: usize) -> String {
+        let c = self.set[member];
+        let (values, sigmas) = self.values_of(member);
+        let description = c.describe(values, sigmas);
+        match (
+            c.order(),
+            self.order_sigma(member).filter(|s| s.is_finite()),
+        ) {
+            (Some(order), Some(sigma)) => description.replacen(
+                &format!("of order {order:.1}:"),
+                &format!("of order {order:.1} ± {sigma:.1}:"),
+                1,
+            ),
+            _ => description,
+        }
+    }
+
+    /// One σ of `member`'s order, where it is an edge waviness.
+    pub fn order_sigma(&self, member: usize) -> Option<f64> {
+        let waviness = |c: &Candidate| matches!(c, Candidate::EdgeWaviness { .. });
+        if !waviness(&self.set[member]) {
+            return None;
+        }
+        let k = self.set[..member].iter().filter(|c| waviness(c)).count();
+        self.order_sigmas.get(k).copied()
+    }
+
     pub fn values_of(&self, member: usize) -> (&[f64], &[f64]) {
         let span = self.parameter_span(member);
         (&self.values[span.clone()], &self.sigmas[span])
@@ -752,6 +783,9 @@ impl<'a, 'e> Problem<'a, 'e> {
             fit.sigmas[j] = fit.sigmas[j].max(fine.sigmas[j]).max(moved);
             fit.values[j] = fine.values[j];
         }
+        for (s, f) in fit.order_sigmas.iter_mut().zip(&fine.order_sigmas) {
+            *s = s.max(*f);
+        }
         fit.at_bound = fine.at_bound;
         Ok(())
     }
@@ -1183,9 +1217,10 @@ impl<'a, 'e> Problem<'a, 'e> {
         }
         let sigmas_free = uncertainties(&extended, &free_extended, &residual, tau, line);
         let mut sigmas = vec![f64::INFINITY; values.len()];
-        for (&j, s) in free.iter().zip(sigmas_free) {
-            sigmas[j] = s;
+        for (&j, s) in free.iter().zip(&sigmas_free) {
+            sigmas[j] = *s;
         }
+        let order_sigmas = sigmas_free[free.len()..].to_vec();
         let heights = member_parameters(set, |c| *c == Candidate::CentreHeight);
         if !heights.is_empty() {
             let noise = self.profile_noise(&evaluation, values.len(), tau);
@@ -1215,6 +1250,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             effective_points: used / tau,
             at_bound,
             frame: self.shift,
+            order_sigmas,
         })
     }
 

@@ -739,7 +739,8 @@ fn effect_result(fit: &Fit, i: usize, rss0: f64) -> CandidateResult {
     let (values, sigmas) = fit.values_of(i);
     let span = fit.parameter_span(i);
     let at_bound = &fit.at_bound[span.clone()];
-    let mut description = c.describe(values, sigmas);
+    let mut description = fit.describe(i);
+    let order_sigma = fit.order_sigma(i);
     if at_bound.iter().any(|b| *b) {
         description.push_str(" — at the search bound, not a fit");
     }
@@ -747,6 +748,7 @@ fn effect_result(fit: &Fit, i: usize, rss0: f64) -> CandidateResult {
         effect: c.kind().into(),
         label: c.label(),
         order: c.order(),
+        order_sigma,
         parameters: values
             .iter()
             .zip(sigmas)

@@ -337,6 +337,8 @@ pub struct CandidateResult {
     pub label: String,
     /// Edge waviness: the harmonic order fitted.
     pub order: Option<f64>,
+    /// Edge waviness: one σ of the order (∞ serialised as null: the data cannot pin it).
+    pub order_sigma: Option<f64>,
     pub parameters: Vec<ParameterValue>,
     pub description: String,
     pub advice: String,

@@ -83,10 +83,7 @@ pub fn verdict(
             let members = f.effect_members();
             let parts: Vec<String> = members
                 .iter()
-                .map(|&i| {
-                    let (v, s) = f.values_of(i);
-                    f.set[i].describe(v, s)
-                })
+                .map(|&i| f.describe(i))
                 .collect();
             let mut sentence = capitalise(&parts.join("; "));
             let which = if members.len() == 1 {
