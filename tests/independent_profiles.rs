@@ -27,12 +27,25 @@ fn diagnose_with(profile: &str, extra: &[&str]) -> serde_json::Value {
 
 /// Runs the README's diagnose command with `job` on `profile` with `extra` options.
 fn diagnose_job(job: &str, profile: &str, extra: &[&str]) -> serde_json::Value {
-    let out: PathBuf =
-        Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("independent-{profile}"));
+    let job = Path::new(DATA).join(job);
+    let head = ["diagnose".as_ref(), "--job".as_ref(), job.as_os_str()];
+    let d = toolmark_json(&head, profile, extra, profile);
+    assert_claims_stand_clear(&d);
+    d
+}
+
+/// Runs toolmark's `head` arguments on `profile` (µm in the file) with `extra` options,
+/// the CPU engine, into a folder named after `tag`; reads its diagnosis.json.
+fn toolmark_json(
+    head: &[&std::ffi::OsStr],
+    profile: &str,
+    extra: &[&str],
+    tag: &str,
+) -> serde_json::Value {
+    let out: PathBuf = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("independent-{tag}"));
     let _ = std::fs::remove_dir_all(&out);
     let status = Command::new(env!("CARGO_BIN_EXE_toolmark"))
-        .args(["diagnose", "--job"])
-        .arg(Path::new(DATA).join(job))
+        .args(head)
         .arg("--measured")
         .arg(Path::new(DATA).join(profile))
         .args(["--lateral-unit", "um", "--height-unit", "um"])
@@ -47,9 +60,7 @@ fn diagnose_job(job: &str, profile: &str, extra: &[&str]) -> serde_json::Value {
         String::from_utf8_lossy(&status.stderr)
     );
     let text = std::fs::read_to_string(out.join("diagnosis.json")).unwrap();
-    let d: serde_json::Value = serde_json::from_str(&text).unwrap();
-    assert_claims_stand_clear(&d);
-    d
+    serde_json::from_str(&text).unwrap()
 }
 
 /// Every accepted effect stands at least 3σ from zero (its parameters together), as
@@ -611,33 +622,14 @@ fn a_boss_beside_a_waviness_on_a_form_removed_profile_is_found_as_the_pair() {
 /// 5.9 nm PV: asserted within 1.2 nm RMS and 10 nm PV.
 #[test]
 fn a_boss_above_centre_beside_a_waviness_hangs_its_cone_from_the_real_edge() {
-    let out: PathBuf = Path::new(env!("CARGO_TARGET_TMPDIR")).join("independent-flank-cone");
-    let _ = std::fs::remove_dir_all(&out);
-    let status = Command::new(env!("CARGO_BIN_EXE_toolmark"))
-        .arg("compare-profile")
-        .arg(Path::new(DATA).join("r5_nose08_feed3_sphere.toml"))
-        .arg("--measured")
-        .arg(Path::new(DATA).join("boss_3.26um_waviness_o33_35nm_r5_nose08.csv"))
-        .args([
-            "--lateral-unit",
-            "um",
-            "--height-unit",
-            "um",
-            "--remove-power",
-        ])
-        .arg("--effects")
-        .arg(Path::new(DATA).join("boss_3.26um_waviness_o33_35nm_planted.toml"))
-        .args(["--engine", "cpu", "--out"])
-        .arg(&out)
-        .output()
-        .expect("toolmark runs");
-    assert!(
-        status.status.success(),
-        "{}",
-        String::from_utf8_lossy(&status.stderr)
+    let job = Path::new(DATA).join("r5_nose08_feed3_sphere.toml");
+    let planted = Path::new(DATA).join("boss_3.26um_waviness_o33_35nm_planted.toml");
+    let d = toolmark_json(
+        &["compare-profile".as_ref(), job.as_os_str()],
+        "boss_3.26um_waviness_o33_35nm_r5_nose08.csv",
+        &["--remove-power", "--effects", planted.to_str().unwrap()],
+        "flank-cone",
     );
-    let text = std::fs::read_to_string(out.join("diagnosis.json")).unwrap();
-    let d: serde_json::Value = serde_json::from_str(&text).unwrap();
     let left = &d["residual_before"];
     let (rms, pv) = (
         left["rms_nm"].as_f64().unwrap(),
