@@ -637,3 +637,31 @@ fn a_boss_above_centre_beside_a_waviness_hangs_its_cone_from_the_real_edge() {
     );
     assert!(rms <= 1.2 && pv <= 10.0, "{rms} nm RMS, {pv} nm PV left");
 }
+
+/// An edge waviness of order 33, 22 nm on an R9 sphere (0.2 mm nose, 2 µm feed, 1 µm
+/// points, 3 nm of noise, form removed: `waviness_o33_22nm_r9_nose02_feed2_form_removed.csv`,
+/// random-batch draw w08). Order, amplitude and phase trade along a curved valley here:
+/// the fit lands on order 26.9 at 28.8 nm, and the linearised σ of the order, ± 2.1,
+/// put the truth 2.9σ off. The order's σ is its profile's (every value re-fitted at each
+/// order): the truth must lie within 2σ of the order and of the amplitude, and the
+/// order's σ stay under a fifth of the order (a σ that only grows would pass the first).
+#[test]
+fn a_waviness_order_carries_the_doubt_its_valley_leaves() {
+    let d = diagnose_job(
+        "r9_nose02_feed2_sphere.toml",
+        "waviness_o33_22nm_r9_nose02_feed2_form_removed.csv",
+        &["--remove-power"],
+    );
+    assert_status(&d, "effects_found");
+    let w = accepted_effect(&d, "edge_waviness");
+    let sigma = w["order_sigma"].as_f64().unwrap();
+    let (order, amplitude, a_sigma) = waviness(&d);
+    assert!(
+        (order - 33.0).abs() <= 2.0 * sigma && sigma <= 0.2 * order,
+        "order {order} ± {sigma} for 33"
+    );
+    assert!(
+        (amplitude - 22.0).abs() <= 2.0 * a_sigma,
+        "{amplitude} ± {a_sigma} nm for 22"
+    );
+}

@@ -500,8 +500,9 @@ impl Candidate {
         )
     }
 
-    /// What the fit says, with its uncertainty, in a machinist's words.
-    pub fn describe(&self, values: &[f64], sigmas: &[f64]) -> String {
+    /// What the fit says, with its uncertainty, in a machinist's words (`order_sigma`:
+    /// one σ of an edge waviness's order, where known).
+    pub fn describe(&self, values: &[f64], sigmas: &[f64], order_sigma: Option<f64>) -> String {
         let v = values[0];
         let s = sigmas[0];
         match self {
@@ -534,8 +535,12 @@ impl Candidate {
             Candidate::EdgeWaviness { order } => {
                 let (amplitude, phase) = amplitude_phase(values);
                 let sigma = pair_sigma(values, sigmas);
+                let order = match order_sigma.filter(|s| s.is_finite()) {
+                    Some(s) => format!("{order:.1} ± {s:.1}"),
+                    None => format!("{order:.1}"),
+                };
                 format!(
-                    "the edge carries waviness of order {order:.1}: {} nm amplitude (phase {phase:.0}°)",
+                    "the edge carries waviness of order {order}: {} nm amplitude (phase {phase:.0}°)",
                     pm(amplitude, sigma)
                 )
             }

@@ -43,6 +43,9 @@ pub const WAVINESS_PROBE_NM: f64 = 20.0;
 const SIMULATIONS_KEPT: usize = 32;
 /// Doublings of the step a σ's profile takes beyond ±σ (up to 16σ).
 const PROFILE_DOUBLINGS: usize = 4;
+/// The lowest order a waviness order's profile steps to (an order below one is a slope
+/// across the edge, which the nose radius and the registration already carry).
+const MIN_PROFILE_ORDER: f64 = 1.0;
 
 pub struct Problem<'a, 'e> {
     pub measurement: &'a Measurement,
@@ -188,23 +191,10 @@ impl Fit {
         start..start + width(&self.set[member])
     }
 
-    /// The values and sigmas of one member of the set.
     /// `member` at its values in words (with its order's σ where it is a waviness).
     pub fn describe(&self, member: usize) -> String {
-        let c = self.set[member];
         let (values, sigmas) = self.values_of(member);
-        let description = c.describe(values, sigmas);
-        match (
-            c.order(),
-            self.order_sigma(member).filter(|s| s.is_finite()),
-        ) {
-            (Some(order), Some(sigma)) => description.replacen(
-                &format!("of order {order:.1}:"),
-                &format!("of order {order:.1} ± {sigma:.1}:"),
-                1,
-            ),
-            _ => description,
-        }
+        self.set[member].describe(values, sigmas, self.order_sigma(member))
     }
 
     /// One σ of `member`'s order, where it is an edge waviness.
@@ -217,6 +207,7 @@ impl Fit {
         self.order_sigmas.get(k).copied()
     }
 
+    /// The values and sigmas of one member of the set.
     pub fn values_of(&self, member: usize) -> (&[f64], &[f64]) {
         let span = self.parameter_span(member);
         (&self.values[span.clone()], &self.sigmas[span])
@@ -356,6 +347,13 @@ struct ProfileNoise {
     rss: f64,
     point_variance: f64,
     tau: f64,
+}
+
+/// A waviness order's profile ([`Problem::order_profile`]): its half-width, and how far
+/// each value moved over it.
+struct OrderProfile {
+    half_width: f64,
+    moved: Vec<f64>,
 }
 
 /// BIC = n_eff ln(RSS / n) + k ln(n_eff).
@@ -831,6 +829,105 @@ impl<'a, 'e> Problem<'a, 'e> {
             fit.sigmas[j] = sigma.max(width);
         }
         Ok(())
+    }
+
+    /// Widens each edge waviness member's order σ to its profile's half-width, every
+    /// value re-fitted at each order ([`Self::order_profile`]), and every value's σ to
+    /// how far it moves over that half-width. Order and amplitude trade along a curved
+    /// valley (a nearby order with another amplitude and phase leaves nearly the same
+    /// residual): the linearised σs, and a profile that holds the other values, see
+    /// only the valley's floor at the fit.
+    pub fn widen_by_order_profile(&mut self, fit: &mut Fit) -> Result<(), ForwardError> {
+        let members: Vec<usize> = (0..fit.set.len())
+            .filter(|&m| fit.order_sigma(m).is_some_and(|s| s.is_finite() && s > 0.0))
+            .collect();
+        if members.is_empty() {
+            return Ok(());
+        }
+        let noise = self.profile_noise(
+            &fit.evaluation,
+            fit.parameter_count(),
+            fit.correlation_length,
+        );
+        for (k, &m) in members.iter().enumerate() {
+            let profile = self.order_profile(fit, m, fit.order_sigmas[k], &noise)?;
+            fit.order_sigmas[k] = fit.order_sigmas[k].max(profile.half_width);
+            for (s, moved) in fit.sigmas.iter_mut().zip(&profile.moved) {
+                if s.is_finite() {
+                    *s = s.max(*moved);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The profile of member `m`'s waviness order in `fit`: the order stepped out from
+    /// ±`start` by doubling (at most [`PROFILE_DOUBLINGS`] times, never below
+    /// [`MIN_PROFILE_ORDER`]), every value re-fitted from the last step's (Levenberg–Marquardt),
+    /// until Σr² rises by one effective point's variance (Δχ² = 1, as in
+    /// [`Self::profile_half_width`]); the half-width is read off a parabola through that
+    /// step. Each value's move is taken where the profile crosses, the larger side kept.
+    fn order_profile(
+        &mut self,
+        fit: &Fit,
+        m: usize,
+        start: f64,
+        noise: &ProfileNoise,
+    ) -> Result<OrderProfile, ForwardError> {
+        let Candidate::EdgeWaviness { order } = fit.set[m] else {
+            unreachable!("an order profile of a waviness member");
+        };
+        let at = |o: f64| {
+            let mut set = fit.set.clone();
+            set[m] = Candidate::EdgeWaviness { order: o };
+            set
+        };
+        let print = {
+            let e = self.evaluate(&at(order + start), &fit.values)?;
+            self.residual_change(&e, &fit.evaluation, 1.0)
+        };
+        let variance = noise.point_variance * inflation(noise.tau, &print);
+        let mut out = OrderProfile {
+            half_width: 0.0,
+            moved: vec![0.0; fit.values.len()],
+        };
+        for side in [1.0, -1.0] {
+            let (mut flat, mut reached) = (0.0_f64, 0.0);
+            let mut values = fit.values.clone();
+            let mut moved = vec![0.0; values.len()];
+            for doubling in 0..=PROFILE_DOUBLINGS {
+                let delta = start * (1u64 << doubling) as f64;
+                let trial = order + side * delta;
+                if trial < MIN_PROFILE_ORDER {
+                    break;
+                }
+                let set = at(trial);
+                (values, _) = self.levenberg_marquardt(&set, &fit.parameters, values, &[])?;
+                let rise = {
+                    let e = self.evaluate(&set, &values)?;
+                    self.rss(&e) - noise.rss
+                };
+                reached = delta;
+                let share = if rise >= variance {
+                    reached = flat.max(delta * (variance / rise).sqrt());
+                    reached / delta
+                } else {
+                    1.0
+                };
+                for (mv, (v, v0)) in moved.iter_mut().zip(values.iter().zip(&fit.values)) {
+                    *mv = (v - v0).abs() * share;
+                }
+                if rise >= variance {
+                    break;
+                }
+                flat = delta;
+            }
+            out.half_width = out.half_width.max(reached);
+            for (o, mv) in out.moved.iter_mut().zip(moved) {
+                *o = o.max(mv);
+            }
+        }
+        Ok(out)
     }
 
     /// What a profile's rise is judged against, for a fit that left `at` with `k`

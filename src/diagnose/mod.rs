@@ -782,7 +782,8 @@ fn shrink_step(model: &str, residual: &[f64], radii: &[f64], zones: &Zones) -> S
 }
 
 /// The fits whose values the report states — the accepted set and the candidate
-/// ranked first — refitted on rings half as far apart ([`Problem::refine_on_finer_rings`]).
+/// ranked first — refitted on rings half as far apart ([`Problem::refine_on_finer_rings`]),
+/// a waviness order's σ widened to its profile ([`Problem::widen_by_order_profile`]).
 fn refine_reported(
     problem: &mut Problem,
     found: &mut Search,
@@ -791,6 +792,7 @@ fn refine_reported(
     log("refitting what is reported on rings half as far apart");
     if let Some(fit) = found.accepted.as_mut() {
         problem.refine_on_finer_rings(fit)?;
+        problem.widen_by_order_profile(fit)?;
     }
     let Some((first, _)) = found.singles.first_mut() else {
         return Ok(());
@@ -801,9 +803,13 @@ fn refine_reported(
             first.values.clone_from(&accepted.values);
             first.sigmas.clone_from(&accepted.sigmas);
             first.at_bound.clone_from(&accepted.at_bound);
+            first.order_sigmas.clone_from(&accepted.order_sigmas);
             Ok(())
         }
-        _ => problem.refine_on_finer_rings(first),
+        _ => {
+            problem.refine_on_finer_rings(first)?;
+            problem.widen_by_order_profile(first)
+        }
     }
 }
 
