@@ -29,18 +29,20 @@ fn diagnose_with(profile: &str, extra: &[&str]) -> serde_json::Value {
 fn diagnose_job(job: &str, profile: &str, extra: &[&str]) -> serde_json::Value {
     let job = Path::new(DATA).join(job);
     let head = ["diagnose".as_ref(), "--job".as_ref(), job.as_os_str()];
-    let d = toolmark_json(&head, profile, extra, profile);
+    let d = toolmark_json(&head, profile, extra, profile, &[]);
     assert_claims_stand_clear(&d);
     d
 }
 
-/// Runs toolmark's `head` arguments on `profile` (µm in the file) with `extra` options,
-/// the CPU engine, into a folder named after `tag`; reads its diagnosis.json.
+/// Runs toolmark's `head` arguments on `profile` (µm in the file) with `extra` options
+/// and environment `env`, the CPU engine, into a folder named after `tag`; reads its
+/// diagnosis.json.
 fn toolmark_json(
     head: &[&std::ffi::OsStr],
     profile: &str,
     extra: &[&str],
     tag: &str,
+    env: &[(&str, &str)],
 ) -> serde_json::Value {
     let out: PathBuf = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("independent-{tag}"));
     let _ = std::fs::remove_dir_all(&out);
@@ -52,6 +54,7 @@ fn toolmark_json(
         .args(extra)
         .args(["--engine", "cpu", "--out"])
         .arg(&out)
+        .envs(env.iter().copied())
         .output()
         .expect("toolmark runs");
     assert!(
@@ -629,6 +632,7 @@ fn a_boss_above_centre_beside_a_waviness_hangs_its_cone_from_the_real_edge() {
         "boss_3.26um_waviness_o33_35nm_r5_nose08.csv",
         &["--remove-power", "--effects", planted.to_str().unwrap()],
         "flank-cone",
+        &[],
     );
     let left = &d["residual_before"];
     let (rms, pv) = (
@@ -664,4 +668,27 @@ fn a_waviness_order_carries_the_doubt_its_valley_leaves() {
         (amplitude - 22.0).abs() <= 2.0 * a_sigma,
         "{amplitude} ± {a_sigma} nm for 22"
     );
+}
+
+/// The candidates' fits run side by side on the CPU engine (`diagnose::side_by_side`:
+/// each worker thread on a copy of the problem with an engine of its own). The same
+/// diagnosis must come out on one thread, where they run one after the other, as on two
+/// — every value, σ, score and word of `diagnosis.json` but the run's counts and times —
+/// here on a pair found together (a boss above centre beside a waviness: the single
+/// candidates, the partner round and the waviness order's grid all run side by side).
+#[test]
+fn the_diagnosis_is_the_same_on_one_thread_as_on_two() {
+    let job = Path::new(DATA).join("r5_nose08_feed3_sphere.toml");
+    let head = ["diagnose".as_ref(), "--job".as_ref(), job.as_os_str()];
+    let profile = "boss_3.26um_waviness_o33_35nm_r5_nose08.csv";
+    let run = |threads: &str| {
+        let tag = format!("threads-{threads}");
+        let env = [("RAYON_NUM_THREADS", threads)];
+        let mut d = toolmark_json(&head, profile, &["--remove-power"], &tag, &env);
+        d.as_object_mut().unwrap().remove("run");
+        d
+    };
+    let (one, two) = (run("1"), run("2"));
+    assert_eq!(one["verdict"]["status"], "effects_found");
+    assert!(one == two, "one thread:\n{one}\ntwo threads:\n{two}");
 }

@@ -215,6 +215,11 @@ impl Candidate {
         *self == Candidate::CentreHeight && value < 0.0
     }
 
+    /// An edge waviness (its order searched: the costliest fit).
+    pub fn is_waviness(&self) -> bool {
+        matches!(self, Candidate::EdgeWaviness { .. })
+    }
+
     /// A registration term fitted like an effect, never reported as one.
     pub fn is_registration(&self) -> bool {
         matches!(self, Candidate::SpiralAzimuth | Candidate::LateralScale)

@@ -10,18 +10,19 @@
 //! search bound is flagged as such, never reported as a fit.
 
 use super::candidates::{Candidate, Parameter};
-use super::forward::{ForwardError, ForwardModel, Frame, SimulatedSurface};
+use super::forward::{ForwardError, ForwardModel, Frame, ModelParts, SimulatedSurface};
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch, Terms, register, register_beside};
 use super::spectrum::LineNoise;
 use super::zones::correlation_length;
+use crate::engine::RemovalEngine;
 use crate::numeric::{
     LeastSquaresProblem, LmLimits, dot, invert, least_squares, levenberg_marquardt, normal_matrix,
     observable, student_t_975, try_golden_section,
 };
 use rayon::prelude::*;
 use std::collections::HashMap;
-use std::rc::Rc;
+use std::sync::Arc;
 
 /// Everything a fit needs: the points fitted, the forward model, what registration may
 /// remove and where it may look for the axis.
@@ -55,15 +56,42 @@ pub struct Problem<'a, 'e> {
     /// The points a fit is judged on (a fold's part when some are held out); every
     /// trial is still registered on all the points: registration places the
     /// measurement, and one part alone would let a tilt absorb half of a cone.
-    mask: Option<Rc<Vec<bool>>>,
+    mask: Option<Arc<Vec<bool>>>,
     /// The points the whole search may judge fits on (`--calibrate-on`: the rest is
     /// held out); every mask is cut from these.
-    calibration: Option<Rc<Vec<bool>>>,
+    calibration: Option<Arc<Vec<bool>>>,
     pub prior: Option<AzimuthPrior>,
-    cache: HashMap<(String, Vec<u64>), Rc<Evaluation>>,
+    cache: HashMap<(String, Vec<u64>), Arc<Evaluation>>,
     /// Simulations by the job the set makes (a lateral scale trial re-registers the
     /// same simulation); emptied when it grows past [`SIMULATIONS_KEPT`].
-    simulations: HashMap<(String, Vec<u64>), Rc<SimulatedSurface>>,
+    simulations: HashMap<(String, Vec<u64>), Arc<SimulatedSurface>>,
+}
+
+/// A [`Problem`] without its engine and caches (see [`Problem::parts`]).
+pub struct ProblemParts<'a> {
+    measurement: &'a Measurement,
+    model: ModelParts,
+    terms: Terms,
+    shift: ShiftSearch,
+    mask: Option<Arc<Vec<bool>>>,
+    calibration: Option<Arc<Vec<bool>>>,
+    prior: Option<AzimuthPrior>,
+}
+
+impl<'a> ProblemParts<'a> {
+    /// The problem on `engine`, with empty caches.
+    pub fn on(self, engine: &mut dyn RemovalEngine) -> Problem<'a, '_> {
+        let mut problem = Problem::new(
+            self.measurement,
+            self.model.on(engine),
+            self.terms,
+            self.shift,
+        );
+        problem.mask = self.mask;
+        problem.calibration = self.calibration;
+        problem.prior = self.prior;
+        problem
+    }
 }
 
 /// One trial: the effect values and the registered residual they leave.
@@ -113,7 +141,7 @@ pub struct Fit {
     pub values: Vec<f64>,
     /// One standard deviation per value (∞ when the data cannot pin it).
     pub sigmas: Vec<f64>,
-    pub evaluation: Rc<Evaluation>,
+    pub evaluation: Arc<Evaluation>,
     /// Σ r² the fit minimised (mm²): the registered residual on the judged points, and
     /// the azimuth prior's term.
     pub objective: f64,
@@ -383,6 +411,20 @@ impl<'a, 'e> Problem<'a, 'e> {
         }
     }
 
+    /// Everything the problem is but its engine and caches: the same problem, rebuilt on
+    /// another engine ([`ProblemParts::on`]), fits alike.
+    pub fn parts(&self) -> ProblemParts<'a> {
+        ProblemParts {
+            measurement: self.measurement,
+            model: self.model.parts(),
+            terms: self.terms,
+            shift: self.shift,
+            mask: self.mask.clone(),
+            calibration: self.calibration.clone(),
+            prior: self.prior,
+        }
+    }
+
     /// Forgets the cached trials (after the axis search moved).
     pub fn clear_cache(&mut self) {
         self.cache.clear();
@@ -390,12 +432,12 @@ impl<'a, 'e> Problem<'a, 'e> {
 
     /// Judges fits on the points where `mask` holds (None: all); returns the mask in
     /// force before.
-    pub fn judge_on(&mut self, mask: Option<Rc<Vec<bool>>>) -> Option<Rc<Vec<bool>>> {
+    pub fn judge_on(&mut self, mask: Option<Arc<Vec<bool>>>) -> Option<Arc<Vec<bool>>> {
         std::mem::replace(&mut self.mask, mask)
     }
 
     /// Holds out the points where `calibration` is false from every fit (None: none).
-    pub fn calibrate_on(&mut self, calibration: Option<Rc<Vec<bool>>>) {
+    pub fn calibrate_on(&mut self, calibration: Option<Arc<Vec<bool>>>) {
         self.calibration = calibration;
     }
 
@@ -427,7 +469,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         &mut self,
         set: &[Candidate],
         values: &[f64],
-    ) -> Result<Rc<Evaluation>, ForwardError> {
+    ) -> Result<Arc<Evaluation>, ForwardError> {
         let key = cache_key(set, values);
         if let Some(hit) = self.cache.get(&key) {
             return Ok(hit.clone());
@@ -441,7 +483,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             (set, values),
             None,
         );
-        let evaluation = Rc::new(Evaluation {
+        let evaluation = Arc::new(Evaluation {
             values: values.to_vec(),
             registered,
             prior_mm: self.prior_term(set, values),
@@ -469,7 +511,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         self.simulate_all(&missing)?;
         let registered = self.register_all(&missing, None);
         for ((set, values), registered) in missing.into_iter().zip(registered) {
-            let evaluation = Rc::new(Evaluation {
+            let evaluation = Arc::new(Evaluation {
                 prior_mm: self.prior_term(&set, &values),
                 values,
                 registered,
@@ -531,7 +573,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             modifies.iter().map(|m| m.as_ref()).collect();
         let sims = self.model.simulate_many(&refs)?;
         for ((set, values), sim) in to_simulate.into_iter().zip(sims) {
-            self.simulations.insert(job_key(set, values), Rc::new(sim));
+            self.simulations.insert(job_key(set, values), Arc::new(sim));
         }
         Ok(())
     }
@@ -560,12 +602,12 @@ impl<'a, 'e> Problem<'a, 'e> {
         &mut self,
         set: &[Candidate],
         values: &[f64],
-    ) -> Result<Rc<SimulatedSurface>, ForwardError> {
+    ) -> Result<Arc<SimulatedSurface>, ForwardError> {
         let key = job_key(set, values);
         if let Some(sim) = self.simulations.get(&key) {
             return Ok(sim.clone());
         }
-        let sim = Rc::new(self.model.simulate(&|job| apply_set(set, values, job))?);
+        let sim = Arc::new(self.model.simulate(&|job| apply_set(set, values, job))?);
         self.forget_simulations(1);
         self.simulations.insert(key, sim.clone());
         Ok(sim)
@@ -789,7 +831,7 @@ impl<'a, 'e> Problem<'a, 'e> {
     }
 
     /// `fit`'s set and values simulated on rings half as far apart and registered.
-    pub fn evaluate_on_finer_rings(&mut self, fit: &Fit) -> Result<Rc<Evaluation>, ForwardError> {
+    pub fn evaluate_on_finer_rings(&mut self, fit: &Fit) -> Result<Arc<Evaluation>, ForwardError> {
         self.on_finer_rings(|p| p.evaluate(&fit.set, &fit.values))
     }
 
@@ -1468,19 +1510,23 @@ impl<'a, 'e> Problem<'a, 'e> {
         let grid: Vec<f64> = (0..count)
             .map(|i| lo + (hi - lo) * i as f64 / (count - 1) as f64)
             .collect();
+        // The grid's fits are independent: side by side, then kept in the grid's order.
+        let fits = super::side_by_side::each(
+            self,
+            &grid,
+            |_| false,
+            |p, &order, _| {
+                let (_, a, b) =
+                    p.waviness_at(base_set, base_values, order, WAVINESS_PROBE_NM, &r0)?;
+                let mut start = base_values.to_vec();
+                start.extend([a, b]);
+                p.fits_at_order(parameters, &at(order), start, GRID_ITERATIONS)
+            },
+            &|_| {},
+        );
         let mut scores = Vec::with_capacity(count);
-        for &order in &grid {
-            let (_, a, b) =
-                self.waviness_at(base_set, base_values, order, WAVINESS_PROBE_NM, &r0)?;
-            let mut start = base_values.to_vec();
-            start.extend([a, b]);
-            scores.push(self.fit_order(
-                parameters,
-                &at(order),
-                start,
-                &mut best,
-                GRID_ITERATIONS,
-            )?);
+        for fits in fits {
+            scores.push(keep_lowest(fits?, &mut best));
         }
         let i = (0..count)
             .min_by(|&a, &b| scores[a].total_cmp(&scores[b]))
@@ -1507,22 +1553,32 @@ impl<'a, 'e> Problem<'a, 'e> {
         best: &mut Fitted,
         iterations: usize,
     ) -> Result<f64, ForwardError> {
-        let mut lowest = f64::INFINITY;
-        for start in with_unit_scale(trial, start) {
-            let (values, _) =
-                self.levenberg_marquardt_within(trial, parameters, start, &[], iterations)?;
-            let e = self.evaluate(trial, &values)?;
-            let objective = self.rss(&e);
-            lowest = lowest.min(objective);
-            if objective < best.objective {
-                *best = Fitted {
-                    objective,
+        let fits = self.fits_at_order(parameters, trial, start, iterations)?;
+        Ok(keep_lowest(fits, best))
+    }
+
+    /// `trial` fitted (Levenberg–Marquardt, at most `iterations` Jacobians) from `start`
+    /// and from it at the unit scale, in that order.
+    fn fits_at_order(
+        &mut self,
+        parameters: &[Parameter],
+        trial: &[Candidate],
+        start: Vec<f64>,
+        iterations: usize,
+    ) -> Result<Vec<Fitted>, ForwardError> {
+        with_unit_scale(trial, start)
+            .into_iter()
+            .map(|start| {
+                let (values, _) =
+                    self.levenberg_marquardt_within(trial, parameters, start, &[], iterations)?;
+                let e = self.evaluate(trial, &values)?;
+                Ok(Fitted {
+                    objective: self.rss(&e),
                     set: trial.to_vec(),
                     values,
-                };
-            }
-        }
-        Ok(lowest)
+                })
+            })
+            .collect()
     }
 
     /// The least-squares cos/sin amplitudes (nm) of one waviness order against the
@@ -1563,6 +1619,18 @@ impl<'a, 'e> Problem<'a, 'e> {
             .sum();
         Ok((rss, ab[0], ab[1]))
     }
+}
+
+/// The lowest Σr² of `fits`; each, in order, replaces `best` where it is lower.
+fn keep_lowest(fits: Vec<Fitted>, best: &mut Fitted) -> f64 {
+    let mut lowest = f64::INFINITY;
+    for fit in fits {
+        lowest = lowest.min(fit.objective);
+        if fit.objective < best.objective {
+            *best = fit;
+        }
+    }
+    lowest
 }
 
 /// How much a residual correlated over `tau` points inflates one point's variance for
@@ -1817,25 +1885,25 @@ struct SetModel<'m, 'a, 'e> {
 }
 
 impl LeastSquaresProblem for SetModel<'_, '_, '_> {
-    type State = Rc<Evaluation>;
+    type State = Arc<Evaluation>;
     type Error = ForwardError;
 
-    fn evaluate(&mut self, values: &[f64]) -> Result<Option<Rc<Evaluation>>, ForwardError> {
+    fn evaluate(&mut self, values: &[f64]) -> Result<Option<Arc<Evaluation>>, ForwardError> {
         self.problem.evaluate(self.set, values).map(Some)
     }
 
-    fn residual(&self, state: &Rc<Evaluation>) -> Vec<f64> {
+    fn residual(&self, state: &Arc<Evaluation>) -> Vec<f64> {
         self.problem.residual(state)
     }
 
-    fn rss(&self, state: &Rc<Evaluation>) -> f64 {
+    fn rss(&self, state: &Arc<Evaluation>) -> f64 {
         self.problem.rss(state)
     }
 
     fn jacobian(
         &mut self,
         values: &[f64],
-        state: &Rc<Evaluation>,
+        state: &Arc<Evaluation>,
     ) -> Result<Vec<Vec<f64>>, ForwardError> {
         self.problem
             .jacobian(self.set, self.parameters, values, state)

@@ -12,6 +12,7 @@ use crate::run::{Groundwork, job_grid, remove_all, scenes_on};
 use glam::DVec2;
 use rayon::prelude::*;
 use std::f64::consts::TAU;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Lateral slack the simulated region keeps around the measured points, as a share of
@@ -28,8 +29,9 @@ pub fn shift_room_mm(measurement: &Measurement) -> f64 {
 
 pub struct ForwardModel<'e> {
     base: Job,
-    /// The base job's meridian and programmed paths, computed once.
-    groundwork: Groundwork,
+    /// The base job's meridian and programmed paths, computed once (shared with the
+    /// models rebuilt from [`ForwardModel::parts`]).
+    groundwork: Arc<Groundwork>,
     /// The base job's grid, computed once: trial effects never change the surface,
     /// aperture, pitch or rows (integrating an asphere's arc length ring by ring was
     /// a third of a profile diagnosis).
@@ -45,6 +47,45 @@ pub struct ForwardModel<'e> {
     pub simulations: usize,
     pub prepare_s: f64,
     pub removal_s: f64,
+}
+
+/// Simulations a model ran, and the seconds its scenes' preparation and removal took
+/// (summed over threads where copies ran side by side).
+#[derive(Debug, Clone, Copy)]
+pub struct Counts {
+    pub simulations: usize,
+    pub prepare_s: f64,
+    pub removal_s: f64,
+}
+
+/// A [`ForwardModel`] without its engine (see [`ForwardModel::parts`]).
+pub struct ModelParts {
+    base: Job,
+    groundwork: Arc<Groundwork>,
+    grid: PolarGrid,
+    line_rows: Option<(u32, u32)>,
+    azimuth_rad: f64,
+    instrument: Instrument,
+    pixel_mm: Option<[f64; 2]>,
+}
+
+impl ModelParts {
+    /// The model on `engine`, its counts at zero.
+    pub fn on(self, engine: &mut dyn RemovalEngine) -> ForwardModel<'_> {
+        ForwardModel {
+            base: self.base,
+            groundwork: self.groundwork,
+            grid: self.grid,
+            engine,
+            line_rows: self.line_rows,
+            azimuth_rad: self.azimuth_rad,
+            instrument: self.instrument,
+            pixel_mm: self.pixel_mm,
+            simulations: 0,
+            prepare_s: 0.0,
+            removal_s: 0.0,
+        }
+    }
 }
 
 #[derive(Debug)]
@@ -190,7 +231,7 @@ impl<'e> ForwardModel<'e> {
             }
             _ => None,
         };
-        let groundwork = Groundwork::of(&base);
+        let groundwork = Arc::new(Groundwork::of(&base));
         Ok(Self {
             grid: job_grid(&base, &groundwork),
             groundwork,
@@ -221,7 +262,7 @@ impl<'e> ForwardModel<'e> {
         base.aperture.inner_radius_mm = 0.0;
         base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(outer_radius_mm);
         base.azimuths = rows;
-        let groundwork = Groundwork::of(&base);
+        let groundwork = Arc::new(Groundwork::of(&base));
         Ok(Self {
             grid: job_grid(&base, &groundwork),
             groundwork,
@@ -262,6 +303,41 @@ impl<'e> ForwardModel<'e> {
         self.engine.info().kind
     }
 
+    /// Whether the model runs on the CPU engine, whose copies can run side by side.
+    pub fn runs_on_cpu(&self) -> bool {
+        self.engine_kind() == "cpu"
+    }
+
+    /// Everything the model is but its engine and its counts: the same model, rebuilt
+    /// on another engine ([`ModelParts::on`]), simulates the same surfaces.
+    pub fn parts(&self) -> ModelParts {
+        ModelParts {
+            base: self.base.clone(),
+            groundwork: self.groundwork.clone(),
+            grid: self.grid.clone(),
+            line_rows: self.line_rows,
+            azimuth_rad: self.azimuth_rad,
+            instrument: self.instrument,
+            pixel_mm: self.pixel_mm,
+        }
+    }
+
+    /// What the model has simulated so far.
+    pub fn counts(&self) -> Counts {
+        Counts {
+            simulations: self.simulations,
+            prepare_s: self.prepare_s,
+            removal_s: self.removal_s,
+        }
+    }
+
+    /// Adds another model's counts (a copy's, run on another thread) to this one's.
+    pub fn count_in(&mut self, counts: Counts) {
+        self.simulations += counts.simulations;
+        self.prepare_s += counts.prepare_s;
+        self.removal_s += counts.removal_s;
+    }
+
     /// Turning: the part's azimuth the simulation looks along (rad).
     pub fn azimuth_rad(&self) -> f64 {
         self.azimuth_rad
@@ -295,7 +371,7 @@ impl<'e> ForwardModel<'e> {
         &mut self,
         modifies: &[&(dyn Fn(&mut Job) + Sync)],
     ) -> Result<Vec<SimulatedSurface>, ForwardError> {
-        if self.engine.info().kind != "cpu" || modifies.len() < 2 {
+        if !self.runs_on_cpu() || modifies.len() < 2 {
             return modifies.iter().map(|m| self.simulate(*m)).collect();
         }
         let started = Instant::now();

@@ -25,6 +25,7 @@ pub mod register;
 pub mod report;
 pub mod screen;
 pub mod search;
+pub mod side_by_side;
 pub mod spectrum;
 pub mod validate;
 pub mod verdict;
@@ -43,7 +44,7 @@ use measurement::{Measurement, Shape};
 use register::{Comb, Registered, ShiftSearch, Terms};
 use report::*;
 use search::{Search, TIE_EVIDENCE};
-use std::rc::Rc;
+use std::sync::Arc;
 use std::time::Instant;
 use zones::{Zones, band_cutoffs, bands, pv, radii, rms, white_noise_mm};
 
@@ -716,7 +717,7 @@ fn check_coverage(job: &Job, m: &Measurement) -> Result<Measurement, DiagnoseErr
 fn calibration_mask(
     m: &Measurement,
     range: Option<(f64, f64)>,
-) -> Result<Option<Rc<Vec<bool>>>, DiagnoseError> {
+) -> Result<Option<Arc<Vec<bool>>>, DiagnoseError> {
     let Some((from, to)) = range else {
         return Ok(None);
     };
@@ -730,7 +731,7 @@ fn calibration_mask(
             m.len() - fitted
         )));
     }
-    Ok(Some(Rc::new(mask)))
+    Ok(Some(Arc::new(mask)))
 }
 
 /// A fitted effect (member `i` of a fit) as a result row.

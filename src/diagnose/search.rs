@@ -15,6 +15,7 @@ use super::fit::{Fit, Fitted, Problem, WAVINESS_PROBE_NM, bic, width};
 use super::forward::ForwardError;
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch};
+use super::side_by_side;
 use super::validate::{Folds, Validation, cross_validate};
 use super::zones;
 use super::{DiagnoseError, Options};
@@ -93,16 +94,22 @@ pub fn search<'a>(
     let fitted = problem.measurement;
     let orders = OrderRange::new(job, fitted);
     let nominal_frame = problem.shift;
-    let mut fits = Vec::new();
-    for (i, c) in candidates.iter().enumerate() {
-        log(&format!(
-            "fitting {} (candidate {} of {})",
-            c.label(),
-            i + 1,
-            candidates.len()
-        ));
-        if let Some(fit) = fit_new(problem, &base.set, &base.values, *c, job, fitted)? {
-            fits.push(refit_if_axis_moves(
+    let numbered: Vec<(usize, Candidate)> = candidates.iter().copied().enumerate().collect();
+    let singles = side_by_side::each(
+        problem,
+        &numbered,
+        |(_, c)| c.is_waviness(),
+        |problem, &(i, c), log| -> Result<Option<Fit>, DiagnoseError> {
+            let n = candidates.len();
+            log(&format!(
+                "fitting {} (candidate {} of {n})",
+                c.label(),
+                i + 1
+            ));
+            let Some(fit) = fit_new(problem, &base.set, &base.values, c, job, fitted)? else {
+                return Ok(None);
+            };
+            let fit = refit_if_axis_moves(
                 problem,
                 fit,
                 base,
@@ -111,10 +118,14 @@ pub fn search<'a>(
                 job,
                 fitted,
                 log,
-            )?);
-            problem.shift = nominal_frame;
-            problem.clear_cache();
-        }
+            )?;
+            Ok(Some(fit))
+        },
+        log,
+    );
+    let mut fits = Vec::new();
+    for fit in singles {
+        fits.extend(fit?);
     }
     // The combinations start in the frame of the single that fits best.
     if let Some(best) = fits
@@ -972,6 +983,7 @@ fn partners_round(
         .iter()
         .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
         .count();
+    let mut partners = Vec::new();
     for (single, evidence) in singles {
         if *evidence <= 0.0 && !all {
             continue;
@@ -982,15 +994,24 @@ fn partners_round(
         if taken && !(is_waviness && waviness_taken < MAX_WAVINESS_ORDERS) {
             continue;
         }
-        let c = if is_waviness {
+        partners.push(if is_waviness {
             Candidate::EdgeWaviness { order: 0.0 }
         } else {
             c
-        };
-        log(&format!("fitting {} with {}", c.label(), labels(&effects)));
-        if let Some(fit) = fit_new(problem, &cur.set, &cur.values, c, job, fitted)? {
-            round.push(fit);
-        }
+        });
+    }
+    let fits = side_by_side::each(
+        problem,
+        &partners,
+        Candidate::is_waviness,
+        |problem, &c, log| {
+            log(&format!("fitting {} with {}", c.label(), labels(&effects)));
+            fit_new(problem, &cur.set, &cur.values, c, job, fitted)
+        },
+        log,
+    );
+    for fit in fits {
+        round.extend(fit?);
     }
     Ok(round)
 }

@@ -27,7 +27,7 @@ use super::measurement::Measurement;
 use super::register::{Registered, fit_linear};
 use super::zones::rms;
 use glam::DVec2;
-use std::rc::Rc;
+use std::sync::Arc;
 
 /// Least share of the predicted change a fold must show.
 const MIN_EFFICIENCY: f64 = 0.3;
@@ -53,7 +53,7 @@ pub struct Fold {
 /// marks from where the nominal placement did).
 pub struct Folds<'a> {
     pub measurement: &'a Measurement,
-    pub calibration: Option<Rc<Vec<bool>>>,
+    pub calibration: Option<Arc<Vec<bool>>>,
 }
 
 impl Folds<'_> {
@@ -277,10 +277,10 @@ fn judge_fold(
 ) -> Result<FoldCheck, ForwardError> {
     let n = values.len() - base_values.len();
     let start = base_values.len();
-    let held = Rc::new(fold.held.clone());
+    let held = Arc::new(fold.held.clone());
     // The rest of the fitted points (the problem keeps any calibration's held-out part
     // out of every fit by itself).
-    let rest = Rc::new(fold.held.iter().map(|h| !h).collect::<Vec<bool>>());
+    let rest = Arc::new(fold.held.iter().map(|h| !h).collect::<Vec<bool>>());
     problem.judge_on(Some(rest));
     let fitted = problem.fit_holding(set, values.to_vec(), &registration_parameters(set))?;
     let base_values = if base_set.is_empty() {
