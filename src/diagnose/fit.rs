@@ -1558,7 +1558,7 @@ impl<'a, 'e> Problem<'a, 'e> {
     }
 
     /// `trial` fitted (Levenberg–Marquardt, at most `iterations` Jacobians) from `start`
-    /// and from it at the unit scale, in that order.
+    /// and from it at the unit scale (side by side), in that order.
     fn fits_at_order(
         &mut self,
         parameters: &[Parameter],
@@ -1566,19 +1566,29 @@ impl<'a, 'e> Problem<'a, 'e> {
         start: Vec<f64>,
         iterations: usize,
     ) -> Result<Vec<Fitted>, ForwardError> {
-        with_unit_scale(trial, start)
-            .into_iter()
-            .map(|start| {
-                let (values, _) =
-                    self.levenberg_marquardt_within(trial, parameters, start, &[], iterations)?;
-                let e = self.evaluate(trial, &values)?;
+        super::side_by_side::each(
+            self,
+            &with_unit_scale(trial, start),
+            |_| false,
+            |p, start, _| {
+                let (values, _) = p.levenberg_marquardt_within(
+                    trial,
+                    parameters,
+                    start.clone(),
+                    &[],
+                    iterations,
+                )?;
+                let e = p.evaluate(trial, &values)?;
                 Ok(Fitted {
-                    objective: self.rss(&e),
+                    objective: p.rss(&e),
                     set: trial.to_vec(),
                     values,
                 })
-            })
-            .collect()
+            },
+            &|_| {},
+        )
+        .into_iter()
+        .collect()
     }
 
     /// The least-squares cos/sin amplitudes (nm) of one waviness order against the
