@@ -189,11 +189,7 @@ impl Fit {
     /// The parameters the fit chose: its values, and each edge waviness's order (found
     /// by search, not held: it is paid for in BIC like a value).
     pub fn parameter_count(&self) -> usize {
-        let orders = self
-            .set
-            .iter()
-            .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
-            .count();
+        let orders = self.set.iter().filter(|c| c.is_waviness()).count();
         self.values.len() + orders
     }
 
@@ -227,12 +223,21 @@ impl Fit {
 
     /// One σ of `member`'s order, where it is an edge waviness.
     pub fn order_sigma(&self, member: usize) -> Option<f64> {
-        let waviness = |c: &Candidate| matches!(c, Candidate::EdgeWaviness { .. });
-        if !waviness(&self.set[member]) {
+        self.order_sigmas.get(self.order_index(member)?).copied()
+    }
+
+    /// Where `member`, an edge waviness, lies among the set's waviness members (its
+    /// place in `order_sigmas`).
+    fn order_index(&self, member: usize) -> Option<usize> {
+        if !self.set[member].is_waviness() {
             return None;
         }
-        let k = self.set[..member].iter().filter(|c| waviness(c)).count();
-        self.order_sigmas.get(k).copied()
+        Some(
+            self.set[..member]
+                .iter()
+                .filter(|c| c.is_waviness())
+                .count(),
+        )
     }
 
     /// The values and sigmas of one member of the set.
@@ -880,8 +885,10 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// residual): the linearised σs, and a profile that holds the other values, see
     /// only the valley's floor at the fit.
     pub fn widen_by_order_profile(&mut self, fit: &mut Fit) -> Result<(), ForwardError> {
-        let members: Vec<usize> = (0..fit.set.len())
+        // (member, its place among the set's waviness orders)
+        let members: Vec<(usize, usize)> = (0..fit.set.len())
             .filter(|&m| fit.order_sigma(m).is_some_and(|s| s.is_finite() && s > 0.0))
+            .filter_map(|m| Some((m, fit.order_index(m)?)))
             .collect();
         if members.is_empty() {
             return Ok(());
@@ -891,7 +898,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             fit.parameter_count(),
             fit.correlation_length,
         );
-        for (k, &m) in members.iter().enumerate() {
+        for (m, k) in members {
             let profile = self.order_profile(fit, m, fit.order_sigmas[k], &noise)?;
             fit.order_sigmas[k] = fit.order_sigmas[k].max(profile.half_width);
             for (s, moved) in fit.sigmas.iter_mut().zip(&profile.moved) {
