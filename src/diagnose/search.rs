@@ -703,17 +703,9 @@ fn refit_every_order(
     mut fit: Fit,
     orders: OrderRange,
 ) -> Result<Fit, DiagnoseError> {
-    let count = fit
-        .set
-        .iter()
-        .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
-        .count();
+    let count = fit.set.iter().filter(|c| c.is_waviness()).count();
     for _ in 0..count {
-        let Some(first) = fit
-            .set
-            .iter()
-            .position(|c| matches!(c, Candidate::EdgeWaviness { .. }))
-        else {
+        let Some(first) = fit.set.iter().position(|c| c.is_waviness()) else {
             break;
         };
         let last = with_member_last(problem, &fit, first, true)?;
@@ -979,17 +971,14 @@ fn partners_round(
     }
     let mut round = Vec::new();
     let effects = cur.effects();
-    let waviness_taken = effects
-        .iter()
-        .filter(|c| matches!(c, Candidate::EdgeWaviness { .. }))
-        .count();
+    let waviness_taken = effects.iter().filter(|c| c.is_waviness()).count();
     let mut partners = Vec::new();
     for (single, evidence) in singles {
         if *evidence <= 0.0 && !all {
             continue;
         }
         let c = *single.set.last().expect("a single has its candidate");
-        let is_waviness = matches!(c, Candidate::EdgeWaviness { .. });
+        let is_waviness = c.is_waviness();
         let taken = effects.iter().any(|t| t.kind() == c.kind());
         if taken && !(is_waviness && waviness_taken < MAX_WAVINESS_ORDERS) {
             continue;
