@@ -7,7 +7,7 @@ use super::cpu_turning::{LANES, TurningKernel};
 use super::scene::{Branch, PASS_ID_STRIDE, TurningScene};
 use super::{EngineError, EngineInfo, Progress, RemovalEngine, Scene};
 use crate::field::{DexelField, NO_PASS, Ring};
-use crate::geometry::tool::{EdgeSolver, tip_direction};
+use crate::geometry::tool::{EdgeSolver, psi_from_tip, tip_direction};
 use crate::process::ToolPose;
 use glam::DVec2;
 use rayon::prelude::*;
@@ -310,7 +310,7 @@ fn flank_entry(scene: &TurningScene, ring: &Ring, pose: ToolPose) -> Option<f64>
     if !edge.deviation.is_zero() {
         // ψ of the circle's point at x = 0, measured as the edge solver measures it.
         let hit = DVec2::new(-centre.x, -(radius * radius - centre.x * centre.x).sqrt());
-        radius = edge.radius_at((hit.x * tip.y - hit.y * tip.x).atan2(hit.dot(tip)));
+        radius = edge.radius_at(psi_from_tip(hit, tip));
         if centre.x.abs() >= radius {
             return None;
         }

@@ -221,13 +221,18 @@ impl EdgeSolver<'_> {
             if pass == passes {
                 break;
             }
-            // ψ: the clockwise angle from the tip to the hit point.
-            let psi = psi_sign * (hit.x * tip.y - hit.y * tip.x).atan2(hit.dot(tip));
+            let psi = psi_sign * psi_from_tip(hit, tip);
             radius = self.edge.radius_at(psi);
             d = circle_entry(w, direction, radius)?;
         }
         Some(d)
     }
+}
+
+/// ψ of `point` (relative to the arc centre): its clockwise angle from the unit tip
+/// direction `tip`, as the edge's deviation w(ψ) is tabulated.
+pub fn psi_from_tip(point: DVec2, tip: DVec2) -> f64 {
+    (point.x * tip.y - point.y * tip.x).atan2(point.dot(tip))
 }
 
 impl EdgeSolver<'_> {
