@@ -376,17 +376,21 @@ pub fn width(candidate: &Candidate) -> usize {
 }
 
 /// What a parameter's profile rise is judged against (see [`Problem::profile_noise`]).
-struct ProfileNoise {
+pub struct ProfileNoise {
     rss: f64,
     point_variance: f64,
     tau: f64,
 }
 
-/// A waviness order's profile ([`Problem::order_profile`]): its half-width, and how far
-/// each value moved over it.
-struct OrderProfile {
-    half_width: f64,
-    moved: Vec<f64>,
+/// One step of a profile: from its offset δ and the last step's values, the set and the
+/// values to re-fit from (`None` past where the parameter may go).
+type ProfileStep<'a> = dyn Fn(f64, &[f64]) -> Option<(Vec<Candidate>, Vec<f64>)> + 'a;
+
+/// A profile ([`Problem::refitted_profile`]): its half-width, and how far each value
+/// moved over it.
+pub struct Profile {
+    pub half_width: f64,
+    pub moved: Vec<f64>,
 }
 
 /// BIC = n_eff ln(RSS / n) + k ln(n_eff).
@@ -743,8 +747,8 @@ impl<'a, 'e> Problem<'a, 'e> {
             for &j in scan {
                 values = self.scan(set, &parameters, &values, j, &others)?;
             }
-            let (values, jacobian) = self.levenberg_marquardt(set, &parameters, values, &[])?;
-            let (values, jacobian) = self.round_the_turn(set, &parameters, values, jacobian)?;
+            let fitted = self.levenberg_marquardt(set, &parameters, values, &[])?;
+            let (values, jacobian) = self.round_the_turn(set, &parameters, fitted, &[])?;
             let fit = self.finish(set, parameters.clone(), values, &jacobian, &[])?;
             if best.as_ref().is_none_or(|b| fit.objective < b.objective) {
                 best = Some(fit);
@@ -777,8 +781,8 @@ impl<'a, 'e> Problem<'a, 'e> {
         &mut self,
         set: &[Candidate],
         parameters: &[Parameter],
-        values: Vec<f64>,
-        jacobian: Vec<Vec<f64>>,
+        (values, jacobian): (Vec<f64>, Vec<Vec<f64>>),
+        frozen: &[usize],
     ) -> Result<(Vec<f64>, Vec<Vec<f64>>), ForwardError> {
         let at_bound = member_parameters(set, |c| *c == Candidate::SpiralAzimuth)
             .into_iter()
@@ -788,7 +792,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             return Ok((values, jacobian));
         }
         let wrapped = turned_toward_zero(&values, &at_bound, 360.0);
-        let (other, other_jacobian) = self.levenberg_marquardt(set, parameters, wrapped, &[])?;
+        let (other, other_jacobian) = self.levenberg_marquardt(set, parameters, wrapped, frozen)?;
         let here = {
             let e = self.evaluate(set, &values)?;
             self.rss(&e)
@@ -911,47 +915,90 @@ impl<'a, 'e> Problem<'a, 'e> {
     }
 
     /// The profile of member `m`'s waviness order in `fit`: the order stepped out from
-    /// ±`start` by doubling (at most [`PROFILE_DOUBLINGS`] times, never below
-    /// [`MIN_PROFILE_ORDER`]), every value re-fitted from the last step's (Levenberg–Marquardt),
-    /// until Σr² rises by one effective point's variance (Δχ² = 1, as in
-    /// [`Self::profile_half_width`]); the half-width is read off a parabola through that
-    /// step. Each value's move is taken where the profile crosses, the larger side kept.
+    /// ±`start` ([`Self::refitted_profile`]), never below [`MIN_PROFILE_ORDER`].
     fn order_profile(
         &mut self,
         fit: &Fit,
         m: usize,
         start: f64,
         noise: &ProfileNoise,
-    ) -> Result<OrderProfile, ForwardError> {
+    ) -> Result<Profile, ForwardError> {
         let Candidate::EdgeWaviness { order } = fit.set[m] else {
             unreachable!("an order profile of a waviness member");
         };
-        let at = |o: f64| {
+        let trial = |delta: f64, values: &[f64]| {
             let mut set = fit.set.clone();
-            set[m] = Candidate::EdgeWaviness { order: o };
-            set
+            set[m] = Candidate::EdgeWaviness {
+                order: order + delta,
+            };
+            (order + delta >= MIN_PROFILE_ORDER).then(|| (set, values.to_vec()))
         };
-        let print = {
-            let e = self.evaluate(&at(order + start), &fit.values)?;
-            self.residual_change(&e, &fit.evaluation, 1.0)
+        self.refitted_profile(fit, start, &trial, &[], noise)
+    }
+
+    /// The profile of value `j` of `fit`: the value stepped out from ±`start`
+    /// ([`Self::refitted_profile`]) within its bound, every other value re-fitted. Two
+    /// effects whose prints are nearly one (a decentre's cone and a drift's) trade along a
+    /// valley whose floor the linearised σs, taken from finite differences of a sampled
+    /// model, misjudge: a few hundredths of a nanometre of the marks' interpolation in a
+    /// column is enough to make the valley look closed.
+    pub fn value_profile(
+        &mut self,
+        fit: &Fit,
+        j: usize,
+        start: f64,
+        noise: &ProfileNoise,
+    ) -> Result<Profile, ForwardError> {
+        let bound = fit.parameters[j].bound;
+        let trial = |delta: f64, values: &[f64]| {
+            let stepped = fit.values[j] + delta;
+            (stepped.abs() <= bound).then(|| {
+                let mut values = values.to_vec();
+                values[j] = stepped;
+                (fit.set.clone(), values)
+            })
         };
-        let variance = noise.point_variance * inflation(noise.tau, &print);
-        let mut out = OrderProfile {
+        self.refitted_profile(fit, start, &trial, &[j], noise)
+    }
+
+    /// A profile of `fit` along the trials `trial(δ, last values)` gives (`None` past
+    /// where the parameter may go): δ stepped out from ±`start` by doubling (at most
+    /// [`PROFILE_DOUBLINGS`] times), the values re-fitted at each step from the last
+    /// step's (Levenberg–Marquardt, `frozen` held), until Σr² rises by one effective
+    /// point's variance (Δχ² = 1, as in [`Self::profile_half_width`]); the half-width
+    /// is read off a parabola through that step. Each value's move is taken where the
+    /// profile crosses, the larger side kept.
+    fn refitted_profile(
+        &mut self,
+        fit: &Fit,
+        start: f64,
+        trial: &ProfileStep,
+        frozen: &[usize],
+        noise: &ProfileNoise,
+    ) -> Result<Profile, ForwardError> {
+        let mut out = Profile {
             half_width: 0.0,
             moved: vec![0.0; fit.values.len()],
         };
+        let print = match trial(start, &fit.values).or_else(|| trial(-start, &fit.values)) {
+            Some((set, values)) => {
+                let e = self.evaluate(&set, &values)?;
+                self.residual_change(&e, &fit.evaluation, 1.0)
+            }
+            None => return Ok(out),
+        };
+        let variance = noise.point_variance * inflation(noise.tau, &print);
         for side in [1.0, -1.0] {
             let (mut flat, mut reached) = (0.0_f64, 0.0);
             let mut values = fit.values.clone();
             let mut moved = vec![0.0; values.len()];
             for doubling in 0..=PROFILE_DOUBLINGS {
                 let delta = start * (1u64 << doubling) as f64;
-                let trial = order + side * delta;
-                if trial < MIN_PROFILE_ORDER {
+                let Some((set, from)) = trial(side * delta, &values) else {
                     break;
-                }
-                let set = at(trial);
-                (values, _) = self.levenberg_marquardt(&set, &fit.parameters, values, &[])?;
+                };
+                let fitted = self.levenberg_marquardt(&set, &fit.parameters, from, frozen)?;
+                (values, _) = self.round_the_turn(&set, &fit.parameters, fitted, frozen)?;
                 let rise = {
                     let e = self.evaluate(&set, &values)?;
                     self.rss(&e) - noise.rss
@@ -982,7 +1029,7 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// What a profile's rise is judged against, for a fit that left `at` with `k`
     /// values and its residual correlated over `tau` points: Σr² there and one point's
     /// variance.
-    fn profile_noise(&self, at: &Evaluation, k: usize, tau: f64) -> ProfileNoise {
+    pub fn profile_noise(&self, at: &Evaluation, k: usize, tau: f64) -> ProfileNoise {
         let used = at.registered.used.max(1) as f64;
         let rss = self.rss(at);
         ProfileNoise {

@@ -640,12 +640,13 @@ fn widen_for_look_alikes(
             else {
                 continue;
             };
-            // The member's σs widened to the distance it moved beside the look-alike,
-            // and (`by_sigma`) to its σ there.
+            let along = moves_along_look_alike(problem, &beside)?;
+            // The member's σs widened to the distance it moved beside the look-alike
+            // (or along the look-alike's profile), and (`by_sigma`) to its σ there.
             let widened_by = |by_sigma: bool| {
                 let mut widened = accepted.clone();
                 for j in span.clone() {
-                    let moved = (beside.values[j] - accepted.values[j]).abs();
+                    let moved = (beside.values[j] - accepted.values[j]).abs().max(along[j]);
                     let sigma = if by_sigma { beside.sigmas[j] } else { 0.0 };
                     widened.sigmas[j] = accepted.sigmas[j].max(sigma).max(moved);
                 }
@@ -693,6 +694,30 @@ fn widen_for_look_alikes(
     }
     found.accepted = Some(accepted);
     Ok(())
+}
+
+/// How far each value of `beside` moves while the look-alike (its last member) is
+/// stepped along its profile with every other value re-fitted ([`Problem::value_profile`]):
+/// where two prints are nearly one, the valley between them is as flat as the data
+/// leave it, however closed the linearised σs make it look.
+fn moves_along_look_alike(problem: &mut Problem, beside: &Fit) -> Result<Vec<f64>, DiagnoseError> {
+    let noise = problem.profile_noise(
+        &beside.evaluation,
+        beside.parameter_count(),
+        beside.correlation_length,
+    );
+    let mut along = vec![0.0_f64; beside.values.len()];
+    for j in beside.parameter_span(beside.set.len() - 1) {
+        let sigma = beside.sigmas[j];
+        if !(sigma.is_finite() && sigma > 0.0) || beside.at_bound[j] {
+            continue;
+        }
+        let profile = problem.value_profile(beside, j, sigma, &noise)?;
+        for (a, m) in along.iter_mut().zip(profile.moved) {
+            *a = (*a).max(m);
+        }
+    }
+    Ok(along)
 }
 
 /// `fit` with the order of each of its edge-waviness members re-fitted in turn, the
