@@ -9,6 +9,9 @@ use crate::io::job::Job;
 use crate::process::{PlungeAxis, Process, TurningPath};
 use glam::DVec2;
 
+/// Relative difference within which two harmonic orders are one effect's.
+pub const SAME_ORDER: f64 = 0.1;
+
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(rename_all = "snake_case", tag = "effect")]
 pub enum Candidate {
@@ -233,6 +236,22 @@ impl Candidate {
             Candidate::Vibration { cycles, .. } => Some(cycles),
             _ => None,
         }
+    }
+
+    /// The same effect as `other`: the same kind, and for a harmonic its order within
+    /// [`SAME_ORDER`] (two fits of one waviness land a fraction of an order apart).
+    pub fn same_effect(&self, other: &Candidate) -> bool {
+        let orders_agree = match (self.order(), other.order()) {
+            (Some(a), Some(b)) => (a - b).abs() <= SAME_ORDER * a.abs().max(b.abs()),
+            _ => true,
+        };
+        self.kind() == other.kind()
+            && self.is_depth_vibration() == other.is_depth_vibration()
+            && orders_agree
+    }
+
+    fn is_depth_vibration(&self) -> bool {
+        matches!(self, Candidate::Vibration { depth: true, .. })
     }
 
     /// The candidate at harmonic order `order` (itself when it has none).

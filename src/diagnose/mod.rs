@@ -326,6 +326,9 @@ pub fn diagnose(
             .registration
             .unstretched(fit::fitted_stretch(&base).0),
     )?;
+    if let Some(note) = scale_or_nose_radius(job, &registration, accepted, &candidates) {
+        check.findings.push(note);
+    }
     let diagnosis = Diagnosis {
         schema: SCHEMA,
         toolmark_version: env!("CARGO_PKG_VERSION"),
@@ -534,6 +537,47 @@ fn placement(
     ))
 }
 
+/// On a turned sphere a nose radius Δρ off nominal (the tool set at its tip) moves the
+/// marks along the radius by Δρ·r/R — as a lateral scale of 1 + Δρ/R does (1 − Δρ/R on
+/// a concave one) — and bends the form beyond power only in r⁴. Where the lateral scale
+/// came out clear of 1 and no nose-radius error was claimed, a note says which nose
+/// error the scale could equally be, and how to tell them apart.
+fn scale_or_nose_radius(
+    job: &Job,
+    registration: &RegistrationInfo,
+    accepted: Option<&Fit>,
+    candidates: &[Candidate],
+) -> Option<Finding> {
+    let surface = &job.surface;
+    let sphere = surface.curvature_per_mm > 0.0
+        && surface.conic == 0.0
+        && surface.even_coefficients.iter().all(|a| *a == 0.0);
+    let (scale, sigma) = (registration.lateral_scale, registration.lateral_scale_sigma);
+    let clear = registration.lateral_scale_fitted
+        && !registration.lateral_scale_at_bound
+        && (scale - 1.0).abs() > 2.0 * sigma;
+    let claimed = accepted.is_some_and(|f| f.effects().contains(&Candidate::NoseRadiusError));
+    if !(job.process.turning().is_some()
+        && sphere
+        && clear
+        && candidates.contains(&Candidate::NoseRadiusError)
+        && !claimed)
+    {
+        return None;
+    }
+    let radius_um = 1e3 / surface.curvature_per_mm;
+    let sign = match surface.form {
+        crate::geometry::surface::Form::Convex => 1.0,
+        crate::geometry::surface::Form::Concave => -1.0,
+    };
+    Some(Finding::note(format!(
+        "the lateral scale came out {scale:.5} ± {sigma:.5}: on this R{} mm sphere a nose radius {:+.2} ± {:.2} µm off nominal (the tool set at its tip) moves the marks alike and leaves no other print beyond power; if the instrument's lateral scale is known, diagnose again with --fixed-scale to tell the two apart",
+        (radius_um).round() * 1e-3,
+        sign * (scale - 1.0) * radius_um,
+        sigma * radius_um
+    )))
+}
+
 /// What is reported of a residual: where it lies (zones, bands, orders), its noise, and
 /// along a profile with marks, its fold over them.
 struct ResidualAnalysis<'a> {
@@ -624,8 +668,10 @@ fn local_search(start: DVec2, period: f64, comb: Option<Comb>) -> ShiftSearch {
     }
 }
 
-/// Most teeth of an axis comb on each side.
+/// Most teeth of an axis comb on each side (and most far teeth beyond them).
 const MAX_TEETH: usize = 400;
+/// The far teeth lie at least this many of the near teeth's steps apart.
+const FAR_STEPS: f64 = 4.0;
 
 /// One σ of a line's axis where the final model put it: what its fit left open (the
 /// azimuth held; the comb's aliases in). On a radius whose marks placed it, the marks
@@ -658,8 +704,11 @@ fn line_axis_sigma_mm(
 /// The axis positions along a turned line that the placement could not tell apart
 /// (see [`Comb`]), searched by every fit: where the profile resolves the marks, every
 /// half mark (odd ones read half a turn round); where it does not, the form alone
-/// placed it, and every quarter period. Across the whole range where the placement
-/// searched the axis (`Located::axis_range_mm`, here in the placed frame).
+/// placed it, and every quarter period — up to [`MAX_TEETH`] a side, and beyond them
+/// up to as many again, sparser, so that the teeth span the range still (the form has
+/// no marks to alias: a decentre's cone may lie anywhere in it). Across the whole range
+/// where the placement searched the axis (`Located::axis_range_mm`, here in the placed
+/// frame).
 fn axis_comb(job: &Job, m: &Measurement, located: &Located, period: f64) -> Option<Comb> {
     let (lo, hi) = located.axis_range_mm?;
     job.process.turning()?;
@@ -669,19 +718,36 @@ fn axis_comb(job: &Job, m: &Measurement, located: &Located, period: f64) -> Opti
     };
     let at = located.frame.shift_mm.dot(m.line_direction());
     let scale = located.frame.scale;
-    let teeth = |reach: f64| ((reach * scale / step_mm).floor().max(0.0) as usize).min(MAX_TEETH);
+    let fine = |reach: f64| ((reach * scale / step_mm).floor().max(0.0) as usize).min(MAX_TEETH);
+    let beyond = |reach: f64| reach * scale - fine(reach) as f64 * step_mm;
+    let widest_beyond = beyond(at - lo).max(beyond(hi - at));
+    let far_step_mm = if mirror_odd || widest_beyond <= step_mm {
+        0.0
+    } else {
+        (FAR_STEPS * step_mm).max(widest_beyond / (MAX_TEETH as f64 - 0.5))
+    };
+    let teeth = |reach: f64| {
+        let far = if far_step_mm > 0.0 {
+            (beyond(reach) / far_step_mm).floor().max(0.0) as usize
+        } else {
+            0
+        };
+        fine(reach) + far.min(MAX_TEETH)
+    };
     let comb = Comb {
         step_mm,
         below: teeth(at - lo),
         above: teeth(hi - at),
         mirror_odd,
+        fine: MAX_TEETH,
+        far_step_mm,
     };
     (comb.below + comb.above > 0).then_some(comb)
 }
 
 /// How far from the placed axis the comb's teeth reach (mm), for the simulated region.
 fn comb_reach_mm(comb: Option<Comb>) -> f64 {
-    comb.map_or(0.0, |c| c.step_mm * c.below.max(c.above) as f64)
+    comb.map_or(0.0, |c| c.reach_mm())
 }
 
 /// Keeps the points on the part; refuses a measurement mostly off it.
@@ -949,12 +1015,18 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
     tied
 }
 
-/// The last accepted step whose effects both `accepted` and `alternative` hold, when
-/// the two differ in nothing else but effects added after it; with the labels of
-/// those differing effects (accepted's first).
+/// The last accepted step whose effects both `accepted` and `alternative` hold (a
+/// harmonic at orders a fraction apart held by both), when the two differ in nothing
+/// else but effects added after it — by one of them at least (the other may be the step
+/// itself: a further effect the data neither asks for nor rules out); with the labels
+/// of those differing effects (accepted's first, an empty side left out).
 fn shared_step(found: &Search, accepted: &Fit, alternative: &Fit) -> Option<(Fit, Vec<String>)> {
     let (a, b) = (accepted.effects(), alternative.effects());
-    let shared: Vec<Candidate> = a.iter().filter(|c| b.contains(c)).copied().collect();
+    let shared: Vec<Candidate> = a
+        .iter()
+        .filter(|c| b.iter().any(|d| c.same_effect(d)))
+        .copied()
+        .collect();
     let step = found.steps.iter().rev().find(|step| {
         let held = step.effects();
         !held.is_empty() && held.iter().all(|c| shared.contains(c))
@@ -963,13 +1035,16 @@ fn shared_step(found: &Search, accepted: &Fit, alternative: &Fit) -> Option<(Fit
     let beyond = |set: &[Candidate]| -> String {
         search::labels(
             &set.iter()
-                .filter(|c| !held.contains(c))
+                .filter(|c| !held.iter().any(|h| h.same_effect(c)))
                 .copied()
                 .collect::<Vec<_>>(),
         )
     };
-    let tied = [beyond(&a), beyond(&b)];
-    if tied.iter().any(|t| t.is_empty()) {
+    let tied: Vec<String> = [beyond(&a), beyond(&b)]
+        .into_iter()
+        .filter(|t| !t.is_empty())
+        .collect();
+    if tied.is_empty() {
         return None;
     }
     // What the step holds moves as either further effect is added: its σ covers that.
@@ -978,7 +1053,11 @@ fn shared_step(found: &Search, accepted: &Fit, alternative: &Fit) -> Option<(Fit
         let values = step.values_of(member).0.to_vec();
         let mut spread = vec![0.0_f64; values.len()];
         for other in [accepted, alternative] {
-            if let Some(at) = other.set.iter().position(|c| *c == step.set[member]) {
+            if let Some(at) = other
+                .set
+                .iter()
+                .position(|c| c.same_effect(&step.set[member]))
+            {
                 for (s, (v, w)) in spread
                     .iter_mut()
                     .zip(values.iter().zip(other.values_of(at).0))
@@ -989,7 +1068,7 @@ fn shared_step(found: &Search, accepted: &Fit, alternative: &Fit) -> Option<(Fit
         }
         search::widen_sigmas(&mut step, member, &spread);
     }
-    Some((step, tied.to_vec()))
+    Some((step, tied))
 }
 
 /// Candidates the data cannot tell from the best: evidence within [`TIE_EVIDENCE`] of

@@ -50,13 +50,39 @@ pub struct Comb {
     pub below: usize,
     pub above: usize,
     pub mirror_odd: bool,
+    /// Beyond `fine` teeth a side the teeth lie `far_step_mm` apart: a line the form
+    /// alone placed, whose range `step_mm` teeth would not span (a decentre's cone on a
+    /// part whose marks are lost in the noise may lie anywhere the form allows).
+    pub fine: usize,
+    pub far_step_mm: f64,
 }
 
 impl Comb {
     /// The `n`-th tooth: its offset along the line (mm) and whether it is read the other
     /// way from the start.
     fn tooth(&self, n: i64) -> (f64, bool) {
-        (n as f64 * self.step_mm, self.mirror_odd && n % 2 != 0)
+        let k = n.unsigned_abs() as usize;
+        let offset = if k <= self.fine {
+            n as f64 * self.step_mm
+        } else {
+            n.signum() as f64
+                * (self.fine as f64 * self.step_mm + (k - self.fine) as f64 * self.far_step_mm)
+        };
+        (offset, self.mirror_odd && n % 2 != 0)
+    }
+
+    /// Whether the `n`-th tooth is one of the far, sparser ones.
+    fn is_far(&self, n: i64) -> bool {
+        n.unsigned_abs() as usize > self.fine
+    }
+
+    /// How far from the start the outermost teeth lie (mm).
+    pub fn reach_mm(&self) -> f64 {
+        let (below, above) = (
+            self.tooth(-(self.below as i64)).0,
+            self.tooth(self.above as i64).0,
+        );
+        below.abs().max(above.abs())
     }
 
     /// The teeth, in order.
@@ -224,10 +250,15 @@ fn register_on_comb(
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .map_or(0, |s| s.1);
     let (along, odd) = comb.tooth(best);
-    let at = ShiftSearch {
+    let mut at = ShiftSearch {
         start: search.start + along * direction,
         ..search
     };
+    // A far tooth: the local search covers half the way to its neighbours.
+    if comb.is_far(best) && 0.5 * comb.far_step_mm > at.half_width_mm {
+        at.half_width_mm = 0.5 * comb.far_step_mm;
+        at.step_mm = 0.25 * at.half_width_mm;
+    }
     register_near(m, sim, terms, at, search.mirrored != odd)
 }
 

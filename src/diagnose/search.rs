@@ -190,13 +190,13 @@ pub fn search<'a>(
             let member = fit.set.len() - 1;
             let label = fit.set[member].label();
             if let Some(why) =
-                not_a_fit(&fit, member, orders).or_else(|| too_small(rss_before, fit.objective))
+                not_a_fit(&fit, member, orders).or_else(|| too_small(&current, &fit, fitted))
             {
                 log(&format!("{label}: {why}"));
                 found.refused.push((label, why));
                 // A large print whose σ the residual's unexplained structure inflated
                 // may stand once a partner takes that structure: it is offered one.
-                if only_doubtful(&fit, member, rss_before, orders) {
+                if only_doubtful(&fit, member, &current, fitted, orders) {
                     refused.push(fit);
                 }
                 continue;
@@ -218,7 +218,7 @@ pub fn search<'a>(
             && leaves_structure(&current, fitted)
             && let Some(fit) = weak
             && not_a_fit(&fit, fit.set.len() - 1, orders).is_none()
-            && too_small(rss_before, fit.objective).is_none()
+            && too_small(&current, &fit, fitted).is_none()
         {
             refused.push(fit);
         }
@@ -337,7 +337,7 @@ fn rival_pair<'a>(
     if let Some(why) = members
         .iter()
         .find_map(|&m| not_a_fit(&pair, m, orders))
-        .or_else(|| too_small(rival.objective, pair.objective))
+        .or_else(|| too_small(&rival, &pair, problem.measurement))
     {
         log(&format!(
             "{label} (instead of {}): {why}",
@@ -802,7 +802,7 @@ fn joint_pair<'a>(
     if let Some(why) = members
         .iter()
         .find_map(|&m| not_a_fit(&pair, m, orders))
-        .or_else(|| too_small(first.objective, pair.objective))
+        .or_else(|| too_small(first, &pair, problem.measurement))
     {
         log(&format!("{label} together: {why}"));
         found.refused.push((label, why));
@@ -935,25 +935,48 @@ fn order_at_bound(c: Candidate, range: OrderRange) -> Option<String> {
 
 /// Whether the member's only fault is its doubt: within its bounds and removing enough of
 /// the residual, but within 3σ of zero.
-fn only_doubtful(fit: &Fit, member: usize, before: f64, orders: OrderRange) -> bool {
+fn only_doubtful(
+    fit: &Fit,
+    member: usize,
+    before: &Fit,
+    m: &Measurement,
+    orders: OrderRange,
+) -> bool {
     let within_bounds = fit.parameter_span(member).all(|j| !fit.at_bound[j])
         && order_at_bound(fit.set[member], orders).is_none();
-    within_bounds && !significant(fit, member) && too_small(before, fit.objective).is_none()
+    within_bounds && !significant(fit, member) && too_small(before, fit, m).is_none()
 }
 
-/// Why an effect that lowers the residual's Σr² from `before` to `after` explains too
-/// little to act on, if it does: less than [`MIN_REDUCTION`] of the residual's RMS.
-/// Such an effect, however significant, is a fit to the residual's own structure (a
-/// correlated noise, a small unmodelled feature) as often as a cause.
-fn too_small(before: f64, after: f64) -> Option<String> {
-    let reduction = 1.0 - (after / before.max(1e-300)).max(0.0).sqrt();
-    (reduction < MIN_REDUCTION).then(|| {
+/// Why an effect that takes the residual from `before`'s to `after`'s explains too
+/// little to act on, if it does: less than [`MIN_REDUCTION`] of the residual's RMS,
+/// unless it leaves the white noise alone where more was there before (see
+/// [`takes_all_structure`]). Such an effect, however significant, is a fit to the
+/// residual's own structure (a correlated noise, a small unmodelled feature) as often
+/// as a cause.
+fn too_small(before: &Fit, after: &Fit, m: &Measurement) -> Option<String> {
+    let reduction = rms_reduction(before.objective, after.objective);
+    (reduction < MIN_REDUCTION && !takes_all_structure(before, after, m)).then(|| {
         format!(
             "it removes {:.1} % of the residual's RMS, less than the {:.0} % an effect must remove to be acted on",
             100.0 * reduction,
             100.0 * MIN_REDUCTION
         )
     })
+}
+
+/// The share of the residual's RMS a fit removes, from its Σr² `before` and `after`.
+fn rms_reduction(before: f64, after: f64) -> f64 {
+    1.0 - (after / before.max(1e-300)).max(0.0).sqrt()
+}
+
+/// Whether `before` left more than its white noise (its RMS over the noise by more than
+/// the noise reading's own error, [`NOISE_FLOOR`]) and `after` leaves no more: a weak
+/// print in a noisy measurement (a nose-radius error's form under 3 nm of noise) is all
+/// of what there was to explain, however small a share of the RMS.
+fn takes_all_structure(before: &Fit, after: &Fit, m: &Measurement) -> bool {
+    let residual = &before.evaluation.registered.residual_mm;
+    let floor = zones::white_noise_mm(m, residual) / NOISE_FLOOR;
+    zones::rms(residual) > floor && zones::rms(&after.evaluation.registered.residual_mm) <= floor
 }
 
 /// A fold-tested effect's σ is at least half the spread of its values over the folds.
@@ -1280,7 +1303,7 @@ pub fn fit_new(
                 let e = problem.evaluate(base, base_values)?;
                 problem.rss(&e)
             };
-            if too_small(before, fit.objective).is_some() {
+            if rms_reduction(before, fit.objective) < MIN_REDUCTION {
                 return Ok(Some(fit));
             }
             let refitted = refit_waviness_order(problem, &fit, order, range)?;

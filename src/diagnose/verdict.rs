@@ -101,12 +101,16 @@ pub fn verdict(
                     h.points, h.before_rms_nm, h.after_rms_nm
                 ));
             }
-            if !ambiguous.is_empty() {
-                sentence.push_str(&format!(
-                    " Beyond {}, {} would explain about as much more: this measurement cannot tell them apart, so neither is claimed.",
-                    if members.len() == 1 { "it" } else { "them" },
+            let beyond = if members.len() == 1 { "it" } else { "them" };
+            match ambiguous {
+                [] => {}
+                [one] => sentence.push_str(&format!(
+                    " Beyond {beyond}, {one} would explain about as much: this measurement cannot tell whether it is there, so it is not claimed."
+                )),
+                _ => sentence.push_str(&format!(
+                    " Beyond {beyond}, {} would explain about as much more: this measurement cannot tell them apart, so neither is claimed.",
                     ambiguous.join(" or ")
-                ));
+                )),
             }
             let mut advice: Vec<String> = members
                 .iter()

@@ -49,14 +49,15 @@ azimuths = 16
 """
 
 
-def draw_effect(rng, wide=False):
+def draw_effect(rng, effects="setup"):
     """One planted effect: (generator options, truth as toolmark names it).
 
     `wide`: also an edge waviness alone and the pairs a centre height + waviness and a
-    decentre + drift (each part of a pair drawn as alone)."""
-    kinds = ["h", "d", "drift", "none", "h", "d"]
-    if wide:
-        kinds = ["h", "d", "drift", "none", "w", "h+w", "d+drift"]
+    decentre + drift (each part of a pair drawn as alone); `all`: also a nose-radius error
+    alone and beside a centre height."""
+    kinds = {"setup": ["h", "d", "drift", "none", "h", "d"],
+             "wide": ["h", "d", "drift", "none", "w", "h+w", "d+drift"],
+             "all": ["h", "d", "drift", "none", "w", "h+w", "d+drift", "n", "n+h"]}[effects]
     kind = rng.choice(kinds)
     if "+" in kind:
         options, truth = [], {}
@@ -69,9 +70,14 @@ def draw_effect(rng, wide=False):
 
 
 def draw_one(rng, kind):
-    """One effect of `kind` (h, d, drift, w or none): (generator options, truth)."""
+    """One effect of `kind` (h, d, drift, w, n or none): (generator options, truth)."""
     if kind == "none":
         return [], {}
+    if kind == "n":
+        # a nose radius off by v µm, the tool set at its tip: to the generator an edge
+        # waviness of order 0 (the edge v further out at every angle, the tip kept)
+        v = round(rng.choice([-1, 1]) * rng.uniform(3.0, 15.0), 1)
+        return ["--waviness", "0:%g:0" % (v * 1000)], {"nose_radius_error": v}
     if kind == "w":
         order = rng.randint(10, 45)
         amplitude = round(rng.uniform(15, 60))
@@ -100,7 +106,7 @@ def make(args):
         rim = round(rng.uniform(1.0, 2.0), 2)
         L = round(rim * rng.uniform(0.6, 0.9), 2)
         axis = rng.randint(-300, 900)
-        options, truth = draw_effect(rng, args.effects == "wide")
+        options, truth = draw_effect(rng, args.effects)
         noise = rng.choice([0.5, 1.0, 2.0, 3.0])
         step = rng.choice([0.25, 0.5, 1.0])
         form_removed = rng.random() < 0.4
@@ -182,9 +188,10 @@ def main():
     m.add_argument("--count", type=int, default=12)
     m.add_argument("--prefix", default="p")
     m.add_argument("--dir", default=".")
-    m.add_argument("--effects", choices=["setup", "wide"], default="setup",
+    m.add_argument("--effects", choices=["setup", "wide", "all"], default="setup",
                    help="setup: one set-up effect or none (batches p-s); wide: also a "
-                        "waviness and two pairs")
+                        "waviness and two pairs; all: also a nose-radius error, alone and "
+                        "beside a centre height")
     s = sub.add_parser("score")
     s.add_argument("--prefix", default="p")
     s.add_argument("--dir", default=".")
