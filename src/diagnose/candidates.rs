@@ -10,7 +10,7 @@ use crate::process::{PlungeAxis, Process, TurningPath};
 use glam::DVec2;
 
 /// Relative difference within which two harmonic orders are one effect's.
-pub const SAME_ORDER: f64 = 0.1;
+const SAME_ORDER: f64 = 0.1;
 
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 #[serde(rename_all = "snake_case", tag = "effect")]

@@ -566,10 +566,9 @@ fn scale_or_nose_radius(
         return None;
     }
     let radius_um = 1e3 / surface.curvature_per_mm;
-    let sign = match surface.form {
-        crate::geometry::surface::Form::Convex => 1.0,
-        crate::geometry::surface::Form::Concave => -1.0,
-    };
+    // The marks move outward with Δρ on a convex part (z falling with r), inward on a
+    // concave one.
+    let sign = -surface.sign();
     Some(Finding::note(format!(
         "the lateral scale came out {scale:.5} ± {sigma:.5}: on this R{} mm sphere a nose radius {:+.2} ± {:.2} µm off nominal (the tool set at its tip) moves the marks alike and leaves no other print beyond power; if the instrument's lateral scale is known, diagnose again with --fixed-scale to tell the two apart",
         (radius_um).round() * 1e-3,

@@ -72,7 +72,8 @@ impl SurfaceOfRevolution {
         }
     }
 
-    fn sign(&self) -> f64 {
+    /// The sign of `z` against the sag: −1 convex (height falls with radius), +1 concave.
+    pub fn sign(&self) -> f64 {
         match self.form {
             Form::Convex => -1.0,
             Form::Concave => 1.0,
