@@ -773,6 +773,24 @@ impl<'a, 'e> Problem<'a, 'e> {
         Ok(fit)
     }
 
+    /// Fits `set` from `start` with the parameters `held` kept where `start` puts them
+    /// first, so that the others settle around them, then all of them free: a member
+    /// moved to another basin (its mirror) is not pulled straight back by partners
+    /// still sized for the old one.
+    pub fn fit_around(
+        &mut self,
+        set: &[Candidate],
+        start: Vec<f64>,
+        held: &[usize],
+    ) -> Result<Fit, ForwardError> {
+        let parameters: Vec<Parameter> = set
+            .iter()
+            .flat_map(|c| c.parameters(self.model.base_job()))
+            .collect();
+        let (settled, _) = self.levenberg_marquardt(set, &parameters, start, held)?;
+        self.fit(set, settled, &[])
+    }
+
     /// Where the fit left the spiral's azimuth at its bound (half a turn either way), the
     /// same azimuth from the other side: the turn is periodic and the bound only keeps
     /// it in one turn, so a fit started near half a turn ([`scan_starts`]) that leans

@@ -236,7 +236,14 @@ pub fn diagnose(
     }
     let baseline = base.evaluation.clone();
     let indistinguishable = indistinguishable(&found.singles, &baseline.registered);
+    let contenders: Vec<DVec2> = found
+        .accepted
+        .iter()
+        .chain(&found.alternative)
+        .map(|f| f.evaluation.registered.shift_mm)
+        .collect();
     let ambiguous = withdraw_if_ambiguous(&mut found, &indistinguishable, log);
+    let rival_axes = rival_axes(&found, contenders, &ambiguous);
     if fitted.is_line() && check.fits {
         refine_reported(&mut problem, &mut found, log)?;
         withdraw_if_not_significant(&mut found, log);
@@ -325,6 +332,7 @@ pub fn diagnose(
         nominal
             .registration
             .unstretched(fit::fitted_stretch(&base).0),
+        &rival_axes,
     )?;
     if let Some(note) = scale_or_nose_radius(job, &registration, accepted, &candidates) {
         check.findings.push(note);
@@ -490,7 +498,7 @@ const SCALE_SIGMA_FLOOR: f64 = 1e-4;
 
 /// Where the data lies as `final_fit` places it: the spiral's turn, the fitted lateral
 /// scale and (`judge_axis`, a line whose axis was searched) the axis σ
-/// ([`line_axis_sigma_mm`]).
+/// ([`line_axis_sigma_mm`]), widened to reach the farthest of `rival_axes`.
 fn placement(
     problem: &mut Problem,
     final_fit: &Fit,
@@ -498,6 +506,7 @@ fn placement(
     (measurement, fitted): (&Measurement, &Measurement),
     (terms, judge_axis): (Terms, bool),
     nominal: register::Registration,
+    rival_axes: &[DVec2],
 ) -> Result<RegistrationInfo, DiagnoseError> {
     let half_turn = if final_fit.evaluation.registered.mirrored {
         180.0
@@ -515,9 +524,15 @@ fn placement(
     }
     // The σ in the read measurement's mm: through the located scale, the fit's stretch
     // already taken out.
+    let own = final_fit.evaluation.registered.shift_mm;
+    let rivals_apart = rival_axes
+        .iter()
+        .map(|r| (*r - own).length() / located.frame.scale)
+        .fold(0.0, f64::max);
     let sigma = judge_axis
         .then(|| line_axis_sigma_mm(problem, final_fit, &located, measurement))
-        .transpose()?;
+        .transpose()?
+        .map(|s| s.hypot(rivals_apart));
     let mut located = located.with_fitted_scale(stretch, stretch_sigma);
     if let Some(sigma) = sigma {
         located.sigma_shift_mm[0] = sigma;
@@ -1012,6 +1027,28 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
     ));
     found.accepted = None;
     tied
+}
+
+/// Where the explanations the data cannot tell apart (`ambiguous`) put the axis (in the
+/// placed frame): the withdrawn set and its tied alternative (`contenders`, taken
+/// before the withdrawal) and each tied effect's fit alone. A decentre moves the axis
+/// by up to its own size (independent batch k, draw k04: the decentre's fit 1.47
+/// µm from the truth, the drift's beside it); while the data cannot choose, the axis σ
+/// covers them all. Empty where nothing ties.
+fn rival_axes(found: &Search, contenders: Vec<DVec2>, ambiguous: &[String]) -> Vec<DVec2> {
+    if ambiguous.is_empty() {
+        return Vec::new();
+    }
+    let tied_alone = found
+        .singles
+        .iter()
+        .filter(|(fit, _)| {
+            fit.set
+                .last()
+                .is_some_and(|c| ambiguous.contains(&c.label()))
+        })
+        .map(|(fit, _)| fit.evaluation.registered.shift_mm);
+    contenders.into_iter().chain(tied_alone).collect()
 }
 
 /// The last accepted step whose effects both `accepted` and `alternative` hold (a
