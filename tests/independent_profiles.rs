@@ -422,6 +422,37 @@ fn a_decentre_beside_a_drift_is_not_claimed_on_the_wrong_side_of_the_axis() {
     assert_axis(&d, 0.418);
 }
 
+/// Form left in, an X decentre of +3.67 µm (short of the axis: a boss) beside an axial
+/// drift of −455 nm on an R16 sphere (0.5 mm nose, 2 µm/rev, 1 µm points, 0.5 nm of
+/// noise, the axis at file x 0.482 mm; random-batch draw m02,
+/// `decentre_3.67um_drift_-455nm_r16_nose05_feed2.csv`). The drift alone takes the
+/// cones (−704.6 ± 1.4 nm, leaving 0.72 nm RMS); the decentre beside it, fitted at
+/// 3.67 µm, predicted three folds (shares 0.7–1.6) and was refused by the fourth, the
+/// outer half, whose predicted change is small beside its noise (chi2 ≈ 7.7, a right
+/// prediction's share scattering ±0.72 about 1) and showed a tenth of it. The drift
+/// was claimed alone, 183σ from its truth. A fold now refutes only a share 2σ of its
+/// noise short of 1 (and under 0.3).
+#[test]
+fn a_decentre_is_not_refused_by_a_fold_its_noise_cannot_judge() {
+    let d = diagnose_job(
+        "r16_nose05_feed2_d216_sphere.toml",
+        "decentre_3.67um_drift_-455nm_r16_nose05_feed2.csv",
+        &["--remove-power"],
+    );
+    assert_status(&d, "effects_found");
+    let claimed = |effect: &str| {
+        let p = &accepted_effect(&d, effect)["parameters"][0];
+        (p["value"].as_f64().unwrap(), p["sigma"].as_f64().unwrap())
+    };
+    assert_sized(claimed("x_decentre"), 3.67);
+    let (drift, _) = claimed("axial_drift");
+    assert!(
+        (drift + 455.0).abs() <= 0.05 * 455.0,
+        "drift {drift} nm for −455"
+    );
+    assert_axis(&d, 0.482);
+}
+
 /// Whatever of a planted decentre (µm) + drift (nm) pair is claimed covers its truth
 /// within 2σ, and nothing else is claimed; where the verdict is `ambiguous`, the two
 /// are what it cannot tell apart.
