@@ -453,9 +453,10 @@ fn waviness_swap(
 /// zero: the moved one, or a partner — independent batch k's k10, x decentre −1.81 µm
 /// beside a 180 nm drift, was accepted as +1.64 µm beside 346 nm; the drift moved to
 /// −346 nm came back to +183 nm with the decentre re-sized past zero), every member a
-/// fit, and explains the data better by more than [`TIE_EVIDENCE`], it is returned to replace the accepted set (the greedy search settled in the worse
-/// basin); within [`TIE_EVIDENCE`] of it, it is kept in `found.alternative`: the data
-/// cannot tell the two apart.
+/// fit, and explains the data better by more than [`TIE_EVIDENCE`], it is returned to
+/// replace the accepted set (the greedy search settled in the worse basin); within
+/// [`TIE_EVIDENCE`] of it, it is kept in `found.alternative`: the data cannot tell the
+/// two apart.
 fn mirrored_member(
     problem: &mut Problem,
     found: &mut Search,
