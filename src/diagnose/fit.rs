@@ -723,6 +723,13 @@ impl<'a, 'e> Problem<'a, 'e> {
         prior.weight_mm * d / prior.sigma_deg
     }
 
+    /// The parameters of `set`'s members, in order, for this job.
+    fn parameters_of(&self, set: &[Candidate]) -> Vec<Parameter> {
+        set.iter()
+            .flat_map(|c| c.parameters(self.model.base_job()))
+            .collect()
+    }
+
     /// Fits `set` starting from `start`: a scan along each parameter listed in `scan`
     /// (the others re-adjusted linearly at every step, so a new effect can trade off
     /// against those already there), then Levenberg–Marquardt on all of them.
@@ -732,10 +739,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         start: Vec<f64>,
         scan: &[usize],
     ) -> Result<Fit, ForwardError> {
-        let parameters: Vec<Parameter> = set
-            .iter()
-            .flat_map(|c| c.parameters(self.model.base_job()))
-            .collect();
+        let parameters = self.parameters_of(set);
         // The lateral scale is not re-adjusted linearly along a scan: the marks make the
         // residual far from linear in it, and a linear step there misjudges every trial.
         let scale_member = member_parameters(set, |c| *c == Candidate::LateralScale);
@@ -783,10 +787,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         start: Vec<f64>,
         held: &[usize],
     ) -> Result<Fit, ForwardError> {
-        let parameters: Vec<Parameter> = set
-            .iter()
-            .flat_map(|c| c.parameters(self.model.base_job()))
-            .collect();
+        let parameters = self.parameters_of(set);
         let (settled, _) = self.levenberg_marquardt(set, &parameters, start, held)?;
         self.fit(set, settled, &[])
     }
@@ -1199,10 +1200,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         start: Vec<f64>,
         held: &[usize],
     ) -> Result<Fit, ForwardError> {
-        let parameters: Vec<Parameter> = set
-            .iter()
-            .flat_map(|c| c.parameters(self.model.base_job()))
-            .collect();
+        let parameters = self.parameters_of(set);
         let (values, jacobian) = self.levenberg_marquardt(set, &parameters, start, held)?;
         self.finish(set, parameters, values, &jacobian, held)
     }
