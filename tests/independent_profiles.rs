@@ -437,6 +437,28 @@ fn a_decentre_is_not_refused_by_a_fold_its_noise_cannot_judge() {
     assert_axis(&d, 0.482);
 }
 
+/// Form left in, an X decentre of +0.95 µm alone on an R22 sphere (0.2 mm nose,
+/// 5 µm/rev, 1 µm points, 3 nm of noise over 16 nm marks, the axis at file x
+/// −0.096 mm; random-batch draw a04, `decentre_0.95um_r22_nose02_feed5_noise3nm.csv`).
+/// A drift alone ties with it, and the axis σ of a tie is widened to reach the tied
+/// explanation's axis; the drift of that tie, fitted from the decentre's frame without
+/// the decentre, stopped on a far tooth of the axis comb (0.54 mm away, worse than the
+/// drift's own fit), so the axis was reported ± 537 µm. The tie's set is now fitted
+/// again from where its look-alike's own fit placed the axis, and the better kept.
+#[test]
+fn a_tie_does_not_widen_the_axis_to_a_fit_that_stopped_on_a_far_tooth() {
+    let d = diagnose_job(
+        "r22_nose02_feed5_sphere.toml",
+        "decentre_0.95um_r22_nose02_feed5_noise3nm.csv",
+        &["--remove-power"],
+    );
+    assert_pair_not_sized_alone(&d, 0.95, 0.0);
+    assert_axis(&d, -0.096);
+    let sigma = d["registration"]["axis_x_sigma_mm"].as_f64().unwrap();
+    // Within the marks' reach: a tie moves the axis by at most a few marks (5 µm each).
+    assert!(sigma < 0.02, "axis σ {} µm", sigma * 1e3);
+}
+
 /// A planted decentre (µm) + drift (nm) pair found as the pair: the decentre sized
 /// ([`assert_sized`]), the drift within 5 % (the generator spreads it over its own
 /// revolutions, toolmark over the job's path: ~2 % apart).
