@@ -87,6 +87,19 @@ enum BenchEngines {
     Both,
 }
 
+/// Blocks of up to 64 MiB come from the heap and freed memory up to 256 MiB stays
+/// with the process. With glibc's defaults each simulation's field (a few MiB) was
+/// mapped fresh and given back on free: a diagnosis spent a quarter of its time
+/// zeroing pages in the kernel (a 24 s profile diagnosis took 19.5 s with these).
+fn keep_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets the allocator's thresholds; called before any thread.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 64 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20);
+    }
+}
+
 fn main() -> ExitCode {
     // Mesa's Vulkan device-select layer probes for a Wayland display and prints an
     // error when there is none; a compute-only program has no use for it.
@@ -101,6 +114,7 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    keep_freed_memory();
     // Ctrl-C removes half-written outputs and says what was kept (io::atomic).
     toolmark::io::atomic::install_interrupt_handler();
     let cli = Cli::parse();

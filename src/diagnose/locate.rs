@@ -814,6 +814,11 @@ struct ScanPoints {
     along: Vec<f64>,
     height: Vec<f64>,
     centred: Vec<f64>,
+    /// The inverse normal matrix of (1, d, d²) (d: `centred`) over every point, with
+    /// power and without (its third row and column zero): the design of a placement
+    /// that keeps every point on the trace, whatever the axis position — the power
+    /// column (p − a)² spans the same space as d² beside 1 and d.
+    whole: [Option<[[f64; 3]; 3]>; 2],
 }
 
 /// Each interval's slope of `trace`, so that the wide search reads a point's height as
@@ -833,11 +838,28 @@ impl ScanPoints {
         order.sort_by(|&a, &b| m.along_mm[a].total_cmp(&m.along_mm[b]));
         let along: Vec<f64> = order.iter().map(|&i| m.along_mm[i]).collect();
         let centre = along.iter().sum::<f64>() / along.len().max(1) as f64;
+        let centred: Vec<f64> = along.iter().map(|x| x - centre).collect();
+        let mut sums = NormalSums::default();
+        for d in &centred {
+            sums.add(*d, 0.0);
+        }
         Self {
             height: order.iter().map(|&i| m.height_mm[i]).collect(),
-            centred: along.iter().map(|x| x - centre).collect(),
+            whole: [false, true].map(|power| sums.inverse(power)),
+            centred,
             along,
         }
+    }
+
+    /// The design's sums over the points whose `targets` are finite.
+    fn design_over(&self, targets: &[f64]) -> NormalSums {
+        let mut sums = NormalSums::default();
+        for (d, t) in self.centred.iter().zip(targets) {
+            if t.is_finite() {
+                sums.add(*d, 0.0);
+            }
+        }
+        sums
     }
 
     /// As [`line_objective`], without allocating: the trace is walked along the
@@ -853,7 +875,7 @@ impl ScanPoints {
         scratch: &mut ScanScratch,
     ) -> f64 {
         let ScanScratch { targets, squares } = scratch;
-        targets.clear();
+        targets.resize(self.along.len(), f64::NAN);
         squares.clear();
         let x = &trace.x;
         let last = x.len().saturating_sub(1);
@@ -864,7 +886,8 @@ impl ScanPoints {
         // The points are about evenly spaced: each starts a step as long as the last.
         let mut stride = 0;
         let mut sums = NormalSums::default();
-        for ((p, y), d) in self.along.iter().zip(&self.height).zip(&self.centred) {
+        let points = self.along.iter().zip(&self.height).zip(&self.centred);
+        for (((p, y), d), slot) in points.zip(targets.iter_mut()) {
             let u = (p - along) * scale;
             let from = k;
             k = (k + stride).min(last);
@@ -880,26 +903,28 @@ impl ScanPoints {
             } else {
                 f64::NAN
             };
-            targets.push(target);
+            *slot = target;
             if target.is_finite() {
-                let q = if power {
-                    (p - along) * (p - along)
-                } else {
-                    0.0
-                };
-                sums.add(*d, q, target);
+                sums.add(*d, target);
             }
         }
         if (sums.count as f64) < ON_PART * self.along.len() as f64 {
             return f64::INFINITY;
         }
-        let Some([c0, c1, c2]) = sums.solve(power) else {
+        // Every point on the trace: the design is the one computed once.
+        let inverse = if sums.count == self.along.len() {
+            self.whole[usize::from(power)]
+        } else {
+            self.design_over(targets).inverse(power)
+        };
+        let Some(inverse) = inverse else {
             return f64::INFINITY;
         };
-        for ((p, d), t) in self.along.iter().zip(&self.centred).zip(targets.iter()) {
+        let rhs = [sums.t, sums.dt, sums.qt];
+        let [c0, c1, c2] = inverse.map(|row| row[0] * rhs[0] + row[1] * rhs[1] + row[2] * rhs[2]);
+        for (d, t) in self.centred.iter().zip(targets.iter()) {
             if t.is_finite() {
-                let q = (p - along) * (p - along);
-                let r = t - (c0 + c1 * d + c2 * q);
+                let r = t - (c0 + c1 * d + c2 * d * d);
                 if r.is_finite() {
                     squares.push(r * r);
                 }
@@ -909,36 +934,36 @@ impl ScanPoints {
     }
 }
 
-/// The normal equations' sums of a piston, a tilt (column `d`) and a power (column `q`)
-/// fitted to targets `t`.
+/// The normal equations' sums of a piston, a tilt (column `d`) and a power (column
+/// `d²`) fitted to targets `t`.
 #[derive(Default)]
 struct NormalSums {
     count: usize,
     d: f64,
     dd: f64,
-    q: f64,
-    dq: f64,
-    qq: f64,
+    ddd: f64,
+    dddd: f64,
     t: f64,
     dt: f64,
     qt: f64,
 }
 
 impl NormalSums {
-    fn add(&mut self, d: f64, q: f64, t: f64) {
+    fn add(&mut self, d: f64, t: f64) {
+        let q = d * d;
         self.count += 1;
         self.d += d;
-        self.dd += d * d;
-        self.q += q;
-        self.dq += d * q;
-        self.qq += q * q;
+        self.dd += q;
+        self.ddd += d * q;
+        self.dddd += q * q;
         self.t += t;
         self.dt += d * t;
         self.qt += q * t;
     }
 
-    /// Piston, tilt and power (0 without `power`); None when singular.
-    fn solve(&self, power: bool) -> Option<[f64; 3]> {
+    /// The inverse of the normal matrix of (1, d, d²) — of (1, d), its third row and
+    /// column zero, without `power`; None when singular.
+    fn inverse(&self, power: bool) -> Option<[[f64; 3]; 3]> {
         let n = self.count as f64;
         if !power {
             let det = n * self.dd - self.d * self.d;
@@ -946,18 +971,29 @@ impl NormalSums {
                 return None;
             }
             return Some([
-                (self.t * self.dd - self.d * self.dt) / det,
-                (n * self.dt - self.d * self.t) / det,
-                0.0,
+                [self.dd / det, -self.d / det, 0.0],
+                [-self.d / det, n / det, 0.0],
+                [0.0; 3],
             ]);
         }
-        let matrix = vec![
-            vec![n, self.d, self.q],
-            vec![self.d, self.dd, self.dq],
-            vec![self.q, self.dq, self.qq],
+        let a = [
+            [n, self.d, self.dd],
+            [self.d, self.dd, self.ddd],
+            [self.dd, self.ddd, self.dddd],
         ];
-        let c = crate::numeric::solve_linear(&matrix, &[self.t, self.dt, self.qt])?;
-        Some([c[0], c[1], c[2]])
+        // The adjugate over the determinant (the matrix is symmetric).
+        let cofactor = |i: usize, j: usize| {
+            let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
+            let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
+            a[r0][c0] * a[r1][c1] - a[r0][c1] * a[r1][c0]
+        };
+        let det = a[0][0] * cofactor(0, 0) + a[0][1] * cofactor(0, 1) + a[0][2] * cofactor(0, 2);
+        if det.abs() <= 1e-300 || !det.is_finite() {
+            return None;
+        }
+        Some(std::array::from_fn(|i| {
+            std::array::from_fn(|j| cofactor(j, i) / det)
+        }))
     }
 }
 
