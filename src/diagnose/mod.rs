@@ -1014,12 +1014,13 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
             return Vec::new();
         };
         let best = best.set[best.set.len() - 1];
+        // A rival accepted beside the first is no rival: the set holds both prints.
+        let held = |label: &String| accepted.effects().iter().any(|c| c.label() == *label);
+        let rivals: Vec<String> = rivals.iter().filter(|r| !held(r)).cloned().collect();
         if rivals.is_empty() || accepted.effects().iter().all(|c| c.kind() != best.kind()) {
             return Vec::new();
         }
-        std::iter::once(best.label())
-            .chain(rivals.iter().cloned())
-            .collect()
+        std::iter::once(best.label()).chain(rivals).collect()
     };
     log(&format!(
         "{} cannot be told apart on this measurement: nothing accepted",

@@ -266,7 +266,8 @@ fn register_on_comb(
 /// about it (linear terms re-solved at each shift), the residual's variance inflated by
 /// its correlation length `tau` (points); widened, where the search has a comb, by the
 /// spread of its teeth weighted by their likelihood against the best, exp(−Δχ²/2) — the
-/// teeth the data cannot tell apart count in full.
+/// teeth the data cannot tell apart count in full (each tooth read both ways where the
+/// comb itself has no mirrored teeth).
 ///
 /// A boss at the axis (`boss`: its radius and the σ its edges allow, mm) pins the axis
 /// by two steps the data sample only at its points: the curvature is taken without the
