@@ -730,6 +730,22 @@ impl<'a, 'e> Problem<'a, 'e> {
             .collect()
     }
 
+    /// [`Problem::fit`] (no scan) with the registration searched in `frame`, the
+    /// problem's own frame restored after.
+    pub fn fit_in_frame(
+        &mut self,
+        frame: ShiftSearch,
+        set: &[Candidate],
+        start: Vec<f64>,
+    ) -> Result<Fit, ForwardError> {
+        let own = std::mem::replace(&mut self.shift, frame);
+        self.clear_cache();
+        let fit = self.fit(set, start, &[]);
+        self.shift = own;
+        self.clear_cache();
+        fit
+    }
+
     /// Fits `set` starting from `start`: a scan along each parameter listed in `scan`
     /// (the others re-adjusted linearly at every step, so a new effect can trade off
     /// against those already there), then Levenberg–Marquardt on all of them.

@@ -732,12 +732,7 @@ fn from_single_frame(
     }
     let mut start = fit.values.clone();
     start[fit.parameter_span(last)].copy_from_slice(single.values_of(single.set.len() - 1).0);
-    let frame = std::mem::replace(&mut problem.shift, single.frame);
-    problem.clear_cache();
-    let again = problem.fit(&fit.set, start, &[]);
-    problem.shift = frame;
-    problem.clear_cache();
-    let again = again?;
+    let again = problem.fit_in_frame(single.frame, &fit.set, start)?;
     Ok(if again.objective < fit.objective {
         again
     } else {
@@ -1134,17 +1129,14 @@ fn from_the_alias(problem: &mut Problem, fit: Fit) -> Result<Fit, ForwardError> 
     let direction = problem.measurement.line_direction();
     let mut best = fit;
     for side in [-1.0, 1.0] {
-        problem.shift = ShiftSearch {
+        let alias = ShiftSearch {
             start: registered.shift_mm + side * comb.step_mm * direction,
             mirrored: !registered.mirrored,
             comb: None,
             ..frame
         };
-        problem.clear_cache();
-        let held = problem.fit(&best.set, best.values.clone(), &[]);
-        problem.shift = frame;
-        problem.clear_cache();
-        let freed = problem.fit(&best.set, held?.values, &[])?;
+        let held = problem.fit_in_frame(alias, &best.set, best.values.clone())?;
+        let freed = problem.fit(&best.set, held.values, &[])?;
         if freed.objective < best.objective {
             best = freed;
         }
