@@ -114,8 +114,17 @@ fn first_parameter(effect: &serde_json::Value) -> (f64, f64) {
 
 /// Where the generator put the axis (file x, mm): the diagnosis must find it within
 /// 20 µm (the bound); it finds it within a micrometre.
+/// The reported axis and its σ (the file's own x, mm).
+fn axis_and_sigma(d: &serde_json::Value) -> (f64, f64) {
+    let r = &d["registration"];
+    (
+        r["axis_x_mm"].as_f64().unwrap(),
+        r["axis_x_sigma_mm"].as_f64().unwrap(),
+    )
+}
+
 fn assert_axis(d: &serde_json::Value, file_x_mm: f64) {
-    let axis = d["registration"]["axis_x_mm"].as_f64().unwrap();
+    let (axis, _) = axis_and_sigma(d);
     assert!(
         (axis - file_x_mm).abs() < 1e-3,
         "axis at {axis} mm, planted {file_x_mm}"
@@ -326,10 +335,7 @@ fn an_axis_moved_by_the_fit_is_reported_in_the_files_own_x() {
     let d = diagnose_job("r6_sphere.toml", "control_r6_axis_50um.csv", &[]);
     assert_status(&d, "no_effect_beyond_noise");
     let r = &d["registration"];
-    let (axis, sigma) = (
-        r["axis_x_mm"].as_f64().unwrap(),
-        r["axis_x_sigma_mm"].as_f64().unwrap(),
-    );
+    let (axis, sigma) = axis_and_sigma(&d);
     assert!(
         (axis - 0.050).abs() <= 2.0 * sigma.max(1e-6),
         "axis at {axis} ± {sigma} mm, planted 0.050"
@@ -454,7 +460,7 @@ fn a_tie_does_not_widen_the_axis_to_a_fit_that_stopped_on_a_far_tooth() {
     );
     assert_pair_not_sized_alone(&d, 0.95, 0.0);
     assert_axis(&d, -0.096);
-    let sigma = d["registration"]["axis_x_sigma_mm"].as_f64().unwrap();
+    let (_, sigma) = axis_and_sigma(&d);
     // Within the marks' reach: a tie moves the axis by at most a few marks (5 µm each).
     assert!(sigma < 0.02, "axis σ {} µm", sigma * 1e3);
 }
@@ -474,8 +480,7 @@ fn an_axis_half_a_mark_off_half_a_turn_round_is_within_its_sigma() {
         &["--remove-power"],
     );
     assert_status(&d, "effects_found");
-    let axis = d["registration"]["axis_x_mm"].as_f64().unwrap();
-    let sigma = d["registration"]["axis_x_sigma_mm"].as_f64().unwrap();
+    let (axis, sigma) = axis_and_sigma(&d);
     assert!(
         (axis + 0.159).abs() <= 2.0 * sigma && sigma < 0.01,
         "axis {axis} ± {sigma} mm, planted −0.159"
@@ -593,8 +598,7 @@ fn a_radius_missing_the_axis_is_placed_within_20um() {
     assert_status(&d, "no_effect_beyond_noise");
     let r = &d["registration"];
     assert_eq!(r["trace"], "radius");
-    let axis = r["axis_x_mm"].as_f64().unwrap();
-    let sigma = r["axis_x_sigma_mm"].as_f64().unwrap();
+    let (axis, sigma) = axis_and_sigma(&d);
     assert!(
         (axis - 0.137).abs() < 0.020 && sigma.is_finite() && sigma < 0.050,
         "axis {axis} ± {sigma} mm, planted 0.137"
@@ -642,11 +646,7 @@ fn a_boss_on_a_form_removed_profile_is_fitted_to_the_noise_and_accepted() {
     assert_boss(&d, -2.38);
     let left = d["residual_after"]["rms_nm"].as_f64().unwrap();
     assert!(left < 1.0, "{left} nm RMS left (noise 0.5 nm)");
-    let r = &d["registration"];
-    let (axis, sigma) = (
-        r["axis_x_mm"].as_f64().unwrap(),
-        r["axis_x_sigma_mm"].as_f64().unwrap(),
-    );
+    let (axis, sigma) = axis_and_sigma(&d);
     assert!(
         (axis - 0.010).abs() <= 2.0 * sigma,
         "axis at {axis} ± {sigma} mm, planted 0.010"

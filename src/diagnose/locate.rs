@@ -839,10 +839,7 @@ impl ScanPoints {
         let along: Vec<f64> = order.iter().map(|&i| m.along_mm[i]).collect();
         let centre = along.iter().sum::<f64>() / along.len().max(1) as f64;
         let centred: Vec<f64> = along.iter().map(|x| x - centre).collect();
-        let mut sums = NormalSums::default();
-        for d in &centred {
-            sums.add(*d, 0.0);
-        }
+        let sums = NormalSums::design(&centred);
         Self {
             height: order.iter().map(|&i| m.height_mm[i]).collect(),
             whole: [false, true].map(|power| sums.inverse(power)),
@@ -853,13 +850,8 @@ impl ScanPoints {
 
     /// The design's sums over the points whose `targets` are finite.
     fn design_over(&self, targets: &[f64]) -> NormalSums {
-        let mut sums = NormalSums::default();
-        for (d, t) in self.centred.iter().zip(targets) {
-            if t.is_finite() {
-                sums.add(*d, 0.0);
-            }
-        }
-        sums
+        let finite = self.centred.iter().zip(targets);
+        NormalSums::design(finite.filter(|(_, t)| t.is_finite()).map(|(d, _)| d))
     }
 
     /// As [`line_objective`], without allocating: the trace is walked along the
@@ -920,7 +912,7 @@ impl ScanPoints {
         let Some(inverse) = inverse else {
             return f64::INFINITY;
         };
-        let rhs = [sums.t, sums.dt, sums.qt];
+        let rhs = [sums.t, sums.dt, sums.ddt];
         let [c0, c1, c2] = inverse.map(|row| row[0] * rhs[0] + row[1] * rhs[1] + row[2] * rhs[2]);
         for (d, t) in self.centred.iter().zip(targets.iter()) {
             if t.is_finite() {
@@ -945,10 +937,19 @@ struct NormalSums {
     dddd: f64,
     t: f64,
     dt: f64,
-    qt: f64,
+    ddt: f64,
 }
 
 impl NormalSums {
+    /// The design's sums (no targets) over the columns `d`.
+    fn design<'a>(columns: impl IntoIterator<Item = &'a f64>) -> Self {
+        let mut sums = Self::default();
+        for d in columns {
+            sums.add(*d, 0.0);
+        }
+        sums
+    }
+
     fn add(&mut self, d: f64, t: f64) {
         let q = d * d;
         self.count += 1;
@@ -958,7 +959,7 @@ impl NormalSums {
         self.dddd += q * q;
         self.t += t;
         self.dt += d * t;
-        self.qt += q * t;
+        self.ddt += q * t;
     }
 
     /// The inverse of the normal matrix of (1, d, d²) — of (1, d), its third row and
