@@ -253,13 +253,7 @@ pub fn diagnose(
         measurement: &fitted,
         zones: &zones,
         period_mm: period,
-        // Turning only: the milling forward model's scallops differ from the withheld
-        // suite's independent ones by about 1 nm RMS folded (0.6 of the noise) even on
-        // its control, a model error that would read as a gap on every milled part.
-        mark_spacing_mm: job
-            .process
-            .pass_spacing_mm()
-            .filter(|_| matches!(job.process, crate::process::Process::Turning(_))),
+        mark_spacing_mm: folded_mark_spacing_mm(job),
     };
     let nominal_marks = judged_mark_shape(&mut problem, &analysis, &base)?;
     let accepted_marks = match &found.accepted {
@@ -306,7 +300,7 @@ pub fn diagnose(
         &check,
         accepted,
         (&before_info, &after_info),
-        &ambiguous,
+        &ties(&found, &ambiguous),
         held.as_ref(),
         &found.refused,
     );
@@ -635,6 +629,16 @@ impl ResidualAnalysis<'_> {
             .filter(|_| m.is_line())
             .and_then(|s| marks::fold(&m.along_mm, &r.model_mm, values, s))
     }
+}
+
+/// The spacing a profile's residual is folded over its marks at (turning only: the
+/// milling forward model's scallops differ from the withheld suite's independent ones
+/// by about 1 nm RMS folded, 0.6 of the noise, even on its control, a model error that
+/// would read as a gap on every milled part).
+pub(super) fn folded_mark_spacing_mm(job: &Job) -> Option<f64> {
+    job.process
+        .pass_spacing_mm()
+        .filter(|_| matches!(job.process, crate::process::Process::Turning(_)))
 }
 
 /// The share of an accepted set's gain (residual energy removed) that must come off the
@@ -1028,6 +1032,31 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
     ));
     found.accepted = None;
     tied
+}
+
+/// The tied explanations with what each single fit reads, lower-cased to follow
+/// "Fitted alone:" (where the effect was fitted alone).
+fn ties(found: &Search, ambiguous: &[String]) -> Vec<verdict::Tie> {
+    ambiguous
+        .iter()
+        .map(|label| verdict::Tie {
+            label: label.clone(),
+            reading: found
+                .singles
+                .iter()
+                .map(|(fit, _)| fit)
+                .find(|fit| fit.set.last().is_some_and(|c| c.label() == *label))
+                .map(|fit| lower_first(&fit.describe(fit.set.len() - 1))),
+        })
+        .collect()
+}
+
+fn lower_first(s: &str) -> String {
+    let mut chars = s.chars();
+    match chars.next() {
+        Some(c) => c.to_lowercase().chain(chars).collect(),
+        None => String::new(),
+    }
 }
 
 /// Where the explanations the data cannot tell apart (`ambiguous`) put the axis (in the

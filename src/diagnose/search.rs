@@ -13,6 +13,7 @@
 use super::candidates::Candidate;
 use super::fit::{Fit, Fitted, Problem, WAVINESS_PROBE_NM, bic, width};
 use super::forward::ForwardError;
+use super::marks;
 use super::measurement::Measurement;
 use super::register::{Registered, ShiftSearch};
 use super::side_by_side;
@@ -92,6 +93,7 @@ pub fn search<'a>(
 ) -> Result<Search, DiagnoseError> {
     let mut found = Search::default();
     let fitted = problem.measurement;
+    let seen = Seen::new(fitted, job);
     let orders = OrderRange::new(job, fitted);
     let nominal_frame = problem.shift;
     let numbered: Vec<(usize, Candidate)> = candidates.iter().copied().enumerate().collect();
@@ -195,13 +197,13 @@ pub fn search<'a>(
             let member = fit.set.len() - 1;
             let label = fit.set[member].label();
             if let Some(why) =
-                not_a_fit(&fit, member, orders).or_else(|| too_small(&current, &fit, fitted))
+                not_a_fit(&fit, member, orders).or_else(|| too_small(&current, &fit, seen))
             {
                 log(&format!("{label}: {why}"));
                 found.refused.push((label, why));
                 // A large print whose σ the residual's unexplained structure inflated
                 // may stand once a partner takes that structure: it is offered one.
-                if only_doubtful(&fit, member, &current, fitted, orders) {
+                if only_doubtful(&fit, member, &current, seen, orders) {
                     refused.push(fit);
                 }
                 continue;
@@ -223,7 +225,7 @@ pub fn search<'a>(
             && leaves_structure(&current, fitted)
             && let Some(fit) = weak
             && not_a_fit(&fit, fit.set.len() - 1, orders).is_none()
-            && too_small(&current, &fit, fitted).is_none()
+            && too_small(&current, &fit, seen).is_none()
         {
             refused.push(fit);
         }
@@ -342,7 +344,7 @@ fn rival_pair<'a>(
     if let Some(why) = members
         .iter()
         .find_map(|&m| not_a_fit(&pair, m, orders))
-        .or_else(|| too_small(&rival, &pair, problem.measurement))
+        .or_else(|| too_small(&rival, &pair, Seen::new(problem.measurement, job)))
     {
         log(&format!(
             "{label} (instead of {}): {why}",
@@ -846,7 +848,7 @@ fn joint_pair<'a>(
     if let Some(why) = members
         .iter()
         .find_map(|&m| not_a_fit(&pair, m, orders))
-        .or_else(|| too_small(first, &pair, problem.measurement))
+        .or_else(|| too_small(first, &pair, Seen::new(problem.measurement, job)))
     {
         log(&format!("{label} together: {why}"));
         found.refused.push((label, why));
@@ -979,16 +981,10 @@ fn order_at_bound(c: Candidate, range: OrderRange) -> Option<String> {
 
 /// Whether the member's only fault is its doubt: within its bounds and removing enough of
 /// the residual, but within 3σ of zero.
-fn only_doubtful(
-    fit: &Fit,
-    member: usize,
-    before: &Fit,
-    m: &Measurement,
-    orders: OrderRange,
-) -> bool {
+fn only_doubtful(fit: &Fit, member: usize, before: &Fit, seen: Seen, orders: OrderRange) -> bool {
     let within_bounds = fit.parameter_span(member).all(|j| !fit.at_bound[j])
         && order_at_bound(fit.set[member], orders).is_none();
-    within_bounds && !significant(fit, member) && too_small(before, fit, m).is_none()
+    within_bounds && !significant(fit, member) && too_small(before, fit, seen).is_none()
 }
 
 /// Why an effect that takes the residual from `before`'s to `after`'s explains too
@@ -997,9 +993,9 @@ fn only_doubtful(
 /// [`takes_all_structure`]). Such an effect, however significant, is a fit to the
 /// residual's own structure (a correlated noise, a small unmodelled feature) as often
 /// as a cause.
-fn too_small(before: &Fit, after: &Fit, m: &Measurement) -> Option<String> {
+fn too_small(before: &Fit, after: &Fit, seen: Seen) -> Option<String> {
     let reduction = rms_reduction(before.objective, after.objective);
-    (reduction < MIN_REDUCTION && !takes_all_structure(before, after, m)).then(|| {
+    (reduction < MIN_REDUCTION && !takes_all_structure(before, after, seen)).then(|| {
         format!(
             "it removes {:.1} % of the residual's RMS, less than the {:.0} % an effect must remove to be acted on",
             100.0 * reduction,
@@ -1013,14 +1009,48 @@ fn rms_reduction(before: f64, after: f64) -> f64 {
     1.0 - (after / before.max(1e-300)).max(0.0).sqrt()
 }
 
-/// Whether `before` left more than its white noise (its RMS over the noise by more than
-/// the noise reading's own error, [`NOISE_FLOOR`]) and `after` leaves no more: a weak
-/// print in a noisy measurement (a nose-radius error's form under 3 nm of noise) is all
-/// of what there was to explain, however small a share of the RMS.
-fn takes_all_structure(before: &Fit, after: &Fit, m: &Measurement) -> bool {
+/// What [`too_small`] judges a fit against: the fitted points, and the spacing their
+/// marks are folded at (a turned profile's; `None` elsewhere).
+#[derive(Clone, Copy)]
+struct Seen<'a> {
+    m: &'a Measurement,
+    marks_mm: Option<f64>,
+}
+
+impl<'a> Seen<'a> {
+    fn new(m: &'a Measurement, job: &Job) -> Seen<'a> {
+        Seen {
+            m,
+            marks_mm: super::folded_mark_spacing_mm(job).filter(|_| m.is_line()),
+        }
+    }
+
+    /// `fit`'s residual folded over its model's marks.
+    fn fold(&self, fit: &Fit) -> Option<marks::MarkShape> {
+        let r = &fit.evaluation.registered;
+        let spacing = self.marks_mm?;
+        marks::fold(&self.m.along_mm, &r.model_mm, &r.residual_mm, spacing)
+    }
+}
+
+/// Whether `after` leaves no structure where `before` left some, however small a share
+/// of the RMS it removes: `before`'s RMS was over its white noise (by more than the
+/// noise reading's own error, [`NOISE_FLOOR`]) and `after`'s is not — a weak print in a
+/// noisy measurement (a nose-radius error's form under 3 nm of noise) is all there was
+/// to explain; or, folded over the marks, `before`'s residual carried a shape beyond
+/// chance and `after`'s folds to chance — a nose-radius error's 2 nm on 40–60 nm marks
+/// under 2–3 nm of noise is too little RMS for the white noise to tell, plain in the
+/// marks averaged over hundreds.
+fn takes_all_structure(before: &Fit, after: &Fit, seen: Seen) -> bool {
     let residual = &before.evaluation.registered.residual_mm;
-    let floor = zones::white_noise_mm(m, residual) / NOISE_FLOOR;
-    zones::rms(residual) > floor && zones::rms(&after.evaluation.registered.residual_mm) <= floor
+    let noise = zones::white_noise_mm(seen.m, residual);
+    let floor = noise / NOISE_FLOOR;
+    let above_noise = |fit: &Fit| zones::rms(&fit.evaluation.registered.residual_mm) > floor;
+    let marks_explained = || match (seen.fold(before), seen.fold(after)) {
+        (Some(b), Some(a)) => b.significant && !a.significant,
+        _ => false,
+    };
+    (above_noise(before) && !above_noise(after)) || marks_explained()
 }
 
 /// A fold-tested effect's σ is at least half the spread of its values over the folds.

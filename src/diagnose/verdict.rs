@@ -17,12 +17,34 @@ const EXPLAINED: f64 = 0.8;
 /// more than noise, even where the gap counts as explained.
 const LEFT_OVER: f64 = 1.5;
 
+/// One of the explanations the data cannot tell apart: its label and, where it was
+/// fitted alone, what that fit reads ("The tool stops 3.01 ± 0.02 µm short of the
+/// axis").
+pub struct Tie {
+    pub label: String,
+    pub reading: Option<String>,
+}
+
+fn labels(ties: &[Tie]) -> Vec<&str> {
+    ties.iter().map(|t| t.label.as_str()).collect()
+}
+
+/// " Fitted alone: A; or B." — what each tied explanation would have the user correct,
+/// so the size of what is at stake is on the page.
+fn each_alone(ties: &[Tie]) -> String {
+    let readings: Vec<&str> = ties.iter().filter_map(|t| t.reading.as_deref()).collect();
+    if readings.is_empty() {
+        return String::new();
+    }
+    format!(" Fitted alone: {}.", readings.join("; or "))
+}
+
 pub fn verdict(
     compared_only: Option<&Comparison>,
     check: &FitCheck,
     fit: Option<&Fit>,
     (before, after): (&ResidualInfo, &ResidualInfo),
-    ambiguous: &[String],
+    ambiguous: &[Tie],
     held: Option<&HeldOut>,
     refused: &[(String, String)],
 ) -> Verdict {
@@ -105,11 +127,12 @@ pub fn verdict(
             match ambiguous {
                 [] => {}
                 [one] => sentence.push_str(&format!(
-                    " Beyond {beyond}, {one} would explain about as much: this measurement cannot tell whether it is there, so it is not claimed."
+                    " Beyond {beyond}, {} would explain about as much: this measurement cannot tell whether it is there, so it is not claimed.",
+                    one.label
                 )),
                 _ => sentence.push_str(&format!(
                     " Beyond {beyond}, {} would explain about as much more: this measurement cannot tell them apart, so neither is claimed.",
-                    ambiguous.join(" or ")
+                    labels(ambiguous).join(" or ")
                 )),
             }
             let mut advice: Vec<String> = members
@@ -145,8 +168,9 @@ pub fn verdict(
         None if !ambiguous.is_empty() => Verdict {
             status: "ambiguous".into(),
             sentence: format!(
-                "The gap is explained about equally well by {}: this measurement cannot tell them apart, so none is claimed{location}.",
-                ambiguous.join(" or ")
+                "The gap is explained about equally well by {}: this measurement cannot tell them apart, so none is claimed{location}.{}",
+                labels(ambiguous).join(" or "),
+                each_alone(ambiguous)
             ),
             advice: vec![
                 "correct nothing yet: measure what separates them (another radius range, a map of the part, or a part cut with another program) and diagnose again".into(),
