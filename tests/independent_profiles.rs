@@ -552,6 +552,11 @@ fn assert_pair_not_sized_alone(d: &serde_json::Value, decentre_um: f64, drift_nm
             tied.contains(&"x decentre") && tied.contains(&"axial drift"),
             "{tied:?}"
         );
+        // What each would correct, and what tells the two apart at the machine.
+        let sentence = d["verdict"]["sentence"].as_str().unwrap();
+        assert!(sentence.contains("Fitted alone: "), "{sentence}");
+        let advice = d["verdict"]["advice"][0].as_str().unwrap();
+        assert!(advice.contains("another feed per revolution"), "{advice}");
     } else {
         assert_status(d, "effects_found");
     }

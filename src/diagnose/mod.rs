@@ -1039,14 +1039,17 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
 fn ties(found: &Search, ambiguous: &[String]) -> Vec<verdict::Tie> {
     ambiguous
         .iter()
-        .map(|label| verdict::Tie {
-            label: label.clone(),
-            reading: found
+        .map(|label| {
+            let alone = found
                 .singles
                 .iter()
                 .map(|(fit, _)| fit)
-                .find(|fit| fit.set.last().is_some_and(|c| c.label() == *label))
-                .map(|fit| lower_first(&fit.describe(fit.set.len() - 1))),
+                .find(|fit| fit.set.last().is_some_and(|c| c.label() == *label));
+            verdict::Tie {
+                label: label.clone(),
+                kind: alone.and_then(|fit| fit.set.last()).map(|c| c.kind()),
+                reading: alone.map(|fit| lower_first(&fit.describe(fit.set.len() - 1))),
+            }
         })
         .collect()
 }

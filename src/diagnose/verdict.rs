@@ -22,6 +22,8 @@ const LEFT_OVER: f64 = 1.5;
 /// axis").
 pub struct Tie {
     pub label: String,
+    /// The effect's kind (`x_decentre`, …) where it was fitted alone.
+    pub kind: Option<&'static str>,
     pub reading: Option<String>,
 }
 
@@ -37,6 +39,19 @@ fn each_alone(ties: &[Tie]) -> String {
         return String::new();
     }
     format!(" Fitted alone: {}.", readings.join("; or "))
+}
+
+/// What to do when explanations tie: for the commonest pair, a decentre and a drift
+/// (each a cone on a sphere), what tells them apart at the machine — a drift's cone
+/// grows with the time the cut takes, a decentre's does not, and a decentre leaves a
+/// feature within its own size of the axis; otherwise the general advice.
+fn tie_advice(ties: &[Tie]) -> String {
+    let has = |kind: &str| ties.iter().any(|t| t.kind == Some(kind));
+    if has("x_decentre") && has("axial_drift") {
+        "correct nothing yet: cut the next part at another feed per revolution or spindle speed (a drift's cone grows with the time the cut takes, a decentre's stays), or measure the centre at finer lateral spacing (a decentre leaves a boss or a dip within its own size of the axis), and diagnose again".into()
+    } else {
+        "correct nothing yet: measure what separates them (another radius range, a map of the part, or a part cut with another program) and diagnose again".into()
+    }
 }
 
 pub fn verdict(
@@ -103,10 +118,7 @@ pub fn verdict(
     match fit {
         Some(f) => {
             let members = f.effect_members();
-            let parts: Vec<String> = members
-                .iter()
-                .map(|&i| f.describe(i))
-                .collect();
+            let parts: Vec<String> = members.iter().map(|&i| f.describe(i)).collect();
             let mut sentence = capitalise(&parts.join("; "));
             let which = if members.len() == 1 {
                 "correcting it"
@@ -172,9 +184,7 @@ pub fn verdict(
                 labels(ambiguous).join(" or "),
                 each_alone(ambiguous)
             ),
-            advice: vec![
-                "correct nothing yet: measure what separates them (another radius range, a map of the part, or a part cut with another program) and diagnose again".into(),
-            ],
+            advice: vec![tie_advice(ambiguous)],
         },
         None if near_noise && marks_left.is_none() => Verdict {
             status: "no_effect_beyond_noise".into(),
@@ -183,9 +193,11 @@ pub fn verdict(
                 after.rms_nm,
                 after.pv_nm,
                 noise,
-                refused.first().map_or(String::new(), |(label, why)| format!(
-                    "; the strongest candidate, {label}, was not accepted: {why}"
-                ))
+                refused
+                    .first()
+                    .map_or(String::new(), |(label, why)| format!(
+                        "; the strongest candidate, {label}, was not accepted: {why}"
+                    ))
             ),
             advice: vec!["nothing to correct from this measurement".into()],
         },
