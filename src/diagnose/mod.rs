@@ -1034,32 +1034,19 @@ fn withdraw_if_ambiguous(found: &mut Search, rivals: &[String], log: &dyn Fn(&st
     tied
 }
 
-/// The tied explanations with what each single fit reads, lower-cased to follow
-/// "Fitted alone:" (where the effect was fitted alone).
-fn ties(found: &Search, ambiguous: &[String]) -> Vec<verdict::Tie> {
+/// The tied explanations, each with its fit alone where there is one.
+fn ties<'f>(found: &'f Search, ambiguous: &[String]) -> Vec<verdict::Tie<'f>> {
     ambiguous
         .iter()
-        .map(|label| {
-            let alone = found
+        .map(|label| verdict::Tie {
+            label: label.clone(),
+            alone: found
                 .singles
                 .iter()
                 .map(|(fit, _)| fit)
-                .find(|fit| fit.set.last().is_some_and(|c| c.label() == *label));
-            verdict::Tie {
-                label: label.clone(),
-                kind: alone.and_then(|fit| fit.set.last()).map(|c| c.kind()),
-                reading: alone.map(|fit| lower_first(&fit.describe(fit.set.len() - 1))),
-            }
+                .find(|fit| fit.set.last().is_some_and(|c| c.label() == *label)),
         })
         .collect()
-}
-
-fn lower_first(s: &str) -> String {
-    let mut chars = s.chars();
-    match chars.next() {
-        Some(c) => c.to_lowercase().chain(chars).collect(),
-        None => String::new(),
-    }
 }
 
 /// Where the explanations the data cannot tell apart (`ambiguous`) put the axis (in the

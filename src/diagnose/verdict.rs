@@ -5,6 +5,7 @@
 //! lies — an honest "unknown" beats a proxy that makes the next part worse. A
 //! comparison alone (`compare-profile`) says how far the job's prediction is off.
 
+use super::candidates::Candidate;
 use super::compare::Comparison;
 use super::fit::Fit;
 use super::report::{FitCheck, HeldOut, ResidualInfo, Verdict};
@@ -18,23 +19,32 @@ const EXPLAINED: f64 = 0.8;
 const LEFT_OVER: f64 = 1.5;
 
 /// One of the explanations the data cannot tell apart: its label and, where it was
-/// fitted alone, what that fit reads ("The tool stops 3.01 ± 0.02 µm short of the
-/// axis").
-pub struct Tie {
+/// fitted alone, that fit (its last member the effect).
+pub struct Tie<'a> {
     pub label: String,
-    /// The effect's kind (`x_decentre`, …) where it was fitted alone.
-    pub kind: Option<&'static str>,
-    pub reading: Option<String>,
+    pub alone: Option<&'a Fit>,
 }
 
-fn labels(ties: &[Tie]) -> Vec<&str> {
+impl Tie<'_> {
+    /// The effect, where it was fitted alone.
+    fn effect(&self) -> Option<Candidate> {
+        self.alone.and_then(|fit| fit.set.last().copied())
+    }
+
+    /// What the fit alone reads ("the tool stops 3.01 ± 0.02 µm short of the axis").
+    fn reading(&self) -> Option<String> {
+        self.alone.map(|fit| fit.describe(fit.set.len() - 1))
+    }
+}
+
+fn labels<'t>(ties: &'t [Tie]) -> Vec<&'t str> {
     ties.iter().map(|t| t.label.as_str()).collect()
 }
 
 /// " Fitted alone: A; or B." — what each tied explanation would have the user correct,
 /// so the size of what is at stake is on the page.
 fn each_alone(ties: &[Tie]) -> String {
-    let readings: Vec<&str> = ties.iter().filter_map(|t| t.reading.as_deref()).collect();
+    let readings: Vec<String> = ties.iter().filter_map(Tie::reading).collect();
     if readings.is_empty() {
         return String::new();
     }
@@ -46,8 +56,8 @@ fn each_alone(ties: &[Tie]) -> String {
 /// grows with the time the cut takes, a decentre's does not, and a decentre leaves a
 /// feature within its own size of the axis; otherwise the general advice.
 fn tie_advice(ties: &[Tie]) -> String {
-    let has = |kind: &str| ties.iter().any(|t| t.kind == Some(kind));
-    if has("x_decentre") && has("axial_drift") {
+    let has = |effect: Candidate| ties.iter().any(|t| t.effect() == Some(effect));
+    if has(Candidate::XDecentre) && has(Candidate::AxialDrift) {
         "correct nothing yet: cut the next part at another feed per revolution or spindle speed (a drift's cone grows with the time the cut takes, a decentre's stays), or measure the centre at finer lateral spacing (a decentre leaves a boss or a dip within its own size of the axis), and diagnose again".into()
     } else {
         "correct nothing yet: measure what separates them (another radius range, a map of the part, or a part cut with another program) and diagnose again".into()
