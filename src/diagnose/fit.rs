@@ -393,6 +393,67 @@ pub struct Profile {
     pub moved: Vec<f64>,
 }
 
+/// The rises of Σr² a profile crosses on one side, in effective points' variance: one
+/// (Δχ² = 1, the σ of a parabola) and four (2σ of a parabola).
+const PROFILE_LEVELS: [f64; 2] = [1.0, 4.0];
+
+/// One side of a [`Problem::refitted_profile`] as it steps out: for each of
+/// [`PROFILE_LEVELS`], the last step below it and where it was crossed (read off a
+/// parabola through the origin and the step that crossed, no nearer than the last
+/// step below it), with how far each value had moved there (scaled alike).
+struct ProfileSide {
+    variance: f64,
+    below: [f64; 2],
+    crossed: [Option<(f64, Vec<f64>)>; 2],
+    last: (f64, Vec<f64>),
+}
+
+impl ProfileSide {
+    /// A side for `values` values; `at_four`: read half the Δχ² = 4 width too (else
+    /// that level counts as crossed at once, and the side stops at Δχ² = 1).
+    fn new(variance: f64, values: usize, at_four: bool) -> Self {
+        let four = (!at_four).then(|| (0.0, vec![0.0; values]));
+        Self {
+            variance,
+            below: [0.0; 2],
+            crossed: [None, four],
+            last: (0.0, vec![0.0; values]),
+        }
+    }
+
+    /// Takes the step at `delta` (Σr² risen by `rise`, the values moved by `moved`);
+    /// true once the profile has risen past every level.
+    fn step(&mut self, delta: f64, rise: f64, moved: Vec<f64>) -> bool {
+        for (k, level) in PROFILE_LEVELS.iter().enumerate() {
+            let threshold = level * self.variance;
+            if self.crossed[k].is_some() {
+                continue;
+            }
+            if rise >= threshold {
+                let share = (self.below[k] / delta).max((threshold / rise).sqrt());
+                let at = moved.iter().map(|m| m * share).collect();
+                self.crossed[k] = Some((delta * share, at));
+            } else {
+                self.below[k] = delta;
+            }
+        }
+        self.last = (delta, moved);
+        self.crossed.iter().all(Option::is_some)
+    }
+
+    /// The side's half-width and the values' moves there: the wider of the Δχ² = 1
+    /// crossing and half the Δχ² = 4 one (a level never crossed counts at the last
+    /// step: the profile is at least that wide).
+    fn half_width(self) -> (f64, Vec<f64>) {
+        let [one, four] = self.crossed.map(|c| c.unwrap_or_else(|| self.last.clone()));
+        if 0.5 * four.0 > one.0 {
+            (0.5 * four.0, four.1.iter().map(|m| 0.5 * m).collect())
+        } else {
+            one
+        }
+    }
+}
+
 /// BIC = n_eff ln(RSS / n) + k ln(n_eff).
 pub fn bic(rss: f64, used: usize, effective_points: f64, parameters: usize) -> f64 {
     let n = used.max(1) as f64;
@@ -968,7 +1029,7 @@ impl<'a, 'e> Problem<'a, 'e> {
             };
             (order + delta >= MIN_PROFILE_ORDER).then(|| (set, values.to_vec()))
         };
-        self.refitted_profile(fit, start, &trial, &[], noise)
+        self.refitted_profile(fit, start, &trial, (&[], true), noise)
     }
 
     /// The profile of value `j` of `fit`: the value stepped out from ±`start`
@@ -976,7 +1037,10 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// effects whose prints are nearly one (a decentre's cone and a drift's) trade along a
     /// valley whose floor the linearised σs, taken from finite differences of a sampled
     /// model, misjudge: a few hundredths of a nanometre of the marks' interpolation in a
-    /// column is enough to make the valley look closed.
+    /// column is enough to make the valley look closed. Read at Δχ² = 1 alone: its moves
+    /// decide a tie whose evidence rule ([`super::search::TIE_EVIDENCE`]) weighs the
+    /// rest (half the Δχ² = 4 width made suite case 093's drift, which the decentre
+    /// alone explains 7.2 worse in ΔBIC, a tie).
     pub fn value_profile(
         &mut self,
         fit: &Fit,
@@ -993,22 +1057,23 @@ impl<'a, 'e> Problem<'a, 'e> {
                 (fit.set.clone(), values)
             })
         };
-        self.refitted_profile(fit, start, &trial, &[j], noise)
+        self.refitted_profile(fit, start, &trial, (&[j], false), noise)
     }
 
     /// A profile of `fit` along the trials `trial(δ, last values)` gives (`None` past
     /// where the parameter may go): δ stepped out from ±`start` by doubling (at most
     /// [`PROFILE_DOUBLINGS`] times), the values re-fitted at each step from the last
     /// step's (Levenberg–Marquardt, `frozen` held), until Σr² rises by one effective
-    /// point's variance (Δχ² = 1, as in [`Self::profile_half_width`]); the half-width
-    /// is read off a parabola through that step. Each value's move is taken where the
-    /// profile crosses, the larger side kept.
+    /// point's variance (Δχ² = 1, as in [`Self::profile_half_width`]) — or, `at_four`,
+    /// by four, the half-width then the wider of the Δχ² = 1 one and half the Δχ² = 4
+    /// one ([`ProfileSide`]): the same for a parabola, wider where the valley flattens
+    /// out (a waviness order whose neighbours fit nearly as well a few orders away).
     fn refitted_profile(
         &mut self,
         fit: &Fit,
         start: f64,
         trial: &ProfileStep,
-        frozen: &[usize],
+        (frozen, at_four): (&[usize], bool),
         noise: &ProfileNoise,
     ) -> Result<Profile, ForwardError> {
         let mut out = Profile {
@@ -1024,9 +1089,8 @@ impl<'a, 'e> Problem<'a, 'e> {
         };
         let variance = noise.point_variance * inflation(noise.tau, &print);
         for side in [1.0, -1.0] {
-            let (mut flat, mut reached) = (0.0_f64, 0.0);
+            let mut walk = ProfileSide::new(variance, fit.values.len(), at_four);
             let mut values = fit.values.clone();
-            let mut moved = vec![0.0; values.len()];
             for doubling in 0..=PROFILE_DOUBLINGS {
                 let delta = start * (1u64 << doubling) as f64;
                 let Some((set, from)) = trial(side * delta, &values) else {
@@ -1038,22 +1102,15 @@ impl<'a, 'e> Problem<'a, 'e> {
                     let e = self.evaluate(&set, &values)?;
                     self.rss(&e) - noise.rss
                 };
-                reached = delta;
-                let share = if rise >= variance {
-                    reached = flat.max(delta * (variance / rise).sqrt());
-                    reached / delta
-                } else {
-                    1.0
-                };
-                for (mv, (v, v0)) in moved.iter_mut().zip(values.iter().zip(&fit.values)) {
-                    *mv = (v - v0).abs() * share;
-                }
-                if rise >= variance {
+                let moved: Vec<f64> = (values.iter().zip(&fit.values))
+                    .map(|(v, v0)| (v - v0).abs())
+                    .collect();
+                if walk.step(delta, rise, moved) {
                     break;
                 }
-                flat = delta;
             }
-            out.half_width = out.half_width.max(reached);
+            let (half_width, moved) = walk.half_width();
+            out.half_width = out.half_width.max(half_width);
             for (o, mv) in out.moved.iter_mut().zip(moved) {
                 *o = o.max(mv);
             }
@@ -1078,9 +1135,11 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// within ±`bound`) over which Σr² rises by less than one effective point's
     /// variance (Δχ² = 1: the point variance inflated by [`inflation`] for the
     /// parameter's print), stepped out from ±`start` by doubling (at most `doublings`
-    /// times) and read off a parabola through the first step that rises more. A
-    /// residual flat up to a step (a boss's edge crossing a sample) counts as flat at
-    /// least that far. A side that never rises that much gives the last step.
+    /// times) and read off a parabola through the first step that rises more; or half
+    /// the interval where it rises by less than four, where that is wider
+    /// ([`ProfileSide`]). A residual flat up to a step (a boss's edge crossing a
+    /// sample) counts as flat at least that far. A side that never rises that much
+    /// gives the last step.
     fn profile_half_width(
         &mut self,
         (set, values, bound): (&[Candidate], &[f64], f64),
@@ -1103,20 +1162,15 @@ impl<'a, 'e> Problem<'a, 'e> {
         let variance = noise.point_variance * inflation(noise.tau, &print);
         let mut width: f64 = 0.0;
         for side in [1.0, -1.0] {
-            let mut reached = start;
-            let mut flat: f64 = 0.0;
+            let mut walk = ProfileSide::new(variance, 0, true);
             for doubling in 0..=doublings {
                 let delta = start * (1u64 << doubling) as f64;
                 let e = self.evaluate(set, &step_at(side * delta))?;
-                let rise = self.rss(&e) - noise.rss;
-                reached = delta;
-                if rise >= variance {
-                    reached = flat.max(delta * (variance / rise).sqrt());
+                if walk.step(delta, self.rss(&e) - noise.rss, Vec::new()) {
                     break;
                 }
-                flat = delta;
             }
-            width = width.max(reached);
+            width = width.max(walk.half_width().0);
         }
         Ok(width)
     }
@@ -2003,5 +2057,49 @@ impl LeastSquaresProblem for SetModel<'_, '_, '_> {
     ) -> Result<Vec<Vec<f64>>, ForwardError> {
         self.problem
             .jacobian(self.set, self.parameters, values, state)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One side of a profile stepped out from `start` by doubling, Σr² rising by
+    /// `rise(δ)` (in units of one point's variance), each of two values moving by δ
+    /// and 2δ: its half-width and the moves there.
+    fn walk(rise: impl Fn(f64) -> f64, start: f64) -> (f64, Vec<f64>) {
+        let mut side = ProfileSide::new(1.0, 2, true);
+        for doubling in 0..=PROFILE_DOUBLINGS {
+            let delta = start * (1u64 << doubling) as f64;
+            if side.step(delta, rise(delta), vec![delta, 2.0 * delta]) {
+                break;
+            }
+        }
+        side.half_width()
+    }
+
+    #[test]
+    fn a_parabolic_profile_gives_its_sigma() {
+        // Δχ² = (δ/σ)², σ = 1.3: crosses 1 at σ and 4 at 2σ; both read off exactly.
+        let (width, moved) = walk(|d| (d / 1.3).powi(2), 1.0);
+        assert!((width - 1.3).abs() < 1e-12, "{width}");
+        assert!((moved[0] - 1.3).abs() < 1e-12 && (moved[1] - 2.6).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_profile_that_flattens_gives_half_its_two_sigma_width() {
+        // Δχ² = |δ| (a valley that opens out, as a waviness order's does): crosses 1 at
+        // δ = 1 but 4 only at δ = 4, so the σ is 2, not 1; the moves are halved alike.
+        let (width, moved) = walk(f64::abs, 1.0);
+        assert!((width - 2.0).abs() < 1e-12, "{width}");
+        assert!((moved[0] - 2.0).abs() < 1e-12 && (moved[1] - 4.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_profile_that_never_rises_four_counts_to_its_last_step() {
+        // Δχ² = 1.5 beyond δ = 0.5: crossed 1 at the first step, never 4 within 16
+        // steps of 1 — at least 16 wide at Δχ² = 4, so the half-width is 8.
+        let (width, _) = walk(|d| if d > 0.5 { 1.5 } else { 0.0 }, 1.0);
+        assert!((width - 8.0).abs() < 1e-12, "{width}");
     }
 }
