@@ -1907,7 +1907,7 @@ fn turned_toward_zero(values: &[f64], azimuth: &[usize], deg: f64) -> Vec<f64> {
 
 /// `start`, and — where the set fits the lateral scale and `start` has it away from 1 —
 /// `start` at the unit scale.
-fn with_unit_scale(set: &[Candidate], start: Vec<f64>) -> Vec<Vec<f64>> {
+pub(super) fn with_unit_scale(set: &[Candidate], start: Vec<f64>) -> Vec<Vec<f64>> {
     let scale = member_parameters(set, |c| *c == Candidate::LateralScale);
     if scale.iter().all(|&j| start[j] == 0.0) {
         return vec![start];

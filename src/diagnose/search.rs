@@ -1369,6 +1369,26 @@ fn refit_if_axis_moves(
     })
 }
 
+/// `set` fitted from `start` and from `start` with its lateral scale at one (where it is
+/// fitted, and away from one there), the better kept. The job as given, registered,
+/// can take a harmonic's print into its scale (a percent's stretch of a form-removed
+/// trace under a 30 nm waviness, its marks under the noise), and the harmonic fitted
+/// from that scale stays in the wrong basin of the marks' comb.
+fn fit_from_placement_too(
+    problem: &mut Problem,
+    set: &[Candidate],
+    start: Vec<f64>,
+) -> Result<Fit, ForwardError> {
+    let mut best: Option<Fit> = None;
+    for from in super::fit::with_unit_scale(set, start) {
+        let fit = problem.fit(set, from, &[])?;
+        if best.as_ref().is_none_or(|b| fit.objective < b.objective) {
+            best = Some(fit);
+        }
+    }
+    Ok(best.expect("at least one start"))
+}
+
 /// Fits candidate `c` on top of `base` (at `base_values`); `None` when it cannot be
 /// fitted here (waviness with no resolvable order).
 pub fn fit_new(
@@ -1417,7 +1437,7 @@ pub fn fit_new(
             };
             set.push(Candidate::EdgeWaviness { order });
             start.extend([a, b]);
-            let fit = problem.fit(&set, start, &[])?;
+            let fit = fit_from_placement_too(problem, &set, start)?;
             // Where the harmonic could be acted on (it removes a tenth of the RMS), its
             // order is re-fitted over ±40 % of the screened one (within the grid).
             let before = {
