@@ -134,8 +134,7 @@ pub fn branch_dexel(
             continue;
         };
         if let Some(limit) = limit
-            && bound_entry(scene, edge, ring_index, pose, branch)
-                .is_none_or(|bound| bound > limit.min(best.0) + PRUNE_MARGIN_MM)
+            && !may_enter_below(scene, edge, ring_index, pose, branch, limit.min(best.0))
         {
             continue;
         }
@@ -182,6 +181,40 @@ fn prune_limit(
         .min_by(|a, b| a.0.total_cmp(&b.0));
     let seeded = lowest.and_then(|(_, pose)| pass_entry(scene, edge, ring_index, pose, branch));
     Some(seeded.map_or(height, |d| d.min(height)))
+}
+
+/// Whether the pass at `pose` may enter the dexel ray of ring `ring_index` below
+/// `height` (on centre): its [`bound_entry`] (one square root) and then, where that
+/// reaches below, its [`local_bound_entry`] (five, no arctangent) do not rule it out.
+pub(super) fn may_enter_below(
+    scene: &TurningScene,
+    edge: &EdgeSolver,
+    ring_index: usize,
+    pose: ToolPose,
+    branch: Branch,
+    height: f64,
+) -> bool {
+    // A NaN bound rules nothing out (the entry is taken, as the kernel's lanes do).
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    let below = |bound: Option<f64>| bound.is_some_and(|b| !(b > height + PRUNE_MARGIN_MM));
+    below(bound_entry(scene, edge, ring_index, pose, branch))
+        && below(local_bound_entry(scene, edge, ring_index, pose, branch))
+}
+
+/// [`EdgeSolver::local_entry_bound`] for the dexel ray of ring `ring_index` at `pose`
+/// (on centre).
+pub(super) fn local_bound_entry(
+    scene: &TurningScene,
+    edge: &EdgeSolver,
+    ring_index: usize,
+    pose: ToolPose,
+    branch: Branch,
+) -> Option<f64> {
+    let ring = &scene.grid.rings[ring_index];
+    let (centre, tip) = nose_in_branch(pose, branch.x_sign());
+    let origin = DVec2::new(scene.rings[ring_index].lateral_mm, ring.height_mm);
+    let maxima = &scene.deviation_maxima;
+    edge.local_entry_bound(maxima, origin - centre, ring.normal, tip, branch.x_sign())
 }
 
 /// [`EdgeSolver::entry_bound`] for the dexel ray of ring `ring_index` at `pose` (on

@@ -26,7 +26,7 @@
 //! such an edge off centre or with spring-back, the flank branch (the few rings inside
 //! |y₀|) and a pass that falls exactly on the table's last node.
 
-use super::cpu::{PRUNE_MARGIN_MM, RAY_REFINEMENTS, branch_dexel, pass_entry};
+use super::cpu::{PRUNE_MARGIN_MM, RAY_REFINEMENTS, branch_dexel, local_bound_entry, pass_entry};
 use super::scene::{Branch, PASS_ID_STRIDE, RevRange, SpringBack, TurningScene};
 use crate::field::NO_PASS;
 use crate::geometry::tool::{EdgeSolver, tip_direction};
@@ -467,6 +467,7 @@ impl<'a> TurningKernel<'a> {
     /// limit — the lowest entry so far, and the entry of the pass whose bound is lowest.
     /// A pass whose bound lies above an entry some pass reaches cannot be the lowest, so
     /// the samples are the twin's to the bit; its full entries are the twin's own.
+    #[inline(always)]
     fn run_off_circle(
         &self,
         first_ring: usize,
@@ -500,10 +501,17 @@ impl<'a> TurningKernel<'a> {
         for rev in first..=last {
             let bounds = self.bounds(&ray, branch, windows, rev);
             for l in 0..LANES {
-                if bounds[l] > limit[l].min(best[l]) + PRUNE_MARGIN_MM {
+                let height = limit[l].min(best[l]) + PRUNE_MARGIN_MM;
+                if bounds[l] > height {
                     continue;
                 }
-                if let Some(d) = self.full_entry(first_ring + l, branch, &windows[l], rev)
+                // The bound as tight as the edge near where the ray meets it.
+                let (ring, pose) = (first_ring + l, self.twin_pose(&windows[l], rev));
+                let local = local_bound_entry(self.scene, &self.edge, ring, pose, branch);
+                if local.is_none_or(|bound| bound > height) {
+                    continue;
+                }
+                if let Some(d) = pass_entry(self.scene, &self.edge, ring, pose, branch)
                     && d < best[l]
                 {
                     best[l] = d;
@@ -556,11 +564,21 @@ impl<'a> TurningKernel<'a> {
         window: &PassWindow,
         rev: i64,
     ) -> Option<f64> {
+        pass_entry(
+            self.scene,
+            &self.edge,
+            ring,
+            self.twin_pose(window, rev),
+            branch,
+        )
+    }
+
+    /// Pass `rev`'s pose in a lane's `window`, interpolated as the twin does.
+    fn twin_pose(&self, window: &PassWindow, rev: i64) -> ToolPose {
         let steps = self.scene.poses.steps_per_rev as i64;
         let node = (window.node0 + rev * steps) as usize;
         let poses = &self.scene.poses.poses;
-        let pose = poses[node].lerp(poses[node + 1], window.t);
-        pass_entry(self.scene, &self.edge, ring, pose, branch)
+        poses[node].lerp(poses[node + 1], window.t)
     }
 
     /// Pass `rev`'s pose in a lane's `window`: the nose centre (x, z) and the tip

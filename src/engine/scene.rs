@@ -15,7 +15,7 @@
 //! the axis, reaches them at machine (0, −r): the *flank* branch.
 
 use crate::field::PolarGrid;
-use crate::geometry::tool::{ArcNoseTool, EdgeModel};
+use crate::geometry::tool::{ArcNoseTool, DeviationMaxima, EdgeModel};
 use crate::process::PoseTable;
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
@@ -135,6 +135,9 @@ pub struct TurningScene {
     /// The poses the machine runs (effects such as a decentre already applied).
     pub poses: PoseTable,
     pub edge: EdgeModel,
+    /// The edge's deviation bounded over short arcs, for pruning passes (empty for a
+    /// circle).
+    pub deviation_maxima: DeviationMaxima,
     /// Machine y of the edge's rake plane (0 = on centre).
     pub edge_plane_y_mm: f64,
     /// tan(clearance angle) of the flank.
@@ -186,6 +189,7 @@ impl TurningScene {
         Self {
             grid,
             poses,
+            deviation_maxima: DeviationMaxima::new(&edge.deviation),
             edge,
             edge_plane_y_mm,
             tan_clearance: tool.clearance_angle_deg.to_radians().tan(),

@@ -67,6 +67,19 @@ impl AngleTable {
         }
     }
 
+    /// The values at the nodes from the last at or below `lo` to the first at or above
+    /// `hi` (rad), each read both as stored and as [`AngleTable::at`] interpolates it.
+    fn nodes_within(&self, lo: f64, hi: f64) -> impl Iterator<Item = f64> + '_ {
+        let n = self.values_mm.len();
+        let index = |psi: f64| (psi - self.start_rad) / self.step_rad;
+        let first = index(lo).floor().max(0.0) as usize;
+        let last = (index(hi).ceil().max(0.0) as usize).min(n.saturating_sub(1));
+        (first..=last).filter(move |_| n > 0).map(move |i| {
+            let psi = self.start_rad + self.step_rad * i as f64;
+            self.values_mm[i].max(self.at(psi))
+        })
+    }
+
     pub fn is_zero(&self) -> bool {
         self.values_mm.iter().all(|&v| v == 0.0)
     }
@@ -168,6 +181,13 @@ impl EdgeModel {
                     .values_mm
                     .iter()
                     .fold(0.0_f64, |m, &v| m.max(v)),
+            inner_radius_mm: self.nominal_radius_mm
+                + self.radius_error_mm
+                + self
+                    .deviation
+                    .values_mm
+                    .iter()
+                    .fold(0.0_f64, |m, &v| m.min(v)),
             refinements: if self.deviation.is_zero() {
                 0
             } else {
@@ -190,6 +210,8 @@ pub struct EdgeSolver<'a> {
     pub circle_radius_mm: f64,
     /// R + e + the deviation's outward maximum: a circle the whole edge lies within.
     pub outer_radius_mm: f64,
+    /// R + e + the deviation's inward maximum: a circle within the whole edge.
+    pub inner_radius_mm: f64,
     /// Hit-angle corrections: 0 for a circle, [`EDGE_REFINEMENTS`] otherwise.
     pub refinements: usize,
 }
@@ -246,6 +268,107 @@ impl EdgeSolver<'_> {
             direction,
             self.outer_radius_mm,
         )
+    }
+}
+
+impl EdgeSolver<'_> {
+    /// A lower bound of [`EdgeSolver::entry`] (same arguments) as tight as the edge's
+    /// deviation near where the line meets it: `None` only where the entry is `None`.
+    /// The entry is the line's entry into the circle of radius R + e + w(ψ₁), ψ₁ the
+    /// angle of its hit on a circle of radius between `inner_radius_mm` and
+    /// `outer_radius_mm`; every such hit lies on the line between its entries into
+    /// those two circles (the inner one's, or the point nearest the centre where the
+    /// line misses it), an arc whose sin ψ range `maxima` bounds w over. Falls back to
+    /// [`EdgeSolver::entry_bound`] where that arc reaches behind the centre or is long.
+    /// Three square roots and two divisions, no arctangent.
+    pub fn local_entry_bound(
+        &self,
+        maxima: &DeviationMaxima,
+        from_pivot: DVec2,
+        direction: DVec2,
+        tip: DVec2,
+        psi_sign: f64,
+    ) -> Option<f64> {
+        let w = from_pivot + self.tip_offset_mm * tip;
+        let outer = circle_entry(w, direction, self.outer_radius_mm)?;
+        let first = w + outer * direction;
+        let last = match circle_entry(w, direction, self.inner_radius_mm) {
+            Some(d) => w + d * direction,
+            None => w - (w.dot(direction) / direction.length_squared()) * direction,
+        };
+        if first.dot(tip) <= 0.0 || last.dot(tip) <= 0.0 {
+            return Some(outer);
+        }
+        let sine = |p: DVec2| psi_sign * (p.x * tip.y - p.y * tip.x) / p.length();
+        let (a, b) = (sine(first), sine(last));
+        let Some(most) = maxima.over(a.min(b), a.max(b)) else {
+            return Some(outer);
+        };
+        let radius = (self.circle_radius_mm + most).min(self.outer_radius_mm);
+        circle_entry(w, direction, radius).map(|d| d.max(outer))
+    }
+}
+
+/// The largest radial deviation w(ψ) of an edge over short arcs, tabulated by sin ψ
+/// (even bins over [−1, 1]; for |ψ| ≤ π/2, where sin ψ orders the angles): what bounds
+/// a pass's entry where its ray meets the edge near a known angle (see
+/// [`EdgeSolver::local_entry_bound`]). Each bin holds the maximum of the table's
+/// linear interpolation over the bin's angles (at its ends and the nodes within), a
+/// femtometre more; a query reads one more bin each side, so an angle a rounding off
+/// the range is still covered.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DeviationMaxima {
+    bins_mm: Vec<f64>,
+}
+
+/// Bins of [`DeviationMaxima`] over sin ψ ∈ [−1, 1] (~0.03° each near the tip).
+const MAXIMA_BINS: usize = 4096;
+/// Most bins a query reads; a longer range gives no bound.
+const MAXIMA_QUERY_BINS: usize = 32;
+/// Added to each bin's maximum against the interpolation's rounding (mm).
+const MAXIMA_SLACK_MM: f64 = 1e-15;
+
+impl DeviationMaxima {
+    /// The bins of `table` (none for a circle: no query answers).
+    pub fn new(table: &AngleTable) -> Self {
+        if table.is_zero() {
+            return Self::default();
+        }
+        let edge = |k: usize| {
+            (-1.0 + 2.0 * k as f64 / MAXIMA_BINS as f64)
+                .clamp(-1.0, 1.0)
+                .asin()
+        };
+        let bins_mm = (0..MAXIMA_BINS)
+            .map(|k| {
+                let (lo, hi) = (edge(k), edge(k + 1));
+                let ends = table.at(lo).max(table.at(hi));
+                let nodes = table.nodes_within(lo, hi).fold(ends, f64::max);
+                nodes + MAXIMA_SLACK_MM
+            })
+            .collect();
+        Self { bins_mm }
+    }
+
+    /// The largest deviation over angles whose sines lie in `[lo, hi]`; `None` without
+    /// bins or over more than [`MAXIMA_QUERY_BINS`] of them.
+    pub fn over(&self, lo: f64, hi: f64) -> Option<f64> {
+        // A NaN end (or an empty range) answers nothing.
+        if self.bins_mm.is_empty() || lo.partial_cmp(&hi).is_none_or(|o| o.is_gt()) {
+            return None;
+        }
+        let last = MAXIMA_BINS as f64 - 1.0;
+        let bin = |s: f64| {
+            ((s + 1.0) * 0.5 * MAXIMA_BINS as f64)
+                .floor()
+                .clamp(0.0, last)
+        };
+        let (first, end) = ((bin(lo) - 1.0).max(0.0), (bin(hi) + 1.0).min(last));
+        let (first, end) = (first as usize, end as usize);
+        if end - first >= MAXIMA_QUERY_BINS {
+            return None;
+        }
+        self.bins_mm[first..=end].iter().copied().reduce(f64::max)
     }
 }
 
@@ -413,5 +536,58 @@ mod tests {
                 "θ = {theta_deg}: {d} vs {first_order}"
             );
         }
+    }
+
+    /// The local bound of a wavy edge's entry never lies above the entry (the engines
+    /// skip a pass on it), and reads the edge near the hit: over rays that sweep
+    /// the edge at every angle and lean up to 40°, it is within the deviation's local
+    /// rise of the entry where the global bound sits up to 2A above.
+    #[test]
+    fn the_local_bound_lies_below_the_entry_and_close_to_it() {
+        let (radius, amplitude) = (0.3, 5e-5);
+        let mut edge = ideal(radius, 120.0);
+        edge.deviation =
+            AngleTable::from_harmonics(&[(43.0, amplitude, 0.5), (7.0, 2e-5, 2.0)], 2001);
+        let solver = edge.solver();
+        let maxima = DeviationMaxima::new(&edge.deviation);
+        let tip = tip_direction(0.0);
+        let (mut local_gaps, mut global_gaps) = (Vec::new(), Vec::new());
+        for i in 0..400 {
+            let lateral = -0.25 + 0.5 * i as f64 / 399.0;
+            for lean_deg in [-40.0_f64, -10.0, 0.0, 25.0] {
+                let direction =
+                    DVec2::new(lean_deg.to_radians().sin(), lean_deg.to_radians().cos());
+                let from_pivot = DVec2::new(lateral, -0.4) - 0.1 * direction;
+                let Some(entry) = solver.entry(from_pivot, direction, tip, 1.0) else {
+                    continue;
+                };
+                let local = solver
+                    .local_entry_bound(&maxima, from_pivot, direction, tip, 1.0)
+                    .expect("an entered edge has a bound");
+                let global = solver.entry_bound(from_pivot, direction, tip).unwrap();
+                assert!(
+                    local <= entry + 1e-15,
+                    "x = {lateral}, lean {lean_deg}°: {local} > {entry}"
+                );
+                assert!(global <= local + 1e-15);
+                local_gaps.push(entry - local);
+                global_gaps.push(entry - global);
+            }
+        }
+        assert!(local_gaps.len() > 1000, "{}", local_gaps.len());
+        let median = |gaps: &mut Vec<f64>| {
+            gaps.sort_by(f64::total_cmp);
+            gaps[gaps.len() / 2]
+        };
+        // Typically the global bound sits about A above the entry (the deviation's
+        // maximum against its mean), the local one within the rise of w over a few
+        // bins of sin ψ: 3·(2/4096) rad × w′ (≤ 43·A + 7·2e-5) ≈ 0.07 A.
+        let (local, global) = (median(&mut local_gaps), median(&mut global_gaps));
+        println!("median gap: local {local:e} mm, global {global:e} mm");
+        assert!(local < 0.1 * amplitude && global > 0.8 * amplitude);
+        assert_eq!(
+            DeviationMaxima::new(&AngleTable::default()).over(-0.1, 0.1),
+            None
+        );
     }
 }
