@@ -201,7 +201,12 @@ pub fn register_beside(
     }
 }
 
-/// Registers at the best tooth of `comb`: every tooth judged on a subsample by the
+/// A comb's tooth as [`register_on_comb`] reads it: its number, axis position, the
+/// simulation at the subsample's points, and (Σr², points used) judged alone.
+type Tooth = (i64, DVec2, Vec<f64>, (f64, usize));
+
+/// Registers at the best tooth of `comb`: the teeth [`walk_out`] reaches (each judged
+/// alone, far beyond the best so far ends the walk) judged on a subsample by the
 /// residual it leaves (Σr², the fits' own measure, not the trimmed one the local
 /// search uses: what tells teeth apart is often a few points at the axis) over the
 /// points all of them keep on the simulated part — teeth that lose more points past the
@@ -217,25 +222,36 @@ fn register_on_comb(
 ) -> Registered {
     let direction = m.line_direction();
     let coarse = every_nth(m, (m.len() / COMB_POINTS).max(1));
-    let numbers: Vec<i64> = comb.numbers().collect();
-    let teeth: Vec<(i64, DVec2, Vec<f64>)> = numbers
-        .par_iter()
-        .map(|&n| {
-            let (along, odd) = comb.tooth(n);
-            let shift = search.start + along * direction;
-            let frame = Frame::at(shift).mirrored(search.mirrored != odd);
-            (n, shift, sim.sample(&coarse, frame))
-        })
-        .collect();
-    let lost = |t: &(i64, DVec2, Vec<f64>)| t.2.iter().filter(|v| !v.is_finite()).count();
+    // Each tooth sampled, and judged alone for the walk: its Σr² and points used.
+    let read = |n: i64| {
+        let (along, odd) = comb.tooth(n);
+        let shift = search.start + along * direction;
+        let frame = Frame::at(shift).mirrored(search.mirrored != odd);
+        let simulated = sim.sample(&coarse, frame);
+        let alone = line_rss(&coarse, &simulated, shift, terms.power);
+        (n, shift, simulated, alone)
+    };
+    // Far: Δχ²/2 beyond FAR_CHI against the least mean square so far, taken as the
+    // variance (per point: a tooth losing points at the rim judged on those it keeps).
+    let far = |t: &Tooth, so_far: &[(i64, Tooth)]| {
+        let mean_square = |(rss, used): (f64, usize)| rss / used.max(1) as f64;
+        let least = so_far
+            .iter()
+            .map(|s| mean_square(s.1.3))
+            .min_by(f64::total_cmp);
+        let (rss, used) = t.3;
+        least.is_some_and(|variance| (rss / variance - used as f64) / 2.0 > FAR_CHI)
+    };
+    let teeth: Vec<Tooth> = walk_out(comb, read, far).into_iter().map(|t| t.1).collect();
+    let lost = |t: &Tooth| t.2.iter().filter(|v| !v.is_finite()).count();
     let fewest = teeth.iter().map(lost).min().unwrap_or(0);
-    let judged: Vec<&(i64, DVec2, Vec<f64>)> = teeth.iter().filter(|t| lost(t) == fewest).collect();
+    let judged: Vec<&Tooth> = teeth.iter().filter(|t| lost(t) == fewest).collect();
     let everywhere: Vec<bool> = (0..coarse.len())
         .map(|i| judged.iter().all(|t| t.2[i].is_finite()))
         .collect();
     let scores: Vec<(f64, i64)> = judged
         .par_iter()
-        .map(|(n, shift, simulated)| {
+        .map(|(n, shift, simulated, _)| {
             let common: Vec<f64> = simulated
                 .iter()
                 .zip(&everywhere)
@@ -322,26 +338,77 @@ pub fn axis_sigma_mm(
     } else {
         &[false, true]
     };
-    let (mut weight, mut spread) = (0.0, 0.0);
-    for n in comb.numbers() {
+    // Each tooth's readings as (Δχ²/2 against the best, offset along the line).
+    let tooth = |n: i64| -> Vec<(f64, f64)> {
         let (along, odd) = comb.tooth(n);
         let at = ShiftSearch {
             start: search.start + along * direction,
             ..search
         };
-        for &turned in readings {
-            let r = register_near(m, sim, terms, at, search.mirrored != (odd != turned));
-            if r.used < best.used {
-                continue;
-            }
-            let w = (-(r.rss - best.rss).max(0.0) / (2.0 * variance)).exp();
-            let d = (r.shift_mm - best.shift_mm).dot(direction);
+        readings
+            .iter()
+            .map(|&turned| register_near(m, sim, terms, at, search.mirrored != (odd != turned)))
+            .filter(|r| r.used >= best.used)
+            .map(|r| {
+                let chi = (r.rss - best.rss).max(0.0) / (2.0 * variance);
+                (chi, (r.shift_mm - best.shift_mm).dot(direction))
+            })
+            .collect()
+    };
+    let teeth = walk_out(comb, tooth, |readings, _| {
+        readings.iter().all(|r| r.0 > FAR_CHI)
+    });
+    let (mut weight, mut spread) = (0.0, 0.0);
+    for (_, readings) in &teeth {
+        for &(chi, d) in readings {
+            let w = (-chi).exp();
             weight += w;
             spread += w * d * d;
         }
     }
     let aliases = if weight > 0.0 { spread / weight } else { 0.0 };
     (local * local + aliases).sqrt()
+}
+
+/// Δχ²/2 beyond which a tooth's weight e^(−Δχ²/2) is no longer counted (below 1e-173:
+/// nothing beside the best tooth's weight of 1, or an offset's square, would change).
+const FAR_CHI: f64 = 400.0;
+/// Teeth beyond [`FAR_CHI`] in a row, each way, after which a comb is no longer read
+/// (a tooth that lost points counts as beyond).
+const FAR_TEETH: usize = 8;
+
+/// `comb`'s teeth as `evaluate` reads them, in tooth order: read outward from the start
+/// each way, [`FAR_TEETH`] side by side at a time, until [`FAR_TEETH`] in a row are
+/// `far` (judged against the teeth read so far). A tooth's Δχ² grows with its distance
+/// from the best (the form, a drift, a varying feed part them), and a line of a
+/// thousand teeth — a profile millimetres long at a feed of microns — was otherwise read
+/// at every one (b08's axis σ: 2612 registrations, 14 s, 64 of them weighing more than
+/// 1e-9).
+fn walk_out<T: Send>(
+    comb: Comb,
+    evaluate: impl Fn(i64) -> T + Sync,
+    far: impl Fn(&T, &[(i64, T)]) -> bool,
+) -> Vec<(i64, T)> {
+    let ways: [Vec<i64>; 2] = [
+        comb.numbers().filter(|n| *n >= 0).collect(),
+        comb.numbers().filter(|n| *n < 0).rev().collect(),
+    ];
+    let mut teeth: Vec<(i64, T)> = Vec::new();
+    for way in ways {
+        let mut run = 0;
+        for chunk in way.chunks(FAR_TEETH) {
+            let read: Vec<(i64, T)> = chunk.par_iter().map(|&n| (n, evaluate(n))).collect();
+            for (n, t) in read {
+                run = if far(&t, &teeth) { run + 1 } else { 0 };
+                teeth.push((n, t));
+            }
+            if run >= FAR_TEETH {
+                break;
+            }
+        }
+    }
+    teeth.sort_by_key(|t| t.0);
+    teeth
 }
 
 /// Registers with the axis searched near `search.start`, the line read `mirrored`.
@@ -830,4 +897,55 @@ pub fn golden_section(f: &dyn Fn(f64) -> f64, lo: f64, hi: f64, steps: usize) ->
     .into_iter()
     .min_by(|x, y| x.0.total_cmp(&y.0))
     .map_or(bracket.mid(), |b| b.1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn comb(below: usize, above: usize) -> Comb {
+        Comb {
+            step_mm: 0.002,
+            below,
+            above,
+            mirror_odd: false,
+            fine: below.max(above),
+            far_step_mm: 0.002,
+        }
+    }
+
+    /// Δχ²/2 of a tooth n on a parabola about `best` (c per tooth², the form parting
+    /// aliases), and a second valley at `rival` (a placement the marks repeat at).
+    fn landscape(n: i64, best: i64, rival: Option<i64>) -> f64 {
+        let chi = |at: i64| 3.0 * ((n - at) as f64).powi(2);
+        rival.map_or(chi(best), |r| chi(best).min(chi(r)))
+    }
+
+    #[test]
+    fn the_walk_reads_every_tooth_that_can_weigh_and_stops_past_them() {
+        let far = |chi: &f64, _: &[(i64, f64)]| *chi > FAR_CHI;
+        // 1000 teeth each way, the best 5 from the start: Δχ²/2 ≤ 400 within ±11 of it.
+        let teeth = walk_out(comb(1000, 1000), |n| landscape(n, 5, None), far);
+        let numbers: Vec<i64> = teeth.iter().map(|t| t.0).collect();
+        let near: Vec<i64> = (-1000..=1000)
+            .filter(|&n| landscape(n, 5, None) <= FAR_CHI)
+            .collect();
+        assert!(near.iter().all(|n| numbers.contains(n)), "{numbers:?}");
+        // Eight far teeth each way past the near ones, read eight side by side.
+        assert!(
+            numbers.len() <= near.len() + 4 * FAR_TEETH,
+            "{}",
+            numbers.len()
+        );
+        assert!(numbers.windows(2).all(|w| w[0] < w[1]), "tooth order");
+        // A rival valley beyond a ridge of far teeth is not reached (the walk's
+        // premise: the comb's Δχ² grows away from the best) — unless the ridge is
+        // shorter than eight teeth.
+        let rival = |at: i64| {
+            let teeth = walk_out(comb(1000, 1000), |n| landscape(n, 0, Some(at)), far);
+            teeth.iter().any(|t| t.0 == at)
+        };
+        assert!(!rival(200));
+        assert!(rival(26));
+    }
 }
