@@ -210,11 +210,9 @@ pub(super) fn local_bound_entry(
     pose: ToolPose,
     branch: Branch,
 ) -> Option<f64> {
-    let ring = &scene.grid.rings[ring_index];
-    let (centre, tip) = nose_in_branch(pose, branch.x_sign());
-    let origin = DVec2::new(scene.rings[ring_index].lateral_mm, ring.height_mm);
+    let (from_pivot, normal, tip) = on_centre_ray(scene, ring_index, pose, branch);
     let maxima = &scene.deviation_maxima;
-    edge.local_entry_bound(maxima, origin - centre, ring.normal, tip, branch.x_sign())
+    edge.local_entry_bound(maxima, from_pivot, normal, tip, branch.x_sign())
 }
 
 /// [`EdgeSolver::entry_bound`] for the dexel ray of ring `ring_index` at `pose` (on
@@ -226,10 +224,22 @@ fn bound_entry(
     pose: ToolPose,
     branch: Branch,
 ) -> Option<f64> {
+    let (from_pivot, normal, tip) = on_centre_ray(scene, ring_index, pose, branch);
+    edge.entry_bound(from_pivot, normal, tip)
+}
+
+/// The dexel ray of ring `ring_index` against the pass at `pose` on centre, as the edge
+/// solver takes it: (origin − nose centre, direction, tip) in the branch's frame.
+fn on_centre_ray(
+    scene: &TurningScene,
+    ring_index: usize,
+    pose: ToolPose,
+    branch: Branch,
+) -> (DVec2, DVec2, DVec2) {
     let ring = &scene.grid.rings[ring_index];
     let (centre, tip) = nose_in_branch(pose, branch.x_sign());
     let origin = DVec2::new(scene.rings[ring_index].lateral_mm, ring.height_mm);
-    edge.entry_bound(origin - centre, ring.normal, tip)
+    (origin - centre, ring.normal, tip)
 }
 
 /// A pass's nose centre and tip direction in the frame of the branch of x-sign `sign`

@@ -280,7 +280,7 @@ impl EdgeSolver<'_> {
     /// those two circles (the inner one's, or the point nearest the centre where the
     /// line misses it), an arc whose sin ψ range `maxima` bounds w over. Falls back to
     /// [`EdgeSolver::entry_bound`] where that arc reaches behind the centre or is long.
-    /// Three square roots and two divisions, no arctangent.
+    /// Five square roots (three circle entries, two lengths), no arctangent.
     pub fn local_entry_bound(
         &self,
         maxima: &DeviationMaxima,
@@ -289,8 +289,8 @@ impl EdgeSolver<'_> {
         tip: DVec2,
         psi_sign: f64,
     ) -> Option<f64> {
+        let outer = self.entry_bound(from_pivot, direction, tip)?;
         let w = from_pivot + self.tip_offset_mm * tip;
-        let outer = circle_entry(w, direction, self.outer_radius_mm)?;
         let first = w + outer * direction;
         let last = match circle_entry(w, direction, self.inner_radius_mm) {
             Some(d) => w + d * direction,
