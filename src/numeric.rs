@@ -199,8 +199,8 @@ pub trait LeastSquaresProblem {
 pub struct LmLimits<'a> {
     /// Jacobians taken at most.
     pub iterations: usize,
-    /// Each parameter's bound: |value| ≤ bound (∞: unbounded).
-    pub bounds: &'a [f64],
+    /// Each parameter's range: lower ≤ value ≤ upper (±∞: unbounded).
+    pub bounds: &'a [(f64, f64)],
     /// An accepted step smaller than this in every parameter ends the fit.
     pub small_step: &'a [f64],
     /// An accepted step gaining no more than this share of the objective ends it.
@@ -238,7 +238,8 @@ pub fn levenberg_marquardt<P: LeastSquaresProblem>(
             .into_iter()
             .filter(|&j| {
                 let descent = -dot(&jacobian[j], &r);
-                !(values[j].abs() >= limits.bounds[j] && descent * values[j] > 0.0)
+                let (lower, upper) = limits.bounds[j];
+                !((values[j] >= upper && descent > 0.0) || (values[j] <= lower && descent < 0.0))
             })
             .collect();
         if free.is_empty() {
@@ -354,7 +355,8 @@ fn try_step<P: LeastSquaresProblem>(
 ) -> Result<Step<P::State>, P::Error> {
     let mut trial = values.to_vec();
     for &(j, s) in moves {
-        trial[j] = (values[j] + s).clamp(-limits.bounds[j], limits.bounds[j]);
+        let (lower, upper) = limits.bounds[j];
+        trial[j] = (values[j] + s).clamp(lower, upper);
     }
     let Some(evaluation) = problem.evaluate(&trial)? else {
         return Ok(None);
@@ -632,7 +634,7 @@ mod tests {
         let mut problem = MisleadingStep { t, z };
         let limits = LmLimits {
             iterations: 20,
-            bounds: &[f64::INFINITY; 3],
+            bounds: &[(f64::NEG_INFINITY, f64::INFINITY); 3],
             small_step: &[1e-12; 3],
             min_gain: 1e-12,
             frozen: &[],
@@ -648,5 +650,76 @@ mod tests {
             fit.values
         );
         assert_eq!(fit.values[2], 0.0, "{:?}", fit.values);
+    }
+
+    /// A line a·t + c fitted to points, linear in both (its Jacobian exact).
+    struct Line {
+        t: Vec<f64>,
+        z: Vec<f64>,
+    }
+
+    impl LeastSquaresProblem for Line {
+        type State = Vec<f64>;
+        type Error = ();
+        fn evaluate(&mut self, v: &[f64]) -> Result<Option<Vec<f64>>, ()> {
+            let r = self.t.iter().zip(&self.z).map(|(t, z)| v[0] * t + v[1] - z);
+            Ok(Some(r.collect()))
+        }
+        fn residual(&self, state: &Vec<f64>) -> Vec<f64> {
+            state.clone()
+        }
+        fn rss(&self, state: &Vec<f64>) -> f64 {
+            dot(state, state)
+        }
+        fn jacobian(&mut self, _: &[f64], _: &Vec<f64>) -> Result<Vec<Vec<f64>>, ()> {
+            Ok(vec![self.t.clone(), vec![1.0; self.t.len()]])
+        }
+    }
+
+    #[test]
+    fn a_one_sided_range_holds_its_end_and_frees_the_rest() {
+        // Points on z = −3t + 2 + 0.1·(−1)^i, t from 0 to 1.9: a slope held at ≥ 0
+        // (as wear only recedes an edge) ends at 0, and the offset is then the points'
+        // mean, 2 − 3·mean(t) — the closed form of the fit with the slope at 0; a
+        // two-sided range finds the free least-squares line instead.
+        let t: Vec<f64> = (0..20).map(|i| f64::from(i) * 0.1).collect();
+        let z: Vec<f64> = (0..20)
+            .map(|i| -3.0 * t[i] + 2.0 + 0.1 * if i % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let fit_within = |bounds: &[(f64, f64)]| {
+            let mut problem = Line {
+                t: t.clone(),
+                z: z.clone(),
+            };
+            let limits = LmLimits {
+                iterations: 30,
+                bounds,
+                small_step: &[1e-12; 2],
+                min_gain: 1e-14,
+                frozen: &[],
+            };
+            levenberg_marquardt(&mut problem, vec![0.0, 0.0], &limits)
+                .unwrap()
+                .unwrap()
+                .values
+        };
+        let held = fit_within(&[(0.0, 10.0), (f64::NEG_INFINITY, f64::INFINITY)]);
+        assert_eq!(held[0], 0.0, "{held:?}");
+        assert!(
+            (held[1] - mean(&z)).abs() < 1e-9,
+            "{held:?} for {}",
+            mean(&z)
+        );
+        let free = fit_within(&[(-10.0, 10.0), (f64::NEG_INFINITY, f64::INFINITY)]);
+        let (mt, mz) = (mean(&t), mean(&z));
+        let slope = t
+            .iter()
+            .zip(&z)
+            .map(|(t, z)| (t - mt) * (z - mz))
+            .sum::<f64>()
+            / t.iter().map(|t| (t - mt).powi(2)).sum::<f64>();
+        assert!((free[0] - slope).abs() < 1e-9, "{free:?} for slope {slope}");
+        assert!((free[1] - (mz - slope * mt)).abs() < 1e-9, "{free:?}");
     }
 }

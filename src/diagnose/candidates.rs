@@ -64,6 +64,52 @@ pub struct Parameter {
     pub scale: f64,
     /// The largest magnitude the job files allow.
     pub bound: f64,
+    /// The smallest value the effect can physically take: −`bound`, or 0 for a
+    /// one-sided effect (wear only recedes an edge).
+    pub lower: f64,
+}
+
+impl Parameter {
+    /// The search range, lower to upper.
+    pub fn range(&self) -> (f64, f64) {
+        (self.lower, self.bound)
+    }
+
+    /// `v` brought within the search range.
+    pub fn clamp(&self, v: f64) -> f64 {
+        v.clamp(self.lower, self.bound)
+    }
+
+    /// Whether `v` sits at an end of the search range: within 2 % of the bound's
+    /// magnitude at a two-sided end, within a thousandth of the scale at a one-sided
+    /// end (its physical limit, 0, is also the natural null: only there is it a limit).
+    pub fn at_bound(&self, v: f64) -> bool {
+        let near_lower = if self.is_one_sided() {
+            v <= self.lower + 1e-3 * self.scale
+        } else {
+            v <= -0.98 * self.bound
+        };
+        near_lower || v >= 0.98 * self.bound
+    }
+
+    /// Whether the range stops short of −bound (a physical limit on one side).
+    pub fn is_one_sided(&self) -> bool {
+        self.lower > -self.bound
+    }
+
+    /// The range as a report writes it: `±bound`, or `lower to bound`.
+    pub fn range_text(&self) -> String {
+        if self.is_one_sided() {
+            format!("{:.4} to {:.4} {}", self.lower, self.bound, self.unit)
+        } else {
+            format!("±{:.4} {}", self.bound, self.unit)
+        }
+    }
+
+    /// The same parameter, never below `lower`.
+    fn at_least(self, lower: f64) -> Parameter {
+        Parameter { lower, ..self }
+    }
 }
 
 fn parameter(name: &'static str, unit: &'static str, scale: f64, bound: f64) -> Parameter {
@@ -72,6 +118,7 @@ fn parameter(name: &'static str, unit: &'static str, scale: f64, bound: f64) -> 
         unit,
         scale,
         bound,
+        lower: -bound,
     }
 }
 
@@ -313,8 +360,10 @@ impl Candidate {
                     }
                     // 7.2° moves the marks by a fiftieth of a feed.
                     Candidate::SpiralAzimuth => vec![parameter("offset", "deg", 7.2, 180.0)],
+                    // Wear only recedes an edge: an edge that advances over the
+                    // cut (a built-up edge) is a run's effect, not this diagnosis's.
                     Candidate::ToolWear => {
-                        vec![parameter("recession", "nm", 10.0, 0.1 * nose_um * 1e3)]
+                        vec![parameter("recession", "nm", 10.0, 0.1 * nose_um * 1e3).at_least(0.0)]
                     }
                     Candidate::SpringBack => vec![
                         parameter("min_chip", "nm", 2.0, (0.1 * nose_um).min(5.0) * 1e3),

@@ -1048,10 +1048,10 @@ impl<'a, 'e> Problem<'a, 'e> {
         start: f64,
         noise: &ProfileNoise,
     ) -> Result<Profile, ForwardError> {
-        let bound = fit.parameters[j].bound;
+        let (lower, upper) = fit.parameters[j].range();
         let trial = |delta: f64, values: &[f64]| {
             let stepped = fit.values[j] + delta;
-            (stepped.abs() <= bound).then(|| {
+            (lower..=upper).contains(&stepped).then(|| {
                 let mut values = values.to_vec();
                 values[j] = stepped;
                 (fit.set.clone(), values)
@@ -1320,14 +1320,14 @@ impl<'a, 'e> Problem<'a, 'e> {
                 })
                 .sum();
             for (&o, d) in others.iter().zip(&delta) {
-                trial[o] = (trial[o] + d).clamp(-parameters[o].bound, parameters[o].bound);
+                trial[o] = parameters[o].clamp(trial[o] + d);
             }
             Ok((rss, trial))
         };
         let p = &parameters[j];
         let origin = base[j];
         let trials: Vec<(Vec<Candidate>, Vec<f64>)> = std::iter::once(origin)
-            .chain(scan_values(origin, p.scale, p.bound))
+            .chain(scan_values(origin, p))
             .map(|v| {
                 let mut trial = base.to_vec();
                 trial[j] = v;
@@ -1338,7 +1338,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let mut best = at(self, origin)?;
         // Every value tried, to bracket the best afterwards.
         let mut tried = vec![(origin, best.0)];
-        for v in scan_values(origin, p.scale, p.bound) {
+        for v in scan_values(origin, p) {
             let trial = at(self, v)?;
             tried.push((v, trial.0));
             if trial.0 < best.0 {
@@ -1450,7 +1450,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         frozen: &[usize],
         iterations: usize,
     ) -> Result<(Vec<f64>, Vec<Vec<f64>>), ForwardError> {
-        let bounds: Vec<f64> = parameters.iter().map(|p| p.bound).collect();
+        let bounds: Vec<(f64, f64)> = parameters.iter().map(Parameter::range).collect();
         let small_step: Vec<f64> = parameters.iter().map(|p| 1e-4 * p.scale).collect();
         let limits = LmLimits {
             iterations,
@@ -1515,7 +1515,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let at_bound = values
             .iter()
             .zip(&parameters)
-            .map(|(v, p)| v.abs() >= 0.98 * p.bound)
+            .map(|(v, p)| p.at_bound(*v))
             .collect();
         let objective = self.rss(&evaluation);
         Ok(Fit {
@@ -1846,21 +1846,22 @@ fn best_on_each_side(tried: &[(f64, f64)], origin: f64, lowest: f64) -> Vec<usiz
 /// Share of the best side's drop in Σr² the other side must take to be refined too.
 const OTHER_SIDE: f64 = 0.25;
 
-/// The values a global scan of one parameter tries around `origin`: both signs, every
-/// multiple of `scale` within the bound, and the bound itself on each side.
-fn scan_values(origin: f64, scale: f64, bound: f64) -> Vec<f64> {
+/// The values a global scan of parameter `p` tries around `origin`: both signs, every
+/// multiple of its scale within its range, and each end of the range.
+fn scan_values(origin: f64, p: &Parameter) -> Vec<f64> {
+    let (lower, upper) = p.range();
     let mut values: Vec<f64> = Vec::new();
     for sign in [1.0, -1.0] {
         for m in SCAN_MULTIPLES {
-            let v = origin + sign * m * scale;
-            if v.abs() < bound {
+            let v = origin + sign * m * p.scale;
+            if lower < v && v < upper {
                 values.push(v);
             }
         }
-        values.push(sign * bound);
     }
+    values.extend([lower, upper]);
     values.sort_by(f64::total_cmp);
-    values.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * bound);
+    values.dedup_by(|a, b| (*a - *b).abs() <= 1e-12 * p.bound);
     values.retain(|v| *v != origin);
     values
 }
@@ -2063,6 +2064,30 @@ impl LeastSquaresProblem for SetModel<'_, '_, '_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_scan_tries_both_signs_only_where_the_range_has_both() {
+        // Scale 10 nm, bound 500 nm: the multiples 0.3 … 30 of the scale lie inside
+        // (3, 10, 30, 100, 300 nm), then the bound; a two-sided range mirrors them, a
+        // range that stops at 0 (wear) never tries a negative value.
+        let two_sided = Parameter {
+            name: "recession",
+            unit: "nm",
+            scale: 10.0,
+            bound: 500.0,
+            lower: -500.0,
+        };
+        let inside = [3.0, 10.0, 30.0, 100.0, 300.0, 500.0];
+        let mirrored: Vec<f64> = inside.iter().rev().map(|v| -v).chain(inside).collect();
+        assert_eq!(scan_values(0.0, &two_sided), mirrored);
+        let one_sided = Parameter {
+            lower: 0.0,
+            ..two_sided
+        };
+        assert_eq!(scan_values(0.0, &one_sided), inside);
+        assert!(one_sided.at_bound(0.0) && !one_sided.at_bound(3.0));
+        assert!(!two_sided.at_bound(0.0) && two_sided.at_bound(-490.0));
+    }
 
     /// One side of a profile stepped out from `start` by doubling, Σr² rising by
     /// `rise(δ)` (in units of one point's variance), each of two values moving by δ

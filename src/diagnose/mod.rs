@@ -826,7 +826,18 @@ fn effect_result(fit: &Fit, i: usize, rss0: f64) -> CandidateResult {
     let at_bound = &fit.at_bound[span.clone()];
     let mut description = fit.describe(i);
     let order_sigma = fit.order_sigma(i);
-    if at_bound.iter().any(|b| *b) {
+    let parameters = &fit.parameters[span.clone()];
+    let at_limit = at_bound
+        .iter()
+        .zip(parameters)
+        .zip(values.iter())
+        .find(|((b, p), v)| **b && p.is_one_sided() && **v < 0.5 * (p.lower + p.bound));
+    if let Some(((_, p), _)) = at_limit {
+        description.push_str(&format!(
+            " — at its physical limit ({} ≥ {} {}): the data asks for less, not a fit",
+            p.name, p.lower, p.unit
+        ));
+    } else if at_bound.iter().any(|b| *b) {
         description.push_str(" — at the search bound, not a fit");
     }
     CandidateResult {
@@ -845,6 +856,7 @@ fn effect_result(fit: &Fit, i: usize, rss0: f64) -> CandidateResult {
                 value: *v,
                 sigma: *s,
                 bound: p.bound,
+                lower_bound: p.is_one_sided().then_some(p.lower),
                 at_bound: *b,
             })
             .collect(),

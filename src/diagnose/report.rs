@@ -327,6 +327,10 @@ pub struct ParameterValue {
     pub sigma: f64,
     /// The search range is ±bound; a value at it is not a fit.
     pub bound: f64,
+    /// Where the range stops short of −bound, its lower end (0 for tool wear, which
+    /// only recedes an edge): the range is then `lower_bound` to `bound`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lower_bound: Option<f64>,
     pub at_bound: bool,
 }
 

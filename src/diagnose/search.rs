@@ -918,8 +918,11 @@ fn not_a_fit(fit: &Fit, member: usize, orders: OrderRange) -> Option<String> {
     if let Some(j) = fit.parameter_span(member).find(|&j| fit.at_bound[j]) {
         let p = &fit.parameters[j];
         return Some(format!(
-            "{} {:.4} {} sits at its search bound (±{:.4} {}): not a fit",
-            p.name, fit.values[j], p.unit, p.bound, p.unit
+            "{} {:.4} {} sits at its search bound ({}): not a fit",
+            p.name,
+            fit.values[j],
+            p.unit,
+            p.range_text()
         ));
     }
     if !significant(fit, member) {

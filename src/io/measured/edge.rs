@@ -190,7 +190,7 @@ fn least_squares<const N: usize>(
 ) -> Option<[f64; N]> {
     let limits = LmLimits {
         iterations: 300,
-        bounds: &[f64::INFINITY; N],
+        bounds: &[(f64::NEG_INFINITY, f64::INFINITY); N],
         small_step: &[1e-14; N],
         min_gain: 1e-15,
         frozen: &[],
