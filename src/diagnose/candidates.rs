@@ -81,15 +81,20 @@ impl Parameter {
     }
 
     /// Whether `v` sits at an end of the search range: within 2 % of the bound's
-    /// magnitude at a two-sided end, within a thousandth of the scale at a one-sided
-    /// end (its physical limit, 0, is also the natural null: only there is it a limit).
+    /// magnitude at a two-sided end, at the physical limit of a one-sided one.
     pub fn at_bound(&self, v: f64) -> bool {
         let near_lower = if self.is_one_sided() {
-            v <= self.lower + 1e-3 * self.scale
+            self.at_physical_limit(v)
         } else {
             v <= -0.98 * self.bound
         };
         near_lower || v >= 0.98 * self.bound
+    }
+
+    /// Whether `v` sits at a one-sided range's lower end (within a thousandth of the
+    /// scale): the data asks for less than the effect can be.
+    pub fn at_physical_limit(&self, v: f64) -> bool {
+        self.is_one_sided() && v <= self.lower + 1e-3 * self.scale
     }
 
     /// Whether the range stops short of −bound (a physical limit on one side).

@@ -826,13 +826,11 @@ fn effect_result(fit: &Fit, i: usize, rss0: f64) -> CandidateResult {
     let at_bound = &fit.at_bound[span.clone()];
     let mut description = fit.describe(i);
     let order_sigma = fit.order_sigma(i);
-    let parameters = &fit.parameters[span.clone()];
-    let at_limit = at_bound
+    let at_limit = fit.parameters[span.clone()]
         .iter()
-        .zip(parameters)
         .zip(values.iter())
-        .find(|((b, p), v)| **b && p.is_one_sided() && **v < 0.5 * (p.lower + p.bound));
-    if let Some(((_, p), _)) = at_limit {
+        .find(|(p, v)| p.at_physical_limit(**v));
+    if let Some((p, _)) = at_limit {
         description.push_str(&format!(
             " — at its physical limit ({} ≥ {} {}): the data asks for less, not a fit",
             p.name, p.lower, p.unit
