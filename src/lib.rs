@@ -11,6 +11,18 @@
 //! - [`formulas`]: closed-form references (the tests' oracles)
 //! - [`io`]: job files and output writers
 //! - [`run`]: the pipeline that ties them together
+//!
+//! Beside the pipeline, each reading its results:
+//! - [`diagnose`]: the sim-to-real diagnosis of a measured part (registration, candidate
+//!   effects, fits, acceptance by prediction, the verdict)
+//! - [`synth`]: measured-like data made apart from the diagnosis's forward model (the
+//!   withheld suite's parts and instrument)
+//! - [`compensate`]: the machining–measurement–compensation loop (the next path moved
+//!   along the normal by the measured form error)
+//! - [`correct`]: the lens generator's set-up corrected from the part it made
+//! - [`bench`]: `toolmark bench`, throughput against a reference measured in the same run
+//! - [`numeric`]: the shared numerics (golden section, least squares, bounded
+//!   Levenberg–Marquardt, quantiles)
 
 pub mod analysis;
 pub mod bench;
