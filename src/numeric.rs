@@ -652,66 +652,44 @@ mod tests {
         assert_eq!(fit.values[2], 0.0, "{:?}", fit.values);
     }
 
-    /// A line a·t + c fitted to points, linear in both (its Jacobian exact).
-    struct Line {
-        t: Vec<f64>,
-        z: Vec<f64>,
-    }
-
-    impl LeastSquaresProblem for Line {
-        type State = Vec<f64>;
-        type Error = ();
-        fn evaluate(&mut self, v: &[f64]) -> Result<Option<Vec<f64>>, ()> {
-            let r = self.t.iter().zip(&self.z).map(|(t, z)| v[0] * t + v[1] - z);
-            Ok(Some(r.collect()))
-        }
-        fn residual(&self, state: &Vec<f64>) -> Vec<f64> {
-            state.clone()
-        }
-        fn rss(&self, state: &Vec<f64>) -> f64 {
-            dot(state, state)
-        }
-        fn jacobian(&mut self, _: &[f64], _: &Vec<f64>) -> Result<Vec<Vec<f64>>, ()> {
-            Ok(vec![self.t.clone(), vec![1.0; self.t.len()]])
-        }
-    }
-
     #[test]
     fn a_one_sided_range_holds_its_end_and_frees_the_rest() {
-        // Points on z = −3t + 2 + 0.1·(−1)^i, t from 0 to 1.9: a slope held at ≥ 0
-        // (as wear only recedes an edge) ends at 0, and the offset is then the points'
-        // mean, 2 − 3·mean(t) — the closed form of the fit with the slope at 0; a
-        // two-sided range finds the free least-squares line instead.
+        // Points on z = −3t + 2 + 0.1·(−1)^i, t from 0 to 1.9, fitted as the line
+        // a·t + c of `MisleadingStep` (its third parameter frozen at 0): a slope held
+        // at ≥ 0 (as wear only recedes an edge) ends at 0, and the offset is then the
+        // points' mean, 2 − 3·mean(t) — the closed form of the fit with the slope at 0;
+        // a two-sided range finds the free least-squares line instead.
         let t: Vec<f64> = (0..20).map(|i| f64::from(i) * 0.1).collect();
         let z: Vec<f64> = (0..20)
             .map(|i| -3.0 * t[i] + 2.0 + 0.1 * if i % 2 == 0 { 1.0 } else { -1.0 })
             .collect();
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
         let fit_within = |bounds: &[(f64, f64)]| {
-            let mut problem = Line {
+            let mut problem = MisleadingStep {
                 t: t.clone(),
                 z: z.clone(),
             };
             let limits = LmLimits {
                 iterations: 30,
                 bounds,
-                small_step: &[1e-12; 2],
+                small_step: &[1e-12; 3],
                 min_gain: 1e-14,
-                frozen: &[],
+                frozen: &[2],
             };
-            levenberg_marquardt(&mut problem, vec![0.0, 0.0], &limits)
+            levenberg_marquardt(&mut problem, vec![0.0; 3], &limits)
                 .unwrap()
                 .unwrap()
                 .values
         };
-        let held = fit_within(&[(0.0, 10.0), (f64::NEG_INFINITY, f64::INFINITY)]);
+        let free_range = (f64::NEG_INFINITY, f64::INFINITY);
+        let held = fit_within(&[(0.0, 10.0), free_range, free_range]);
         assert_eq!(held[0], 0.0, "{held:?}");
         assert!(
             (held[1] - mean(&z)).abs() < 1e-9,
             "{held:?} for {}",
             mean(&z)
         );
-        let free = fit_within(&[(-10.0, 10.0), (f64::NEG_INFINITY, f64::INFINITY)]);
+        let free = fit_within(&[(-10.0, 10.0), free_range, free_range]);
         let (mt, mz) = (mean(&t), mean(&z));
         let slope = t
             .iter()

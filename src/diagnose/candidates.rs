@@ -679,13 +679,10 @@ impl Candidate {
                     values[1].atan2(values[0]).to_degrees()
                 )
             }
-            Candidate::ToolWear if v >= 0.0 => format!(
+            // The recession is searched from 0 up ([`Candidate::parameters`]).
+            Candidate::ToolWear => format!(
                 "the edge wore back {} nm over the cut (growing with the length cut)",
                 pm(v, s)
-            ),
-            Candidate::ToolWear => format!(
-                "the edge advanced {} nm over the cut, growing with the length cut (not wear: a built-up edge, or a tool still running in)",
-                pm(-v, s)
             ),
             Candidate::SpringBack => format!(
                 "chips thinner than {} nm plough and {} % of them springs back (raising the flank beside each cusp; the mark spacing stays)",
