@@ -12,6 +12,7 @@ use crate::run::{Groundwork, job_grid, remove_all, scenes_on};
 use glam::DVec2;
 use rayon::prelude::*;
 use std::f64::consts::TAU;
+use std::hash::{DefaultHasher, Hash, Hasher};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -685,29 +686,49 @@ impl SimulatedSurface {
                 let s0 = frame.shift_mm.dot(measurement.line_direction());
                 trace.sample(&measurement.along_mm, s0, frame.signed_scale())
             }
-            None => measurement
-                .xy_mm
-                .iter()
-                .map(|p| self.area_value(frame.to_part(*p), frame.scale))
-                .collect(),
+            None => self.sample_at(&self.places(measurement, frame)),
         }
     }
 
-    /// A pixel's value at part position `p`: the point, or the mean over its footprint
-    /// (3 × 3 midpoints; the footprint scaled with the positions).
-    fn area_value(&self, p: DVec2, scale: f64) -> f64 {
+    /// Where a raster's points (each pixel's midpoints where pixels average) fall on the
+    /// grid's rows in `frame`: what [`SimulatedSurface::sample`] works out before it
+    /// finds a ring and reads heights. The same for every simulation on the same rows
+    /// and pixels, so a registration scan tried on many trial surfaces works it out
+    /// once ([`SimulatedSurface::sample_at`] reads it).
+    pub fn places(&self, measurement: &Measurement, frame: Frame) -> Vec<Place> {
+        let (rows, offsets) = (self.grid.azimuths, self.midpoints(frame.scale));
+        let mut places = Vec::with_capacity(measurement.len() * offsets.len());
+        for p in &measurement.xy_mm {
+            let p = frame.to_part(*p);
+            places.extend(offsets.iter().map(|o| Place::of(p + *o, rows)));
+        }
+        places
+    }
+
+    /// What [`SimulatedSurface::places`] depends on besides the points: the rows, and
+    /// the midpoints read in `frame` (bits, to be hashed).
+    pub fn place_layout(&self, frame: Frame) -> (u32, Vec<[u64; 2]>) {
+        let offsets = self.midpoints(frame.scale);
+        let bits = offsets.iter().map(|o| o.to_array().map(f64::to_bits));
+        (self.grid.azimuths, bits.collect())
+    }
+
+    /// The heights at `places` ([`SimulatedSurface::places`]): a pixel's value is its
+    /// point's, or the mean over its footprint's midpoints.
+    pub fn sample_at(&self, places: &[Place]) -> Vec<f64> {
+        self.sample_on(places, &self.rings_of(places))
+    }
+
+    /// Where a pixel is read, from its point: its footprint's 3 × 3 midpoints (each
+    /// standing for a third of it; the footprint scaled with the positions), or the
+    /// point itself.
+    fn midpoints(&self, scale: f64) -> Vec<DVec2> {
         match self.pixel_mm {
-            None => self.at(p),
-            Some([dx, dy]) => {
-                let mut sum = 0.0;
-                for i in -1..=1 {
-                    for j in -1..=1 {
-                        let offset = DVec2::new(i as f64 * dx, j as f64 * dy) * scale / 3.0;
-                        sum += self.at(p + offset);
-                    }
-                }
-                sum / 9.0
-            }
+            None => vec![DVec2::ZERO],
+            Some([dx, dy]) => (-1..=1)
+                .flat_map(|i| (-1..=1).map(move |j| (i, j)))
+                .map(|(i, j)| DVec2::new(i as f64 * dx, j as f64 * dy) * scale / 3.0)
+                .collect(),
         }
     }
 
@@ -754,38 +775,136 @@ impl SimulatedSurface {
 
     /// Bilinear in (radius, azimuth) on the polar grid; NaN outside its rings.
     pub fn at(&self, p: DVec2) -> f64 {
-        let radii = &self.rings.radii;
-        let r = p.length();
+        self.at_place(Place::of(p, self.grid.azimuths))
+    }
+
+    /// [`SimulatedSurface::at`] where the point's place on the rows is known.
+    fn at_place(&self, place: Place) -> f64 {
+        self.at_ring(place, self.ring_of(place))
+    }
+
+    /// Where `place` lies between this grid's rings.
+    fn ring_of(&self, place: Place) -> Ring {
+        let (radii, r) = (&self.rings.radii, place.r);
         let k = self.rings.partition_point(r);
-        let (k0, k1, t) = if k == 0 {
+        if k == 0 {
             if r < radii[0] - 1e-12 {
-                return f64::NAN;
+                return Ring::OFF;
             }
-            (0, 0, 0.0)
+            Ring {
+                k0: 0,
+                k1: 0,
+                t: 0.0,
+            }
         } else if k == radii.len() {
             if r > radii[k - 1] + 1e-12 {
-                return f64::NAN;
+                return Ring::OFF;
             }
-            (k - 1, k - 1, 0.0)
+            let last = (k - 1) as u32;
+            Ring {
+                k0: last,
+                k1: last,
+                t: 0.0,
+            }
         } else {
             let (a, b) = (radii[k - 1], radii[k]);
-            (k - 1, k, (r - a) / (b - a))
-        };
-        let rows = self.grid.azimuths;
-        // atan2 lies in [−π, π]: rem_euclid(τ) adds τ to the negative half, exactly.
-        let angle = p.y.atan2(p.x);
-        let angle = if angle < 0.0 { angle + TAU } else { angle };
-        let turn = angle / TAU * rows as f64;
-        // `turn` lies in 0..=rows: the cast is its floor, the wrap needs no division.
-        let j0 = turn as u32;
-        let whole = j0 as f64;
-        let j0 = if j0 >= rows { j0 - rows } else { j0 };
-        let j1 = if j0 + 1 == rows { 0 } else { j0 + 1 };
-        let u = turn - whole;
+            let (k0, k1) = ((k - 1) as u32, k as u32);
+            Ring {
+                k0,
+                k1,
+                t: (r - a) / (b - a),
+            }
+        }
+    }
+
+    /// The height at `place`, lying at `ring`: bilinear in (radius, azimuth).
+    fn at_ring(&self, place: Place, ring: Ring) -> f64 {
+        if ring.k0 == Ring::OFF.k0 {
+            return f64::NAN;
+        }
+        let (k0, k1, t) = (ring.k0 as usize, ring.k1 as usize, ring.t);
+        let (j0, j1, u) = place.rows(self.grid.azimuths);
         let value = |k: usize, j: u32| self.height_mm[self.grid.sample_index(k, j)];
         let row0 = value(k0, j0) + t * (value(k1, j0) - value(k0, j0));
         let row1 = value(k0, j1) + t * (value(k1, j1) - value(k0, j1));
         row0 + u * (row1 - row0)
+    }
+
+    /// Where `places` lie between this grid's rings ([`SimulatedSurface::sample_on`]
+    /// reads them), the same for every simulation on the same rings.
+    pub fn rings_of(&self, places: &[Place]) -> Vec<Ring> {
+        places.iter().map(|p| self.ring_of(*p)).collect()
+    }
+
+    /// Identifies this grid's rings (a hash of their radii): simulations
+    /// with the same have the same [`SimulatedSurface::rings_of`].
+    pub fn rings_key(&self) -> u64 {
+        self.rings.key
+    }
+
+    /// [`SimulatedSurface::sample_at`] where the places' rings are known.
+    pub fn sample_on(&self, places: &[Place], rings: &[Ring]) -> Vec<f64> {
+        let per_pixel = self.midpoints(1.0).len();
+        places
+            .chunks(per_pixel)
+            .zip(rings.chunks(per_pixel))
+            .map(|(pixel, on)| {
+                let mut values = pixel.iter().zip(on).map(|(p, r)| self.at_ring(*p, *r));
+                match per_pixel {
+                    1 => values.next().unwrap_or(f64::NAN),
+                    _ => values.fold(0.0, |sum, v| sum + v) / per_pixel as f64,
+                }
+            })
+            .collect()
+    }
+}
+
+/// Where a point lies between a grid's rings: the rings either side (`k0`, `k1`) and
+/// how far it lies from `k0` toward `k1` (`t`, 0..1); [`Ring::OFF`] beyond them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ring {
+    k0: u32,
+    k1: u32,
+    t: f64,
+}
+
+impl Ring {
+    const OFF: Ring = Ring {
+        k0: u32::MAX,
+        k1: u32::MAX,
+        t: f64::NAN,
+    };
+}
+
+/// Where a point lies on a polar grid's rows: its radius, and its azimuth in rows
+/// (0..=rows).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Place {
+    r: f64,
+    turn: f64,
+}
+
+impl Place {
+    /// Point `p`'s place on a grid of `rows` rows.
+    fn of(p: DVec2, rows: u32) -> Place {
+        // atan2 lies in [−π, π]: rem_euclid(τ) adds τ to the negative half, exactly.
+        let angle = p.y.atan2(p.x);
+        let angle = if angle < 0.0 { angle + TAU } else { angle };
+        Place {
+            r: p.length(),
+            turn: angle / TAU * rows as f64,
+        }
+    }
+
+    /// The rows either side of the place (`j0`, `j1`) and how far it lies from `j0`
+    /// toward `j1` (0..1).
+    fn rows(self, rows: u32) -> (u32, u32, f64) {
+        // `turn` lies in 0..=rows: the cast is its floor, the wrap needs no division.
+        let j0 = self.turn as u32;
+        let whole = j0 as f64;
+        let j0 = if j0 >= rows { j0 - rows } else { j0 };
+        let j1 = if j0 + 1 == rows { 0 } else { j0 + 1 };
+        (j0, j1, self.turn - whole)
     }
 }
 
@@ -794,6 +913,8 @@ impl SimulatedSurface {
 /// few rings closer than that, as a grid puts beside a feature, cost a step more).
 struct RingLookup {
     radii: Vec<f64>,
+    /// A hash of the radii.
+    key: u64,
     first_mm: f64,
     /// Buckets per mm.
     per_bucket: f64,
@@ -818,7 +939,10 @@ impl RingLookup {
                 radii.partition_point(|r| *r <= edge)
             })
             .collect();
+        let mut hasher = DefaultHasher::new();
+        radii.iter().for_each(|r| r.to_bits().hash(&mut hasher));
         Self {
+            key: hasher.finish(),
             radii,
             first_mm,
             per_bucket: 1.0 / bucket_mm,
@@ -1409,5 +1533,96 @@ height_mm = -0.00213
             .find(|&r| trace.at(r) < 0.5 * (top + floor))
             .unwrap();
         assert!((wall - 0.00213).abs() < 2e-6, "wall at {} µm", wall * 1e3);
+    }
+}
+
+#[cfg(test)]
+mod place_tests {
+    use super::*;
+    use crate::engine::cpu::CpuEngine;
+
+    /// The registration scan keeps a map's places and rings from one trial surface for
+    /// the next: read so, another surface on the same rings must give what it gives
+    /// itself, to the bit; a centre height's trial moves the rings, and says so.
+    #[test]
+    fn places_and_rings_found_on_one_surface_read_another_on_the_same_rings() {
+        let job = Job::from_toml_str(
+            r#"version = 1
+[surface]
+kind = "sphere"
+form = "convex"
+radius_mm = 10.0
+aperture_diameter_mm = 0.4
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.2
+included_angle_deg = 140.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.004
+[grid]
+pitch_um = 1.0
+azimuths = 8
+"#,
+            "test",
+        )
+        .unwrap();
+        let instrument = Instrument {
+            pixel_averaging: true,
+            ..Instrument::default()
+        };
+        let pixel = [0.012, 0.015];
+        let heights = vec![0.0; 11 * 9];
+        let origin = DVec2::new(-0.06, -0.05);
+        let map = Measurement::raster((11, 9), origin, pixel, &heights, DVec2::ZERO, instrument);
+        let mut engine = CpuEngine;
+        let mut model = ForwardModel::new(&job, &map, &mut engine).unwrap();
+        fn turning(job: &mut Job) -> &mut crate::effects::TurningEffects {
+            match &mut job.process {
+                Process::Turning(t) => &mut t.effects,
+                _ => unreachable!("a turning job"),
+            }
+        }
+        let nominal = model.simulate(&|_| {}).unwrap();
+        let worn = model
+            .simulate(&|job| turning(job).wear_recession_mm = 2e-4)
+            .unwrap();
+        let below = model
+            .simulate(&|job| turning(job).centre_height_mm = -2e-3)
+            .unwrap();
+        let frame = Frame::at(DVec2::new(3e-3, -2e-3));
+        let places = nominal.places(&map, frame);
+        assert_eq!(places.len(), 9 * map.len(), "3 × 3 midpoints a pixel");
+        let rings = nominal.rings_of(&places);
+        assert_eq!(worn.rings_key(), nominal.rings_key());
+        let bits = |v: Vec<f64>| v.iter().map(|h| h.to_bits()).collect::<Vec<_>>();
+        let own = worn.sample(&map, frame);
+        assert_eq!(bits(worn.sample_on(&places, &rings)), bits(own.clone()));
+        let nominal_heights = nominal.sample(&map, frame);
+        // A pixel's value: the mean over its footprint's 3 × 3 midpoints.
+        let p = frame.to_part(map.xy_mm[40]);
+        let mut mean = 0.0;
+        for (i, j) in (-1..=1).flat_map(|i| (-1..=1).map(move |j| (i, j))) {
+            mean +=
+                nominal.at(p + DVec2::new(i as f64 * pixel[0], j as f64 * pixel[1]) / 3.0) / 9.0;
+        }
+        assert!(
+            (nominal_heights[40] - mean).abs() < 1e-12,
+            "{} vs {mean}",
+            nominal_heights[40]
+        );
+        let moved = own
+            .iter()
+            .zip(&nominal_heights)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(moved > map.len() / 2, "wear moved {moved} pixels");
+        assert_ne!(below.rings_key(), nominal.rings_key());
+        let own = below.sample(&map, frame);
+        assert_eq!(
+            bits(below.sample_on(&places, &below.rings_of(&places))),
+            bits(own)
+        );
     }
 }

@@ -5,11 +5,14 @@
 //! its line). Linear terms are solved by least squares for each trial shift; the shift by
 //! a grid search and a golden-section refinement.
 
-use super::forward::{Frame, SimulatedSurface};
+use super::forward::{Frame, Place, Ring, SimulatedSurface};
 use super::measurement::Measurement;
 use crate::numeric::solve_linear;
 use glam::DVec2;
 use rayon::prelude::*;
+use std::collections::VecDeque;
+use std::hash::{DefaultHasher, Hash, Hasher};
+use std::sync::{Arc, Mutex};
 
 /// What registration may remove besides piston and tilt.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -428,14 +431,20 @@ fn register_near(
     let coarse = every_nth(m, (m.len() / scanned).max(1));
     // The axis is judged on the bulk of the points: the worst 5 % (an unmodelled local
     // feature, spikes) do not steer it.
-    let judged = |points: &Measurement, shift: DVec2| {
-        let simulated = sim.sample(points, Frame::at(shift).mirrored(mirrored));
+    let judge = |points: &Measurement, simulated: &[f64], shift: DVec2| {
         if points.is_line() {
-            line_trimmed(points, &simulated, shift, terms.power, 0.95)
+            line_trimmed(points, simulated, shift, terms.power, 0.95)
         } else {
-            let r = fit_linear(points, &simulated, shift, terms.power);
+            let r = fit_linear(points, simulated, shift, terms.power);
             (trimmed_mean_square(&r.residual_mm, 0.95), r.used)
         }
+    };
+    let judged = |points: &Measurement, shift: DVec2| {
+        judge(
+            points,
+            &sim.sample(points, Frame::at(shift).mirrored(mirrored)),
+            shift,
+        )
     };
     let steps = (search.half_width_mm / search.step_mm).ceil().max(1.0) as i64;
     let offsets: Vec<f64> = (-steps..=steps)
@@ -447,10 +456,32 @@ fn register_near(
         None => search.start + DVec2::new(offsets[k % n], offsets[k / n]),
     };
     // Side by side: a single trial's registration is otherwise serial.
-    let scan: Vec<(f64, usize)> = (0..if direction.is_some() { n } else { n * n })
-        .into_par_iter()
-        .map(|k| judged(&coarse, grid_shift(k)))
-        .collect();
+    let scan: Vec<(f64, usize)> = match direction {
+        Some(_) => (0..n)
+            .into_par_iter()
+            .map(|k| judged(&coarse, grid_shift(k)))
+            .collect(),
+        None if !worth_remembering(&coarse, sim, n * n) => (0..n * n)
+            .into_par_iter()
+            .map(|k| judged(&coarse, grid_shift(k)))
+            .collect(),
+        None => {
+            let shifts: Vec<DVec2> = (0..n * n).map(grid_shift).collect();
+            let scan = remembered_scan(&coarse, sim, &shifts, mirrored);
+            let rings = scan.rings_on(sim);
+            (0..n * n)
+                .into_par_iter()
+                .map(|k| {
+                    let places = scan.at_shift(k);
+                    let simulated = match &rings {
+                        Some(rings) => sim.sample_on(places, &rings[scan.range(k)]),
+                        None => sim.sample_at(places),
+                    };
+                    judge(&coarse, &simulated, shifts[k])
+                })
+                .collect()
+        }
+    };
     // A profile may lose its ends at the rim. A map's shift may not move its points off
     // the simulated region (judging the rest alone would favour losing the hard ones):
     // it keeps 98 % of what the scan's best-covered shift keeps (all of them where the
@@ -517,6 +548,121 @@ fn register_near(
     Registered {
         mirrored,
         ..fit_linear(m, &sim.sample(m, frame), shift, terms.power)
+    }
+}
+
+/// A raster scan's [`ScanReads`] for `points` at `shifts`: worked out once and
+/// remembered for the next trial surface on the same rows and pixels. A map's fit scans
+/// from a handful of starts a thousand times (suite case 067: 995 scans from 9 starts),
+/// and the places — an arctangent per midpoint — and their rings were two thirds of its
+/// diagnosis. Remembered by a hash of all they depend on; those used last kept, up to
+/// [`REMEMBERED_PLACES`].
+fn remembered_scan(
+    points: &Measurement,
+    sim: &SimulatedSurface,
+    shifts: &[DVec2],
+    mirrored: bool,
+) -> Arc<ScanReads> {
+    let frame = |shift: DVec2| Frame::at(shift).mirrored(mirrored);
+    let key = {
+        let mut h = DefaultHasher::new();
+        points
+            .xy_mm
+            .iter()
+            .chain(shifts)
+            .for_each(|p| p.to_array().map(f64::to_bits).hash(&mut h));
+        mirrored.hash(&mut h);
+        sim.place_layout(frame(DVec2::ZERO)).hash(&mut h);
+        h.finish()
+    };
+    let remembered = {
+        let mut scans = REMEMBERED.lock().unwrap_or_else(|e| e.into_inner());
+        let at = scans.iter().position(|s| s.key == key);
+        at.and_then(|at| scans.remove(at))
+    };
+    // (worked out unlocked: the work is shared among threads that may want the lock)
+    let scan = remembered.unwrap_or_else(|| {
+        let places: Vec<Vec<Place>> = shifts
+            .par_iter()
+            .map(|s| sim.places(points, frame(*s)))
+            .collect();
+        Arc::new(ScanReads {
+            key,
+            per_shift: places.first().map_or(0, Vec::len),
+            places: places.concat(),
+            rings: Mutex::new(None),
+        })
+    });
+    // The least recently used scans are forgotten first.
+    let mut scans = REMEMBERED.lock().unwrap_or_else(|e| e.into_inner());
+    scans.retain(|s| s.key != key);
+    scans.push_back(scan.clone());
+    while scans.iter().map(|s| s.places.len()).sum::<usize>() > REMEMBERED_PLACES {
+        scans.pop_front();
+    }
+    scan
+}
+
+/// Whether a raster scan of `shifts` shifts over `points` is small enough to be
+/// remembered (the few wide scans that place a map are not: they are read once).
+fn worth_remembering(points: &Measurement, sim: &SimulatedSurface, shifts: usize) -> bool {
+    let places = points.len() * shifts * sim.place_layout(Frame::IDENTITY).1.len();
+    places <= REMEMBERED_PLACES / 4
+}
+
+/// How many places (and as many rings; 32 bytes the pair) [`remembered_scan`] keeps:
+/// 512 MB, thirteen scans of 9 × 9 shifts over 1624 pixels of 9 midpoints (a scan four
+/// times that size is the largest remembered). Suite case 064, whose fits place its
+/// map anew at each step, took 110 s with 384 MB kept and 98 s with 512 MB.
+const REMEMBERED_PLACES: usize = 16 << 20;
+static REMEMBERED: Mutex<VecDeque<Arc<ScanReads>>> = Mutex::new(VecDeque::new());
+
+/// A raster scan's places for each shift in turn ([`SimulatedSurface::places`]), and
+/// their rings on one grid ([`SimulatedSurface::rings_of`]).
+struct ScanReads {
+    key: u64,
+    per_shift: usize,
+    places: Vec<Place>,
+    rings: Mutex<Option<KeptRings>>,
+}
+
+/// A scan's rings on the grid `key`, and whether a later surface read them again.
+struct KeptRings {
+    key: u64,
+    rings: Arc<Vec<Ring>>,
+    read_again: bool,
+}
+
+impl ScanReads {
+    fn range(&self, shift: usize) -> std::ops::Range<usize> {
+        shift * self.per_shift..(shift + 1) * self.per_shift
+    }
+
+    fn at_shift(&self, shift: usize) -> &[Place] {
+        &self.places[self.range(shift)]
+    }
+
+    /// The places' rings on `sim`'s grid, kept for the next surface on the same rings.
+    /// A trial that moves the rings (a centre height's, each its own) finds its rings
+    /// as it reads (`None`) where the kept ones were read again: they stay.
+    fn rings_on(&self, sim: &SimulatedSurface) -> Option<Arc<Vec<Ring>>> {
+        let mut kept = self.rings.lock().unwrap_or_else(|e| e.into_inner());
+        match kept.as_mut() {
+            Some(k) if k.key == sim.rings_key() => {
+                k.read_again = true;
+                Some(k.rings.clone())
+            }
+            Some(k) if k.read_again => None,
+            _ => {
+                let rings = Arc::new(sim.rings_of(&self.places));
+                *kept = Some(KeptRings {
+                    key: sim.rings_key(),
+                    rings: rings.clone(),
+                    read_again: false,
+                });
+                Some(rings)
+            }
+        }
     }
 }
 
