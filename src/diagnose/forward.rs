@@ -1335,6 +1335,19 @@ mod tests {
     }
 }
 
+/// A convex sphere of `radius_mm`, Ø0.4 mm, turned XZ with a 0.2 mm nose at
+/// `feed_mm` per revolution on 1 µm rings and 8 rows, with `effects` (TOML tables).
+#[cfg(test)]
+fn turned_sphere_job(radius_mm: f64, feed_mm: f64, effects: &str) -> Job {
+    let toml = format!(
+        "version = 1\n[surface]\nkind = \"sphere\"\nform = \"convex\"\nradius_mm = {radius_mm}\n\
+         aperture_diameter_mm = 0.4\n[tool]\nkind = \"arc_nose\"\nnose_radius_mm = 0.2\n\
+         included_angle_deg = 140.0\n[process]\nkind = \"turning\"\nmode = \"xz\"\n\
+         feed_per_rev_mm = {feed_mm}\n[grid]\npitch_um = 1.0\nazimuths = 8\n{effects}"
+    );
+    Job::from_toml_str(&toml, "test").unwrap()
+}
+
 #[cfg(test)]
 mod rotation_tests {
     use super::*;
@@ -1345,31 +1358,8 @@ mod rotation_tests {
     /// that azimuth (independently built rows, sample for sample).
     #[test]
     fn a_turned_program_looks_along_the_azimuth_it_was_turned_to() {
-        let job = Job::from_toml_str(
-            r#"version = 1
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 5.0
-aperture_diameter_mm = 0.4
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.2
-included_angle_deg = 140.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-[grid]
-pitch_um = 1.0
-azimuths = 8
-[[effects]]
-kind = "centre_height"
-height_mm = 0.002
-"#,
-            "test",
-        )
-        .unwrap();
+        let effects = "[[effects]]\nkind = \"centre_height\"\nheight_mm = 0.002\n";
+        let job = turned_sphere_job(5.0, 0.01, effects);
         let azimuth = 135f64.to_radians();
         let line = Measurement::line(
             &[-0.15, 0.15],
@@ -1546,28 +1536,7 @@ mod place_tests {
     /// itself, to the bit; a centre height's trial moves the rings, and says so.
     #[test]
     fn places_and_rings_found_on_one_surface_read_another_on_the_same_rings() {
-        let job = Job::from_toml_str(
-            r#"version = 1
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 10.0
-aperture_diameter_mm = 0.4
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.2
-included_angle_deg = 140.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.004
-[grid]
-pitch_um = 1.0
-azimuths = 8
-"#,
-            "test",
-        )
-        .unwrap();
+        let job = turned_sphere_job(10.0, 0.004, "");
         let instrument = Instrument {
             pixel_averaging: true,
             ..Instrument::default()
