@@ -842,9 +842,14 @@ impl SimulatedSurface {
         self.rings.key
     }
 
+    /// How many places a pixel is read at ([`SimulatedSurface::places`]).
+    pub fn reads_per_pixel(&self) -> usize {
+        self.midpoints(1.0).len()
+    }
+
     /// [`SimulatedSurface::sample_at`] where the places' rings are known.
     pub fn sample_on(&self, places: &[Place], rings: &[Ring]) -> Vec<f64> {
-        let per_pixel = self.midpoints(1.0).len();
+        let per_pixel = self.reads_per_pixel();
         places
             .chunks(per_pixel)
             .zip(rings.chunks(per_pixel))

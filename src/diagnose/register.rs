@@ -456,20 +456,13 @@ fn register_near(
         None => search.start + DVec2::new(offsets[k % n], offsets[k / n]),
     };
     // Side by side: a single trial's registration is otherwise serial.
+    let count = if direction.is_some() { n } else { n * n };
     let scan: Vec<(f64, usize)> = match direction {
-        Some(_) => (0..n)
-            .into_par_iter()
-            .map(|k| judged(&coarse, grid_shift(k)))
-            .collect(),
-        None if !worth_remembering(&coarse, sim, n * n) => (0..n * n)
-            .into_par_iter()
-            .map(|k| judged(&coarse, grid_shift(k)))
-            .collect(),
-        None => {
-            let shifts: Vec<DVec2> = (0..n * n).map(grid_shift).collect();
+        None if worth_remembering(&coarse, sim, count) => {
+            let shifts: Vec<DVec2> = (0..count).map(grid_shift).collect();
             let scan = remembered_scan(&coarse, sim, &shifts, mirrored);
             let rings = scan.rings_on(sim);
-            (0..n * n)
+            (0..count)
                 .into_par_iter()
                 .map(|k| {
                     let places = scan.at_shift(k);
@@ -481,6 +474,10 @@ fn register_near(
                 })
                 .collect()
         }
+        _ => (0..count)
+            .into_par_iter()
+            .map(|k| judged(&coarse, grid_shift(k)))
+            .collect(),
     };
     // A profile may lose its ends at the rim. A map's shift may not move its points off
     // the simulated region (judging the rest alone would favour losing the hard ones):
@@ -606,7 +603,7 @@ fn remembered_scan(
 /// Whether a raster scan of `shifts` shifts over `points` is small enough to be
 /// remembered (the few wide scans that place a map are not: they are read once).
 fn worth_remembering(points: &Measurement, sim: &SimulatedSurface, shifts: usize) -> bool {
-    let places = points.len() * shifts * sim.place_layout(Frame::IDENTITY).1.len();
+    let places = points.len() * shifts * sim.reads_per_pixel();
     places <= REMEMBERED_PLACES / 4
 }
 
