@@ -8,8 +8,8 @@
 use crate::engine::RemovalEngine;
 use crate::engine::cpu::CpuEngine;
 use crate::engine::gpu::GpuEngine;
-use crate::io::job::Job;
-use crate::run::{prepare_scenes, remove_all, simulate};
+use crate::model::Job;
+use crate::pipeline::{prepare_scenes, remove_all, simulate};
 use std::path::Path;
 use std::time::Instant;
 
@@ -481,9 +481,9 @@ fn default_run_with_outputs(runs: usize) -> Result<(), String> {
     for run in 1..=runs {
         let result =
             simulate(Job::default_job(), &mut CpuEngine, &|_, _| {}).map_err(|e| e.to_string())?;
-        crate::io::outputs::prepare_output_dir(&dir).map_err(|e| e.to_string())?;
+        crate::output::run_files::prepare_output_dir(&dir).map_err(|e| e.to_string())?;
         let started = Instant::now();
-        crate::io::outputs::write_outputs(&dir, &result).map_err(|e| e.to_string())?;
+        crate::output::run_files::write_outputs(&dir, &result).map_err(|e| e.to_string())?;
         let output_s = started.elapsed().as_secs_f64();
         let t = result.timings;
         let total = t.prepare_s + t.removal_s + t.analysis_s + output_s;
@@ -628,7 +628,7 @@ pub fn numpy_comparison(azimuth_counts: &[u32]) -> Result<(), String> {
 /// 8192 azimuths is the full job (47 409 rings, 3.88e8 samples); fewer scale it down
 /// with the same rings and passes per sample.
 pub fn target_job(azimuths: u32) -> Result<Job, String> {
-    let text = crate::io::job::DEFAULT_JOB_TOML
+    let text = crate::model::DEFAULT_JOB_TOML
         .replace("pitch_um = 0.8", "pitch_um = 0.5")
         .replace("azimuths = 32", &format!("azimuths = {azimuths}"))
         .replace(
@@ -654,7 +654,7 @@ pub fn run_target(cpu: bool, gpu: bool, azimuths: u32, out: Option<&Path>) -> Re
     let mut engines = open_engines(cpu, gpu)?;
     print_host(&engines);
     let job = target_job(azimuths)?;
-    let grid = crate::run::job_grid(&job, &crate::run::Groundwork::of(&job));
+    let grid = crate::pipeline::job_grid(&job, &crate::pipeline::Groundwork::of(&job));
     println!(
         "\n## target job: {} ({} rings × {} azimuths = {:.3e} samples), end to end",
         job.name,
@@ -674,10 +674,10 @@ pub fn run_target(cpu: bool, gpu: bool, azimuths: u32, out: Option<&Path>) -> Re
             let _ = std::fs::remove_dir_all(&temporary);
         }
     }
-    if !crate::io::outputs::polar_exr_written(&grid) {
+    if !crate::output::run_files::polar_exr_written(&grid) {
         println!(
             "(polar.exr is not written above {} samples; the top views, profile and statistics cover the whole field)",
-            crate::io::outputs::POLAR_EXR_MAX_SAMPLES
+            crate::model::resources::POLAR_EXR_MAX_SAMPLES
         );
     }
     Ok(())
@@ -688,8 +688,9 @@ fn target_row(engine: &mut dyn RemovalEngine, job: Job, dir: &Path) -> Result<()
     let started = Instant::now();
     let result = simulate(job, engine, &|_, _| {}).map_err(|e| e.to_string())?;
     let outputs = Instant::now();
-    crate::io::outputs::prepare_output_dir(dir).map_err(|e| e.to_string())?;
-    let written = crate::io::outputs::write_outputs(dir, &result).map_err(|e| e.to_string())?;
+    crate::output::run_files::prepare_output_dir(dir).map_err(|e| e.to_string())?;
+    let written =
+        crate::output::run_files::write_outputs(dir, &result).map_err(|e| e.to_string())?;
     let output_s = outputs.elapsed().as_secs_f64();
     let wall = started.elapsed().as_secs_f64();
     let t = result.timings;

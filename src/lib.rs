@@ -1,41 +1,40 @@
 //! toolmark: GPU-accelerated machined-surface simulation.
 //!
-//! Data flows one way: job → process (+effects) → poses → engine → field →
-//! analysis → outputs. Modules follow that flow:
-//! - [`geometry`]: nominal surfaces and tools (pure f64 math)
-//! - [`process`]: kinematics, machine motion → tool poses
-//! - [`effects`]: the setup and tool errors that make a real part differ
+//! Data flows one way; each room imports only the rooms above it in this list:
+//! - [`numeric`]: the shared numerics (golden section, least squares, bounded
+//!   Levenberg–Marquardt, quantiles)
+//! - [`geometry`]: nominal surfaces, tools and cutters, and the closed forms the tests
+//!   hold the engines to (`geometry::formulas`) — pure f64 math
 //! - [`field`]: the normal-dexel grid and its machined result
-//! - [`engine`]: material removal, CPU (f64 reference) and GPU (WGSL via wgpu)
-//! - [`analysis`]: deviation, scallop, profile and map products
-//! - [`formulas`]: closed-form references (the tests' oracles)
-//! - [`io`]: job files and output writers
-//! - [`run`]: the pipeline that ties them together
+//! - [`formats`]: file formats read and written (measured data, NC text, EXR), and the
+//!   one atomic way every file is written
+//! - [`process`]: kinematics and the machine's and tool's errors (`process::effects`)
+//!   → tool poses
+//! - [`model`]: the job: TOML → checked job with every default filled in
+//! - [`engine`]: material removal per process, CPU (f64 twin) and GPU (WGSL via wgpu)
+//! - [`analysis`]: deviation, scallop, protrusion, profile and map products
+//! - [`pipeline`]: job → scenes → engine → field → analysis
+//! - [`output`]: writers of what the pipeline and analysis computed (EXR, PNG, CSV,
+//!   JSON, HTML, NC)
 //!
 //! Beside the pipeline, each reading its results:
 //! - [`diagnose`]: the sim-to-real diagnosis of a measured part (registration, candidate
-//!   effects, fits, acceptance by prediction, the verdict)
-//! - [`synth`]: measured-like data made apart from the diagnosis's forward model (the
-//!   withheld suite's parts and instrument)
-//! - [`compensate`]: the machining–measurement–compensation loop (the next path moved
-//!   along the normal by the measured form error)
-//! - [`correct`]: the lens generator's set-up corrected from the part it made
+//!   effects, fits, acceptance by prediction, the verdict), with `diagnose::synth`
+//!   (measured-like data made apart from the diagnosis's forward model) and
+//!   `diagnose::withheld` (the suite that scores it)
+//! - [`loops`]: compensation and set-up correction over repeated runs
 //! - [`bench`]: `toolmark bench`, throughput against a reference measured in the same run
-//! - [`numeric`]: the shared numerics (golden section, least squares, bounded
-//!   Levenberg–Marquardt, quantiles)
 
 pub mod analysis;
 pub mod bench;
-pub mod compensate;
-pub mod correct;
 pub mod diagnose;
-pub mod effects;
 pub mod engine;
 pub mod field;
-pub mod formulas;
+pub mod formats;
 pub mod geometry;
-pub mod io;
+pub mod loops;
+pub mod model;
 pub mod numeric;
+pub mod output;
+pub mod pipeline;
 pub mod process;
-pub mod run;
-pub mod synth;

@@ -116,7 +116,7 @@ fn main() -> ExitCode {
     }
     keep_freed_memory();
     // Ctrl-C removes half-written outputs and says what was kept (io::atomic).
-    toolmark::io::atomic::install_interrupt_handler();
+    toolmark::formats::atomic::install_interrupt_handler();
     let cli = Cli::parse();
     let result = match cli.command.unwrap_or(Command::Run(Default::default())) {
         Command::Run(args) => cli::run::run(args),

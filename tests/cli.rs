@@ -82,7 +82,7 @@ fn run_writes_every_output_with_the_documented_summary_schema() {
     assert_eq!(s["job_hash"].as_str().unwrap().len(), 16);
 
     // The EXR carries its metadata and a valid deviation channel.
-    let exr = toolmark::io::exr_io::read_exr(&dir.join("surface.exr")).unwrap();
+    let exr = toolmark::formats::exr_io::read_exr(&dir.join("surface.exr")).unwrap();
     for key in [
         "units",
         "pixel_pitch_mm",
@@ -251,7 +251,7 @@ fn compensate_writes_a_correction_a_job_and_a_program_that_run() {
     );
     // The written program parses as the C-X-Z form the reader accepts.
     let program = std::fs::read_to_string(dir.join("compensated.nc")).unwrap();
-    let parsed = toolmark::io::nc::parse_nc(&program).expect("compensated.nc parses");
+    let parsed = toolmark::formats::nc::parse_nc(&program).expect("compensated.nc parses");
     assert_eq!(parsed.passes.len(), 1);
 }
 

@@ -5,8 +5,8 @@
 
 mod common;
 use common::*;
-use toolmark::compensate::compensation_loop;
 use toolmark::engine::cpu::CpuEngine;
+use toolmark::loops::compensate::compensation_loop;
 
 const ASPHERE_WITH_ERRORS: &str = r#"version = 1
 name = "seed-002 asphere, XZ, with setup and tool errors"

@@ -9,8 +9,8 @@ mod common;
 use common::*;
 use toolmark::engine::cpu::{CpuEngine, sample_dexel};
 use toolmark::engine::{RemovalEngine, Scene};
-use toolmark::io::job::Job;
-use toolmark::run::prepare_scenes;
+use toolmark::model::Job;
+use toolmark::pipeline::prepare_scenes;
 
 /// Runs every scene of `job` through the engine and through the twin, sample by sample.
 fn assert_same_bits(name: &str, job: Job) {

@@ -6,12 +6,12 @@
 mod common;
 use common::*;
 use toolmark::diagnose::measurement::Measurement;
+use toolmark::diagnose::synth::{MeasurementModel, synthesize};
 use toolmark::diagnose::withheld;
 use toolmark::diagnose::{DiagnoseError, Options, Outcome, diagnose};
 use toolmark::engine::RemovalEngine;
 use toolmark::engine::cpu::CpuEngine;
-use toolmark::io::job::Job;
-use toolmark::synth::{MeasurementModel, synthesize};
+use toolmark::model::Job;
 
 /// The suite's turned sphere (R8 convex, Ø3 mm, 10 µm/rev) on a 1 µm grid (the suite
 /// uses 0.5 µm; these cases need no finer).

@@ -7,8 +7,8 @@ use common::*;
 use glam::DVec3;
 use std::f64::consts::TAU;
 use toolmark::engine::Scene;
-use toolmark::io::job::Job;
-use toolmark::run::{RunResult, prepare_scenes};
+use toolmark::model::Job;
+use toolmark::pipeline::{RunResult, prepare_scenes};
 
 /// A job's text with `[[effects]]` tables appended.
 fn with_effects(base: &str, effects: &str) -> Job {
@@ -209,7 +209,7 @@ fn turning_drift_runs_over_an_nc_programs_passes_in_program_order() {
             .collect(),
     };
     let program =
-        toolmark::io::nc_write::c_x_z_program(&[pass(nose + 0.001), pass(nose)], 0.001, "two");
+        toolmark::output::nc_write::c_x_z_program(&[pass(nose + 0.001), pass(nose)], 0.001, "two");
     let dir = std::env::temp_dir().join(format!("toolmark-drift-nc-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("two_passes.nc"), program).unwrap();

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 use std::process::Command;
-use toolmark::io::measured::{ReadOptions, read_measured_bytes};
+use toolmark::formats::measured::{ReadOptions, read_measured_bytes};
 
 #[test]
 fn an_exr_whose_header_declares_23_gb_is_refused_without_allocating_it() {

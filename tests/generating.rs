@@ -7,11 +7,11 @@ mod common;
 use common::*;
 use toolmark::analysis::ProtrusionShape;
 use toolmark::analysis::sphere_fit::fit_machined_sphere;
-use toolmark::correct::{central_pv_nm, correction_loop};
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::geometry::cup_wheel::{CupWheel, generated_sphere};
-use toolmark::io::job::Job;
-use toolmark::run::RunResult;
+use toolmark::loops::correct::{central_pv_nm, correction_loop};
+use toolmark::model::Job;
+use toolmark::pipeline::RunResult;
 
 struct Setup {
     radius_mm: f64,
@@ -336,8 +336,8 @@ fn correction_removes_the_pip_and_the_radius_error_at_least_twenty_fold() {
 #[test]
 fn tooth_marks_peak_at_the_cusp_height_of_neighbouring_passes() {
     use toolmark::engine::Scene;
-    use toolmark::formulas::sphere_scallop_height;
-    use toolmark::run::prepare_scenes;
+    use toolmark::geometry::formulas::sphere_scallop_height;
+    use toolmark::pipeline::prepare_scenes;
     // 4 teeth, wheel 600 rpm on a part at 10 rpm: 240 tooth passes per turn, two
     // families (one per half of the circle) crossing in a diamond pattern.
     let job = job(r#"version = 1
@@ -428,7 +428,7 @@ azimuths = 8192
 
 #[test]
 fn seed_000_hypocycloid_against_the_three_d_kinematics_of_the_same_set_up() {
-    use toolmark::formulas::{hypocycloid_distance, hypocycloid_distance_as_printed};
+    use toolmark::geometry::formulas::{hypocycloid_distance, hypocycloid_distance_as_printed};
     // The paper's numbers: R_L = 53.5 mm, R_S = 3.5 mm; its Fig. 8 puts the edge's
     // profile centre on a Ø100 mm circle, so in 3-D the edge radius is 3.5 mm and the
     // cutting circle lies 50 mm from O. The cutting radius is not given: 10 mm assumed.

@@ -6,11 +6,11 @@ mod common;
 use common::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use toolmark::io::colour::ColourMap;
-use toolmark::io::exr_io::{ExrImage, read_exr, write_exr};
-use toolmark::io::job::Job;
-use toolmark::io::png_out::{FalseColourPlot, write_false_colour_png};
-use toolmark::run::RunResult;
+use toolmark::formats::exr_io::{ExrImage, read_exr, write_exr};
+use toolmark::model::Job;
+use toolmark::output::colour::ColourMap;
+use toolmark::output::png_out::{FalseColourPlot, write_false_colour_png};
+use toolmark::pipeline::RunResult;
 
 /// CPU against its own stored result: only f32 storage and libm differences.
 const CPU_TOLERANCE_NM: f64 = 1e-3;

@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 use toolmark::engine::RemovalEngine;
-use toolmark::run::prepare_scenes;
+use toolmark::pipeline::prepare_scenes;
 
 #[test]
 fn tiled_gpu_removal_equals_untiled() {

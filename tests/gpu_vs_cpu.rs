@@ -5,12 +5,12 @@
 mod common;
 use common::*;
 
-fn compare(name: &str, job: toolmark::io::job::Job) {
+fn compare(name: &str, job: toolmark::model::Job) {
     assert_engines_agree(name, job);
 }
 
 /// An example job with extra effect tables appended.
-fn example_with(name: &str, effects: &str) -> toolmark::io::job::Job {
+fn example_with(name: &str, effects: &str) -> toolmark::model::Job {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("examples")
         .join(name);
@@ -113,7 +113,7 @@ fn generating_job(
     effects: &str,
     aperture_mm: f64,
     azimuths: u32,
-) -> toolmark::io::job::Job {
+) -> toolmark::model::Job {
     job(&format!(
         r#"version = 1
 [surface]
@@ -171,7 +171,7 @@ fn generating_teeth_gpu_matches_cpu() {
 
 /// A milling job with a feed per tooth: flutes as edges (the default), each tooth's edge
 /// sweeping its trochoid with the given helix and per-tooth runout.
-fn edges_job(surface: &str, tool: &str, process: &str, grid: &str) -> toolmark::io::job::Job {
+fn edges_job(surface: &str, tool: &str, process: &str, grid: &str) -> toolmark::model::Job {
     job(&format!(
         "version = 1\n[surface]\n{surface}\n[tool]\n{tool}\n[process]\nkind = \"milling\"\npath = \"raster\"\n{process}\n[grid]\n{grid}\n"
     ))
@@ -183,7 +183,7 @@ fn edges_job(surface: &str, tool: &str, process: &str, grid: &str) -> toolmark::
 /// The f32 step is the floor a conforming device can promise: WGSL allows a few ULP in
 /// division and square roots, which lavapipe rounds exactly and an NVIDIA H100 does not
 /// (Ø8 bull-nose: 0.47 nm on lavapipe, 0.58 nm on the H100, where the step is 0.95 nm).
-fn compare_edges(name: &str, tool_diameter_mm: f64, job: toolmark::io::job::Job) {
+fn compare_edges(name: &str, tool_diameter_mm: f64, job: toolmark::model::Job) {
     let diameter = tool_diameter_mm as f32;
     let step_nm = (diameter.next_up() - diameter) as f64 * 1e6;
     let bound_nm = step_nm.max(0.5);

@@ -161,7 +161,7 @@ fn diagnosis_report_of_cut_1021_opens_in_a_browser() {
         serde_json::from_str(&std::fs::read_to_string(dir.join("diagnosis.json")).unwrap())
             .unwrap();
     let sentence = doc["verdict"]["sentence"].as_str().unwrap();
-    let escaped = toolmark::io::html::escape(sentence);
+    let escaped = toolmark::output::html::escape(sentence);
     assert!(html.find(&escaped).unwrap() < html.find("<h2>").unwrap());
     assert!(html.contains(" ± "), "σ of the fitted parameters");
     check_in_browser(&dir.join("report.html"), "diagnose-1021");

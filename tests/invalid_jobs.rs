@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 use std::process::Command;
-use toolmark::io::job::Job;
+use toolmark::model::Job;
 
 fn corpus() -> Vec<(PathBuf, Vec<String>)> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/invalid_jobs");

@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use toolmark::io::job::Job;
-use toolmark::io::measured::{MeasuredSurface, ReadOptions, read_measured};
+use toolmark::formats::measured::{MeasuredSurface, ReadOptions, read_measured};
+use toolmark::model::Job;
 
 fn toolmark(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_toolmark"))
@@ -61,7 +61,7 @@ fn a_turning_job_with_one_azimuth_runs_and_measures_its_scallops() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     // R − √(R² − f²/4) with R = 0.5 mm, f = 0.01 mm: 25.0 nm (the example's own closed form).
-    let expected = toolmark::formulas::flat_scallop_height(0.5, 0.01) * 1e6;
+    let expected = toolmark::geometry::formulas::flat_scallop_height(0.5, 0.01) * 1e6;
     let max = summary["scallop"]["max_nm"].as_f64().unwrap();
     assert!(
         (max - expected).abs() < 0.01 * expected,
@@ -72,7 +72,7 @@ fn a_turning_job_with_one_azimuth_runs_and_measures_its_scallops() {
 
 #[test]
 fn a_float_max_height_neither_hangs_the_plot_nor_counts_as_a_height() {
-    // Once: an endless line loop in io/plot.rs for heights ≥ ~1e37. f32::MAX (an
+    // Once: an endless line loop in output/plot.rs for heights ≥ ~1e37. f32::MAX (an
     // instrument's invalid marker) is now an invalid point; 1e37 is a (wild) height that
     // is plotted.
     let dir = temp("float-max");
@@ -88,8 +88,8 @@ fn a_float_max_height_neither_hangs_the_plot_nor_counts_as_a_height() {
     }
     std::fs::write(&csv, &text).unwrap();
     let options = ReadOptions {
-        lateral_unit: Some(toolmark::io::measured::LengthUnit::Micrometre),
-        height_unit: Some(toolmark::io::measured::LengthUnit::Micrometre),
+        lateral_unit: Some(toolmark::formats::measured::LengthUnit::Micrometre),
+        height_unit: Some(toolmark::formats::measured::LengthUnit::Micrometre),
         ..Default::default()
     };
     let read = read_measured(&csv, &options).unwrap();
@@ -168,12 +168,12 @@ fn check_estimates_memory_and_refuses_what_this_machine_cannot_hold() {
         + "\n[output]\nmap_pixels = 8192\n";
     std::fs::write(&job, text).unwrap();
     let parsed = Job::load(&job).unwrap();
-    let estimate = toolmark::io::job::resources::estimate(&parsed);
+    let estimate = toolmark::model::resources::estimate(&parsed);
     assert!(
         (estimate.cpu_bytes / 2.55e10 - 1.0).abs() < 0.01,
         "{estimate:?}"
     );
-    let available = toolmark::io::job::resources::available_bytes().unwrap();
+    let available = toolmark::model::resources::available_bytes().unwrap();
     let refused = estimate.cpu_bytes > available;
     // Where a machine could hold it, `check` must say so, and the run (minutes) is not
     // attempted; on the project machine both commands must refuse.
@@ -282,7 +282,7 @@ fn the_feed_marks_example_states_the_closed_form_scallop() {
     // Once "625 nm" (s²/16r: the diameter used for the radius); r − √(r² − (s/2)²) with
     // r = 1 mm, s = 0.1 mm is 1250.8 nm.
     let text = example("milling_ball_feed_marks.toml");
-    let expected = toolmark::formulas::flat_scallop_height(1.0, 0.1) * 1e6;
+    let expected = toolmark::geometry::formulas::flat_scallop_height(1.0, 0.1) * 1e6;
     assert!((expected - 1250.8).abs() < 0.05, "{expected}");
     assert!(text.contains("1250.8 nm") && !text.contains("625 nm"));
 }
@@ -302,8 +302,8 @@ fn decimal_comma_tables_read_as_their_point_twins() {
     let reference = dir.join("point.csv");
     std::fs::write(&reference, point).unwrap();
     let options = ReadOptions {
-        lateral_unit: Some(toolmark::io::measured::LengthUnit::Micrometre),
-        height_unit: Some(toolmark::io::measured::LengthUnit::Nanometre),
+        lateral_unit: Some(toolmark::formats::measured::LengthUnit::Micrometre),
+        height_unit: Some(toolmark::formats::measured::LengthUnit::Nanometre),
         ..Default::default()
     };
     let read = |path: &Path| match read_measured(path, &options).unwrap() {

@@ -7,7 +7,7 @@ use std::io::{Cursor, Read};
 use std::path::{Path, PathBuf};
 
 use md5::{Digest, Md5};
-use toolmark::io::measured::{
+use toolmark::formats::measured::{
     HeightMap, HeightProfile, LengthUnit, MeasuredSurface, ReadInfo, ReadOptions, UnitSource,
     read_measured, write_map, write_profile, write_profile_csv,
 };
@@ -345,7 +345,8 @@ fn real_wli_profile_with_declared_units() {
         p.info.notes
     );
     // The same points as the fixed-layout reader the CLI uses.
-    let old = toolmark::io::measured::read_wli_profile_csv(&path, Micrometre, Micrometre).unwrap();
+    let old =
+        toolmark::formats::measured::read_wli_profile_csv(&path, Micrometre, Micrometre).unwrap();
     assert_eq!(p.valid_points(), (old.x_mm, old.height_mm));
 }
 
@@ -500,7 +501,7 @@ fn a_failed_write_keeps_the_old_file() {
         let path = dir.join(name);
         write_map(&path, &test_map()).unwrap();
         let before = std::fs::read(&path).unwrap();
-        // Block the temporary file `crate::io::atomic` writes first (a folder in its
+        // Block the temporary file `crate::formats::atomic` writes first (a folder in its
         // place), so the write fails midway.
         let temp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
         std::fs::create_dir(&temp).unwrap();

@@ -5,14 +5,14 @@
 mod common;
 use common::*;
 use toolmark::engine::Scene;
-use toolmark::formulas::{
+use toolmark::geometry::formulas::{
     ball_effective_diameter_cusp_side, ball_effective_diameter_inclined, ball_main_angle,
     ball_scallop_height, ball_side_angle, ball_stepover_for_scallop, effective_radius,
     flat_scallop_height, oblique_section_radius, sphere_scallop_height, working_width_concave,
     working_width_convex,
 };
-use toolmark::io::job::Job;
-use toolmark::run::{RunResult, prepare_scenes};
+use toolmark::model::Job;
+use toolmark::pipeline::{RunResult, prepare_scenes};
 
 fn milling(surface: &str, tool: &str, process: &str, grid: &str) -> Job {
     job(&format!(

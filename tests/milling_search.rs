@@ -111,9 +111,9 @@ fn check(name: &str, samples: usize) {
     check_job(name, example(name), samples);
 }
 
-fn check_job(name: &str, job: toolmark::io::job::Job, samples: usize) {
+fn check_job(name: &str, job: toolmark::model::Job, samples: usize) {
     let samples = std::env::var("SEARCH_SAMPLES").map_or(samples, |s| s.parse().unwrap());
-    let scenes = toolmark::run::prepare_scenes(&job);
+    let scenes = toolmark::pipeline::prepare_scenes(&job);
     let Scene::Milling(scene) = &scenes[0] else {
         panic!("{name} is not a milling job")
     };

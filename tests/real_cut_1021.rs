@@ -13,9 +13,9 @@ use toolmark::diagnose::measurement::Instrument;
 use toolmark::diagnose::register::Terms;
 use toolmark::diagnose::{Options, Outcome, diagnose};
 use toolmark::engine::cpu::CpuEngine;
-use toolmark::io::job::Job;
-use toolmark::io::measured::{LengthUnit, ReadOptions, read_wli_profile_csv};
-use toolmark::io::nc::parse_nc;
+use toolmark::formats::measured::{LengthUnit, ReadOptions, read_wli_profile_csv};
+use toolmark::formats::nc::parse_nc;
+use toolmark::model::Job;
 
 const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/upm-spdt");
 const PROGRAM: &str = "1021-r1000sts-res1-0.02-0.5-tool191.nc";

@@ -1,13 +1,13 @@
-//! Simulated scallop heights against the closed forms of `toolmark::formulas`
+//! Simulated scallop heights against the closed forms of `toolmark::geometry::formulas`
 //! (flat: R − √(R² − f²/4), DESIGN §3 / seed 004; spheres: the curvature-corrected
 //! form derived in `formulas::sphere_scallop_height`). Both engines are checked.
 
 mod common;
 use common::*;
-use toolmark::formulas::{
+use toolmark::geometry::formulas::{
     flat_scallop_height, sphere_angle_step_for_radial_feed, sphere_scallop_height,
 };
-use toolmark::run::RunResult;
+use toolmark::pipeline::RunResult;
 
 /// Worst relative error of the interior cusps against `expected(cusp arc length)`,
 /// skipping the first and last `margin_mm` of the meridian (lead-in and centre dwell).

@@ -30,8 +30,8 @@
 mod common;
 use common::*;
 use toolmark::field::NO_PASS;
-use toolmark::io::job::Job;
-use toolmark::run::RunResult;
+use toolmark::model::Job;
+use toolmark::pipeline::RunResult;
 
 /// A facing case: nose radius, feed, h_min (mm), ρ and the grid pitch (µm).
 #[derive(Clone, Copy)]

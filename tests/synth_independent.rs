@@ -6,13 +6,13 @@
 mod common;
 use common::*;
 use glam::DVec2;
+use toolmark::diagnose::synth::instrument::{footprint, pixel_mean, stylus_trace};
+use toolmark::diagnose::synth::section::TurnedSection;
+use toolmark::diagnose::synth::{MeasurementModel, Unmodelled, synthesize};
 use toolmark::engine::cpu::CpuEngine;
-use toolmark::io::job::Job;
+use toolmark::model::Job;
+use toolmark::pipeline::RunResult;
 use toolmark::process::Process;
-use toolmark::run::RunResult;
-use toolmark::synth::instrument::{footprint, pixel_mean, stylus_trace};
-use toolmark::synth::section::TurnedSection;
-use toolmark::synth::{MeasurementModel, Unmodelled, synthesize};
 
 /// A flat faced with a 0.5 mm nose at 10 µm/rev, Ø0.3 mm, rings 0.5 µm apart.
 const FLAT: &str = r#"version = 1
@@ -221,7 +221,7 @@ fn the_section_model_agrees_with_the_engine_on_a_two_pass_program_with_drift() {
             .collect(),
     };
     let program =
-        toolmark::io::nc_write::c_x_z_program(&[pass(nose + 0.0003), pass(nose)], 0.001, "two");
+        toolmark::output::nc_write::c_x_z_program(&[pass(nose + 0.0003), pass(nose)], 0.001, "two");
     let dir = std::env::temp_dir().join(format!("toolmark-synth-nc-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("two_passes.nc");
@@ -573,8 +573,8 @@ fn withheld_milling_job() -> &'static str {
 
 // ---------------------------------------------------------------------------------------
 // The tool's motion as it cuts (issue 12): vibration, spindle error motion, wear. The
-// section model (`synth/tool_motion.rs`) was written from the effects' definitions
-// without reading the engine's `effects/motion.rs`.
+// section model (`diagnose/synth/tool_motion.rs`) was written from the effects' definitions
+// without reading the engine's `process/effects/motion.rs`.
 
 /// A turned base for the motion cases: its job, nose radius and feed (mm), and the
 /// steepest slope of its nominal surface (at the rim).

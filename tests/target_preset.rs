@@ -6,9 +6,9 @@
 use toolmark::analysis::ScallopStats;
 use toolmark::bench::target_job;
 use toolmark::engine::cpu::CpuEngine;
-use toolmark::formulas::sphere_scallop_height;
-use toolmark::io::outputs::write_outputs;
-use toolmark::run::simulate;
+use toolmark::geometry::formulas::sphere_scallop_height;
+use toolmark::output::run_files::write_outputs;
+use toolmark::pipeline::simulate;
 
 #[test]
 fn the_scaled_target_job_runs_end_to_end_and_its_figures_check_out() {

@@ -8,8 +8,8 @@
 mod common;
 use common::*;
 use toolmark::analysis::ProtrusionShape;
-use toolmark::io::job::Job;
-use toolmark::run::RunResult;
+use toolmark::model::Job;
+use toolmark::pipeline::RunResult;
 
 /// Azimuth-mean deviation per ring, box-filtered over `window_mm`.
 fn form_profile(result: &RunResult, window_mm: f64) -> Vec<f64> {

@@ -10,7 +10,7 @@
 
 mod common;
 use common::*;
-use toolmark::run::RunResult;
+use toolmark::pipeline::RunResult;
 
 const FACING: &str = r#"version = 1
 [surface]
@@ -250,7 +250,7 @@ fn a_whole_order_feed_vibration_moves_each_azimuths_marks_out_by_a_cos_of_minus_
 fn the_cut_clock_tells_when_each_point_was_cut_so_a_fractional_vibration_reads_off_it() {
     // A depth vibration of 2.37 cycles per revolution lifts each point by
     // a·cos(2π·2.37·n + φ₀), n the revolutions turned when the pass that left it cut
-    // it: the clock `run::cut_clock_rad` gives 2πn. Where a neighbouring pass takes a
+    // it: the clock `pipeline::cut_clock_rad` gives 2πn. Where a neighbouring pass takes a
     // point over (near the cusps) the rule fails; elsewhere it holds to 1e-3·a.
     let (a, k, phase): (f64, f64, f64) = (1e-6, 2.37, 0.3);
     let nominal = facing_with("");
@@ -258,7 +258,7 @@ fn the_cut_clock_tells_when_each_point_was_cut_so_a_fractional_vibration_reads_o
         "[[effects]]\nkind = \"vibration\"\namplitude_mm = {a}\ndirection = \"depth\"\nper_revolution = {k}\nphase_deg = {}",
         phase.to_degrees()
     ));
-    let clock = toolmark::run::cut_clock_rad(&shaken.scenes, &shaken.field);
+    let clock = toolmark::pipeline::cut_clock_rad(&shaken.scenes, &shaken.field);
     let (mut held, mut total) = (0, 0);
     for &i in &inner_rings(&nominal) {
         for row in 0..nominal.grid().azimuths {

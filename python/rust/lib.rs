@@ -16,9 +16,9 @@ use toolmark::diagnose::{DiagnoseError, Options};
 use toolmark::engine::RemovalEngine;
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::engine::gpu::GpuEngine;
-use toolmark::io::job::{EffectsFragment, Job, JobError as LibJobError, JobFile};
-use toolmark::io::measured::{LengthUnit, ReadOptions};
-use toolmark::io::outputs::{summary, top_views, write_outputs};
+use toolmark::formats::measured::{LengthUnit, ReadOptions};
+use toolmark::model::{EffectsFragment, Job, JobError as LibJobError, JobFile};
+use toolmark::output::run_files::{summary, top_views, write_outputs};
 
 create_exception!(_toolmark, JobError, PyValueError);
 
@@ -103,7 +103,7 @@ fn run_job<'py>(
     let job = build_job(text, is_json, name, base_dir, effects)?;
     let result = py.detach(|| {
         let mut engine = open_engine(engine, &job)?;
-        toolmark::run::simulate(job, engine.as_mut(), &|_, _| {})
+        toolmark::pipeline::simulate(job, engine.as_mut(), &|_, _| {})
             .map_err(|e| PyRuntimeError::new_err(e.to_string()))
     })?;
     let views = py.detach(|| top_views(&result));
@@ -156,7 +156,7 @@ fn run_job<'py>(
     if let Some(out) = out {
         let written = py
             .detach(|| {
-                toolmark::io::outputs::prepare_output_dir(&out)?;
+                toolmark::output::run_files::prepare_output_dir(&out)?;
                 write_outputs(&out, &result)
             })
             .map_err(|e| PyRuntimeError::new_err(format!("writing {}: {e}", out.display())))?;
@@ -327,7 +327,7 @@ fn diagnose_job(
             .map_err(|e| PyRuntimeError::new_err(format!("writing {}: {e}", out.display())))?;
         let doc = serde_json::to_value(&outcome.diagnosis)
             .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
-        toolmark::io::html::write_diagnosis_html(&out, &doc)
+        toolmark::output::html::write_diagnosis_html(&out, &doc)
             .map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
     }
     serde_json::to_string(&outcome.diagnosis).map_err(|e| PyRuntimeError::new_err(e.to_string()))

@@ -1,6 +1,7 @@
 //! Best-fit sphere with its centre on the workpiece axis: the radius a generated part
 //! actually has (for the sphere-radius error a generator's inclination leaves).
 
+use super::Protrusion;
 use crate::field::{DexelField, NO_PASS, PolarGrid};
 use crate::numeric::least_squares;
 use glam::DVec2;
@@ -76,6 +77,17 @@ pub fn fit_machined_sphere(
         rms_residual_nm: rms * 1e6,
         from_radius_mm,
     })
+}
+
+/// The sphere fit of a machined field, outside the central feature.
+pub fn part_sphere(
+    grid: &PolarGrid,
+    field: &DexelField,
+    protrusion: &Protrusion,
+) -> Option<SphereFit> {
+    let outer = grid.rings[grid.ring_count() - 1].radius_mm;
+    let from = (2.0 * protrusion.radius_um * 1e-3).min(0.5 * outer);
+    fit_machined_sphere(grid, field, from)
 }
 
 #[cfg(test)]

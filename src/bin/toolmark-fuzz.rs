@@ -19,8 +19,10 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
-use toolmark::io::job::{EffectsFragment, Job};
-use toolmark::io::measured::{LengthUnit, ReadOptions, read_edge_csv_str, read_measured_bytes};
+use toolmark::formats::measured::{
+    LengthUnit, ReadOptions, read_edge_csv_str, read_measured_bytes,
+};
+use toolmark::model::{EffectsFragment, Job};
 
 /// Heap bytes in use, and the peak since the last reset (per process: the harness runs
 /// one input at a time per thread, and both threads' peaks count against the bound).
@@ -126,7 +128,7 @@ impl Reader {
                 let _ = EffectsFragment::from_toml_str(&text());
             }
             Reader::Nc => {
-                let _ = toolmark::io::nc::parse_nc(&text());
+                let _ = toolmark::formats::nc::parse_nc(&text());
             }
             Reader::Profile => measured("csv"),
             Reader::Grid => measured("csv"),

@@ -2,10 +2,10 @@
 
 use super::{EngineChoice, Failure, load_job_with_effects, open_engine, slug};
 use std::path::{Path, PathBuf};
-use toolmark::compensate::{CompensationRun, compensation_loop};
 use toolmark::engine::RemovalEngine;
-use toolmark::io::job::Job;
-use toolmark::io::plot::{LinePlot, PALETTE, Series, write_line_plot};
+use toolmark::loops::compensate::{CompensationRun, compensation_loop};
+use toolmark::model::Job;
+use toolmark::output::plot::{LinePlot, PALETTE, Series, write_line_plot};
 use toolmark::process::TurningProcess;
 
 #[derive(clap::Args)]
@@ -70,7 +70,7 @@ pub fn compensate(args: CompensateArgs) -> Result<(), Failure> {
             .as_bytes(),
     )?;
     write_form_plot(&out, &run)?;
-    toolmark::io::html::write_compensation_html(&out, &json)
+    toolmark::output::html::write_compensation_html(&out, &json)
         .map_err(|err| Failure::Runtime(format!("report.html: {err}")))?;
     let (first, last) = (
         run.cycles[0].form_pv_nm,
@@ -140,7 +140,7 @@ fn run_cycles(
 
 /// Writes `name` into `out` atomically; an error names the file.
 fn write_file(out: &Path, name: &str, bytes: &[u8]) -> Result<(), Failure> {
-    toolmark::io::atomic::write_bytes_atomically(&out.join(name), bytes)
+    toolmark::formats::atomic::write_bytes_atomically(&out.join(name), bytes)
         .map_err(|err| Failure::Runtime(format!("{}: {err}", out.join(name).display())))
 }
 
@@ -191,8 +191,11 @@ fn write_program(
             table
         })
         .collect();
-    let program =
-        toolmark::io::nc_write::c_x_z_program(&tables, 0.001, &format!("{} compensated", job.name));
+    let program = toolmark::output::nc_write::c_x_z_program(
+        &tables,
+        0.001,
+        &format!("{} compensated", job.name),
+    );
     write_file(out, "compensated.nc", program.as_bytes())
 }
 

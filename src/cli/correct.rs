@@ -3,13 +3,14 @@
 
 use super::{EngineChoice, Failure, load_job, open_engine, slug};
 use std::path::{Path, PathBuf};
+use toolmark::analysis::sphere_fit::part_sphere;
 use toolmark::analysis::{Surround, analyse_protrusion, default_zone_radius_mm};
-use toolmark::correct::{MissSide, SetupEstimate, correction_loop, estimate_setup, part_sphere};
 use toolmark::field::{DexelField, PolarGrid};
-use toolmark::io::atomic::write_bytes_atomically;
-use toolmark::io::job::{Job, JobFile};
-use toolmark::io::measured::read_radial_deviation_csv;
-use toolmark::io::outputs::{write_centre_map, write_centre_profile, write_outputs};
+use toolmark::formats::atomic::write_bytes_atomically;
+use toolmark::formats::measured::read_radial_deviation_csv;
+use toolmark::loops::correct::{MissSide, SetupEstimate, correction_loop, estimate_setup};
+use toolmark::model::{Job, JobFile};
+use toolmark::output::run_files::{write_centre_map, write_centre_profile, write_outputs};
 
 #[derive(clap::Args)]
 pub struct CorrectArgs {
@@ -200,7 +201,7 @@ fn correct_measured(
             .map_err(|e| Failure::Runtime(e.to_string()))?
             .as_bytes(),
     )?;
-    toolmark::io::html::write_correction_html(out, &json)
+    toolmark::output::html::write_correction_html(out, &json)
         .map_err(|err| Failure::Runtime(format!("report.html: {err}")))?;
     println!(
         "wrote {}, report.html to {}",
@@ -304,7 +305,7 @@ fn correct_simulated(
             .map_err(|e| Failure::Runtime(e.to_string()))?
             .as_bytes(),
     )?;
-    toolmark::io::html::write_correction_html(out, &json)
+    toolmark::output::html::write_correction_html(out, &json)
         .map_err(|err| Failure::Runtime(format!("report.html: {err}")))?;
     println!(
         "wrote before/, after/, centre_before.png, centre_after.png, centre_profiles.png, corrected.toml, correction.json and report.html to {}",

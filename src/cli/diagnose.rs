@@ -7,11 +7,11 @@ use toolmark::diagnose::files::{Placement, load_measurement, merge_source};
 use toolmark::diagnose::measurement::Instrument;
 use toolmark::diagnose::register::Terms;
 use toolmark::diagnose::report::write_outputs;
+use toolmark::diagnose::synth::{MeasurementModel, synthesize};
 use toolmark::diagnose::withheld;
 use toolmark::diagnose::{DiagnoseError, Options, diagnose};
-use toolmark::io::atomic::write_bytes_atomically;
-use toolmark::io::measured::ReadOptions;
-use toolmark::synth::{MeasurementModel, synthesize};
+use toolmark::formats::atomic::write_bytes_atomically;
+use toolmark::formats::measured::ReadOptions;
 
 /// How a measured file is read and placed on the part: shared by `diagnose` and
 /// `compare-profile` (one vocabulary: `--lateral-unit`, `--height-unit`, never a
@@ -185,7 +185,7 @@ fn base_options(m: &MeasuredArgs) -> Options {
 
 /// Reads and places the measurement, diagnoses it against `job` and writes the outputs.
 fn run_diagnosis(
-    job: toolmark::io::job::Job,
+    job: toolmark::model::Job,
     args: &MeasuredArgs,
     options: Options,
 ) -> Result<(), Failure> {
@@ -469,7 +469,7 @@ pub struct BenchDiagnoseArgs {
 }
 
 pub fn bench_diagnose_cmd(args: BenchDiagnoseArgs) -> Result<(), Failure> {
-    let default_job = toolmark::io::job::Job::default_job();
+    let default_job = toolmark::model::Job::default_job();
     let log = |s: &str| eprintln!("{s}");
     if matches!(args.phase, Phase::All | Phase::Generate) {
         let mut engine = open_engine(args.engine, &default_job)?;

@@ -1,11 +1,11 @@
-//! `toolmark formulas`: the closed forms of `toolmark::formulas` evaluated for given
+//! `toolmark formulas`: the closed forms of `toolmark::geometry::formulas` evaluated for given
 //! parameters, each printed with its source; with no parameters, the seeds' worked
 //! examples.
 
 use super::Failure;
 use clap::Subcommand;
-use toolmark::formulas as f;
 use toolmark::geometry::cup_wheel::{CupWheel, generated_sphere, inclination_for};
+use toolmark::geometry::formulas as f;
 
 #[derive(clap::Args)]
 pub struct FormulasArgs {

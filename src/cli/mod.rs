@@ -12,8 +12,8 @@ use std::path::PathBuf;
 use toolmark::engine::RemovalEngine;
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::engine::gpu::GpuEngine;
-use toolmark::io::job::{EffectsFragment, FragmentError, Job, JobError};
-use toolmark::io::measured::LengthUnit;
+use toolmark::formats::measured::LengthUnit;
+use toolmark::model::{EffectsFragment, FragmentError, Job, JobError};
 
 /// A length unit as the command line names it (a measured file's coordinates or heights).
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -4,10 +4,10 @@ use super::{EngineChoice, Failure, load_job, load_job_with_effects, open_engine,
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use toolmark::engine::RemovalEngine;
-use toolmark::io::job::resources;
-use toolmark::io::outputs::{prepare_output_dir, write_outputs};
+use toolmark::model::resources;
+use toolmark::output::run_files::{prepare_output_dir, write_outputs};
+use toolmark::pipeline::{RunResult, simulate};
 use toolmark::process::Process;
-use toolmark::run::{RunResult, simulate};
 
 #[derive(clap::Args, Default)]
 pub struct RunArgs {
@@ -43,7 +43,7 @@ pub fn check(path: PathBuf) -> Result<(), Failure> {
 
 /// Refuses (exit 2, naming the grid fields) a job this machine cannot hold, before any
 /// work: `bytes` is the estimated peak for the engine that will run it.
-pub fn check_memory(job: &toolmark::io::job::Job, bytes: f64) -> Result<(), Failure> {
+pub fn check_memory(job: &toolmark::model::Job, bytes: f64) -> Result<(), Failure> {
     match resources::available_bytes() {
         Some(available) => resources::check_fits(job, bytes, available)
             .map_err(|err| Failure::Input(err.to_string())),
@@ -111,7 +111,7 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
 
 /// Simulates `job` with a progress bar of the material removal, cleared when it is done.
 fn simulate_with_progress(
-    job: toolmark::io::job::Job,
+    job: toolmark::model::Job,
     engine: &mut dyn RemovalEngine,
 ) -> Result<RunResult, Failure> {
     let bar = ProgressBar::new(0);
@@ -175,9 +175,7 @@ fn print_result(result: &RunResult) {
             p.height_nm, p.radius_um, p.volume_um3
         ),
     }
-    if let Process::Generating(_) = &result.job.process
-        && let Some(fit) = toolmark::correct::part_sphere(grid, &result.field, &result.protrusion)
-    {
+    if let Some(fit) = &result.part_sphere {
         println!(
             "part sphere: R = {:.6} mm ({:+.3} µm from nominal, fit RMS {:.2} nm)",
             fit.radius_mm,
@@ -220,7 +218,7 @@ pub struct ReportArgs {
 
 /// Writes (or rewrites) `report.html` for an existing output folder.
 pub fn report(args: ReportArgs) -> Result<(), Failure> {
-    use toolmark::io::html;
+    use toolmark::output::html;
     let read = |name: &str| -> Option<serde_json::Value> {
         let text = std::fs::read_to_string(args.dir.join(name)).ok()?;
         serde_json::from_str(&text).ok()

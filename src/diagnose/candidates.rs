@@ -2,10 +2,10 @@
 //! trial values enter a job (added to the job's own effects), how fitted values are
 //! written back as `[[effects]]` tables, and how a result is said to a machinist.
 
-use crate::effects::{SpindleHarmonic, Vibration, VibrationDirection, WAVINESS_SAMPLES};
 use crate::geometry::milling_tool::MillingTool;
 use crate::geometry::tool::AngleTable;
-use crate::io::job::Job;
+use crate::model::Job;
+use crate::process::effects::{SpindleHarmonic, Vibration, VibrationDirection, WAVINESS_SAMPLES};
 use crate::process::{PlungeAxis, Process, TurningPath};
 use glam::DVec2;
 

@@ -10,7 +10,7 @@ use super::measurement::Measurement;
 use super::register::{Registered, Terms, fit_linear, trimmed_mean_square};
 use super::report::{Finding, FitCheck};
 use super::zones::{gaussian_lowpass, rms, white_noise_mm};
-use crate::io::job::Job;
+use crate::model::Job;
 
 /// Smooth residual, as a share of the part's form, above which the measurement does not
 /// follow the form — unless a candidate effect explains it (see [`settle_form`]).

@@ -4,7 +4,7 @@
 
 use super::measurement::{Instrument, Measurement};
 use super::report::MeasurementInfo;
-use crate::io::measured::{
+use crate::formats::measured::{
     LengthUnit, MeasuredSurface, ReadInfo, ReadOptions, UnitSource, read_measured,
 };
 use glam::DVec2;

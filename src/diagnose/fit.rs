@@ -254,7 +254,7 @@ impl Fit {
 /// moves them back (−2π δ / feed): the azimuth member then holds where the marks are
 /// and the effect what it does besides, so a scan over the effect does not have to
 /// drag the azimuth round the spiral with it.
-pub fn apply_set(set: &[Candidate], values: &[f64], job: &mut crate::io::job::Job) {
+pub fn apply_set(set: &[Candidate], values: &[f64], job: &mut crate::model::Job) {
     let mut at = 0;
     for c in set {
         let n = width(c);
@@ -269,7 +269,7 @@ pub fn apply_set(set: &[Candidate], values: &[f64], job: &mut crate::io::job::Jo
 
 /// How far round the spiral from the located azimuth the set puts the measurement
 /// (degrees): the azimuth member's value and the turn paired with the set's effects.
-pub fn spiral_turn_deg(set: &[Candidate], values: &[f64], job: &crate::io::job::Job) -> f64 {
+pub fn spiral_turn_deg(set: &[Candidate], values: &[f64], job: &crate::model::Job) -> f64 {
     let mut at = 0;
     let mut member = 0.0;
     for c in set {
@@ -283,7 +283,7 @@ pub fn spiral_turn_deg(set: &[Candidate], values: &[f64], job: &crate::io::job::
 
 /// The turn of the spiral that moves back the marks the set's effects move (rad; 0
 /// when the set does not fit the azimuth).
-fn spiral_compensation_rad(set: &[Candidate], values: &[f64], job: &crate::io::job::Job) -> f64 {
+fn spiral_compensation_rad(set: &[Candidate], values: &[f64], job: &crate::model::Job) -> f64 {
     let Some(turning) = job.process.turning() else {
         return 0.0;
     };
@@ -632,14 +632,14 @@ impl<'a, 'e> Problem<'a, 'e> {
                 to_simulate.push(trial);
             }
         }
-        type Modify<'b> = Box<dyn Fn(&mut crate::io::job::Job) + Sync + 'b>;
+        type Modify<'b> = Box<dyn Fn(&mut crate::model::Job) + Sync + 'b>;
         let modifies: Vec<Modify> = to_simulate
             .iter()
             .map(|(set, values)| {
-                Box::new(move |job: &mut crate::io::job::Job| apply_set(set, values, job)) as Modify
+                Box::new(move |job: &mut crate::model::Job| apply_set(set, values, job)) as Modify
             })
             .collect();
-        let refs: Vec<&(dyn Fn(&mut crate::io::job::Job) + Sync)> =
+        let refs: Vec<&(dyn Fn(&mut crate::model::Job) + Sync)> =
             modifies.iter().map(|m| m.as_ref()).collect();
         let sims = self.model.simulate_many(&refs)?;
         for ((set, values), sim) in to_simulate.into_iter().zip(sims) {

@@ -6,9 +6,9 @@ use super::measurement::{Instrument, Measurement, Shape};
 use crate::engine::cpu::CpuEngine;
 use crate::engine::{EngineError, RemovalEngine};
 use crate::field::{Layout, PolarGrid};
-use crate::io::job::Job;
+use crate::model::Job;
+use crate::pipeline::{Groundwork, job_grid, remove_all, scenes_on};
 use crate::process::Process;
-use crate::run::{Groundwork, job_grid, remove_all, scenes_on};
 use glam::DVec2;
 use rayon::prelude::*;
 use std::f64::consts::TAU;
@@ -451,7 +451,7 @@ impl Seen {
             })
             .collect();
         let clock_rad = if matches!(scenes[0], crate::engine::Scene::Turning(_)) {
-            crate::run::cut_clock_rad(scenes, field)
+            crate::pipeline::cut_clock_rad(scenes, field)
         } else {
             Vec::new()
         };
@@ -631,7 +631,7 @@ pub struct SimulatedSurface {
     /// Height along Z of the machined surface at each sample (mm).
     pub height_mm: Vec<f64>,
     /// Turning: per sample, the spindle angle turned when its pass cut it (rad, NaN
-    /// where uncut; `run::cut_clock_rad`); empty for other processes.
+    /// where uncut; `pipeline::cut_clock_rad`); empty for other processes.
     pub clock_rad: Vec<f64>,
     trace: Option<Trace>,
     /// Raster with pixel averaging: the pixel's size (mm).
@@ -1552,7 +1552,7 @@ mod place_tests {
         let map = Measurement::raster((11, 9), origin, pixel, &heights, DVec2::ZERO, instrument);
         let mut engine = CpuEngine;
         let mut model = ForwardModel::new(&job, &map, &mut engine).unwrap();
-        fn turning(job: &mut Job) -> &mut crate::effects::TurningEffects {
+        fn turning(job: &mut Job) -> &mut crate::process::effects::TurningEffects {
             match &mut job.process {
                 Process::Turning(t) => &mut t.effects,
                 _ => unreachable!("a turning job"),

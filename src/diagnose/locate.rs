@@ -21,7 +21,7 @@ use super::register::{
 };
 use super::zones::{correlation_length, gaussian_lowpass_line, rms, white_noise_mm};
 use crate::engine::RemovalEngine;
-use crate::io::job::Job;
+use crate::model::Job;
 use crate::numeric::try_golden_section;
 use crate::process::Process;
 use glam::DVec2;

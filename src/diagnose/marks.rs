@@ -270,7 +270,7 @@ fn correlation_factor(values: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::synth::Rng;
+    use crate::diagnose::synth::Rng;
 
     /// A turned profile's marks, built here: arcs of radius `nose_mm` meeting in cusps
     /// at `cusps_mm`, on a slope; sampled every `spacing_mm` over `length_mm`.

@@ -27,13 +27,14 @@ pub mod screen;
 pub mod search;
 pub mod side_by_side;
 pub mod spectrum;
+pub mod synth;
 pub mod validate;
 pub mod verdict;
 pub mod withheld;
 pub mod zones;
 
 use crate::engine::RemovalEngine;
-use crate::io::job::Job;
+use crate::model::Job;
 use candidates::{Candidate, NotDiagnosable, candidates_for};
 use fit::{AzimuthPrior, Fit, Problem};
 use forward::{ForwardError, ForwardModel};

@@ -7,11 +7,11 @@ use super::marks::MarkShape;
 use super::measurement::{Measurement, Shape};
 use super::register::Registration;
 use super::zones::{ZoneStats, gaussian_lowpass};
-use crate::io::atomic::write_bytes_atomically;
-use crate::io::colour::ColourMap;
-use crate::io::exr_io::{ExrImage, write_exr};
-use crate::io::plot::{LinePlot, PALETTE, Series, write_line_plot};
-use crate::io::png_out::{FalseColourPlot, write_false_colour_png};
+use crate::formats::atomic::write_bytes_atomically;
+use crate::formats::exr_io::{ExrImage, write_exr};
+use crate::output::colour::ColourMap;
+use crate::output::plot::{LinePlot, PALETTE, Series, write_line_plot};
+use crate::output::png_out::{FalseColourPlot, write_false_colour_png};
 use glam::DVec2;
 use std::collections::BTreeMap;
 use std::io;
@@ -415,7 +415,7 @@ pub fn write_outputs(dir: &Path, outcome: &Outcome) -> io::Result<Vec<PathBuf>> 
     )?;
     written.extend(images.into_iter().map(|(_, p)| p));
     let document = serde_json::to_value(&outcome.diagnosis).map_err(io::Error::other)?;
-    written.push(crate::io::html::write_diagnosis_html(dir, &document)?);
+    written.push(crate::output::html::write_diagnosis_html(dir, &document)?);
     Ok(written)
 }
 

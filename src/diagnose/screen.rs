@@ -12,8 +12,8 @@
 //! | tilt error motion | −r·cos(k·t), −r·sin(k·t), whole k: the face turns under the tool |
 
 use super::candidates::Candidate;
-use crate::effects::MAX_CYCLES_PER_REV;
 use crate::numeric::golden_section;
+use crate::process::effects::MAX_CYCLES_PER_REV;
 use std::f64::consts::TAU;
 
 /// Most rates tried on the grid (the step widens beyond it).

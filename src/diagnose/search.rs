@@ -20,7 +20,7 @@ use super::side_by_side;
 use super::validate::{Folds, Validation, cross_validate};
 use super::zones;
 use super::{DiagnoseError, Options};
-use crate::io::job::Job;
+use crate::model::Job;
 use crate::process::TurningMode;
 use glam::DVec2;
 

@@ -213,10 +213,10 @@ mod tests {
 
     #[test]
     fn local_frame_passes_match_an_absolute_coordinate_solution() {
-        use crate::effects::GeneratingEffects;
         use crate::field::PolarGrid;
         use crate::geometry::cup_wheel::CupWheel;
         use crate::geometry::{Form, MeridianArcLength, SurfaceOfRevolution};
+        use crate::process::effects::GeneratingEffects;
         use crate::process::{GeneratingSetup, PlungeAxis};
         let setup = GeneratingSetup {
             wheel: CupWheel {

@@ -17,6 +17,7 @@
 use crate::field::PolarGrid;
 use crate::geometry::tool::{ArcNoseTool, DeviationMaxima, EdgeModel};
 use crate::process::PoseTable;
+use crate::process::effects::TurningEffects;
 use rayon::prelude::*;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
@@ -98,6 +99,15 @@ pub struct SpringBack {
 }
 
 impl SpringBack {
+    /// The removal rule a tool with `effects` leaves (the running minimum without
+    /// spring-back).
+    pub fn of(effects: &TurningEffects) -> SpringBack {
+        SpringBack {
+            min_chip_mm: effects.spring_back_min_chip_mm,
+            recovery: effects.spring_back_recovery,
+        }
+    }
+
     pub const NONE: SpringBack = SpringBack {
         min_chip_mm: 0.0,
         recovery: 0.0,
@@ -477,7 +487,7 @@ fn revolution_bounds(poses: &PoseTable, c_from: f64, c_to: f64) -> Option<Bounds
 mod tests {
     use super::*;
     use crate::engine::Scene;
-    use crate::io::job::Job;
+    use crate::model::Job;
 
     /// Every ring tested against every revolution's box by [`within`], no window and no
     /// blocks: what [`reachable_revolutions`] must find.
@@ -542,7 +552,7 @@ azimuths = 4
             "reach",
         )
         .expect("valid job");
-        let scenes = crate::run::prepare_scenes(&job);
+        let scenes = crate::pipeline::prepare_scenes(&job);
         let Some(Scene::Turning(scene)) = scenes.first() else {
             panic!("a turning scene");
         };

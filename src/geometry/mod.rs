@@ -3,6 +3,7 @@
 pub mod cup_wheel;
 pub mod cutter;
 pub mod disc_cutter;
+pub mod formulas;
 pub mod milling_tool;
 pub mod surface;
 pub mod tool;

@@ -16,9 +16,9 @@
 //! alone decide the surface (up to a sliver of the last infeed revolution that can trim
 //! tooth-mark cusps shallower than the plunge per revolution times its fraction).
 
-use crate::effects::GeneratingEffects;
 use crate::geometry::Form;
 use crate::geometry::cup_wheel::{CupWheel, CuttingCircle, generated_sphere_radius};
+use crate::process::effects::GeneratingEffects;
 use glam::DVec3;
 use std::f64::consts::TAU;
 

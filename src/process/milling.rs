@@ -15,9 +15,9 @@
 //! curved pose path; spiral nodes are interpolated in cylindrical coordinates, which
 //! keeps the turns exact.
 
-use crate::formulas::{ball_stepover_for_scallop, sphere_scallop_height};
 use crate::geometry::SurfaceOfRevolution;
 use crate::geometry::cutter::CutterPose;
+use crate::geometry::formulas::{ball_stepover_for_scallop, sphere_scallop_height};
 use crate::geometry::milling_tool::MillingTool;
 use glam::{DVec2, DVec3};
 use std::f64::consts::{PI, TAU};
@@ -413,12 +413,12 @@ impl MillingSetup {
             MillingTool::EndMill(cutter) if cutter.corner_radius_mm > 0.0 => {
                 cutter.corner_radius_mm
             }
-            MillingTool::EndMill(cutter) => crate::formulas::effective_radius(
+            MillingTool::EndMill(cutter) => crate::geometry::formulas::effective_radius(
                 cutter.major_radius_mm,
                 self.lead_rad[0],
                 self.tilt_rad[0],
             ),
-            MillingTool::Disc(disc) => crate::formulas::oblique_section_radius(
+            MillingTool::Disc(disc) => crate::geometry::formulas::oblique_section_radius(
                 disc.diameter_mm,
                 disc.side_rake_rad,
                 self.turn_rad,

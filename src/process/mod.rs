@@ -1,6 +1,7 @@
 //! Kinematics: each process maps the machine's motion to tool poses in the workpiece frame.
 
 pub mod compensation;
+pub mod effects;
 pub mod generating;
 pub mod milling;
 pub mod nc_path;
@@ -14,8 +15,8 @@ pub use nc_path::{NcPath, NcReference};
 pub use pose_table::{PoseTable, ToolPose};
 pub use turning::{FeedAlong, TurningMode, TurningSpiral};
 
-use crate::effects::{GeneratingEffects, MillingEffects, TurningEffects};
 use crate::geometry::{ArcNoseTool, MeridianArcLength, SurfaceOfRevolution};
+use crate::process::effects::{GeneratingEffects, MillingEffects, TurningEffects};
 
 /// A job's machining process.
 #[derive(Debug, Clone, PartialEq)]

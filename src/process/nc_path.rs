@@ -9,9 +9,9 @@
 //! decreases is run with the angle negated, mirroring the part in azimuth only).
 
 use super::pose_table::{PoseTable, ToolPose};
+use crate::formats::nc::NcPass;
 use crate::geometry::surface::EVEN_TERMS;
 use crate::geometry::{Form, SurfaceOfRevolution};
-use crate::io::nc::NcPass;
 use crate::numeric::least_squares;
 
 /// An NC program's passes, ready to run, with what the job needs to know of them.
@@ -220,7 +220,7 @@ pub fn path_envelope(tables: &[PoseTable], nose_radius_mm: f64) -> Result<PathEn
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::nc::{FeedMode, NcBlock};
+    use crate::formats::nc::{FeedMode, NcBlock};
 
     /// A spiral nose-centre path over a concave R = 12 mm sphere, tool R = 0.2 mm, as an
     /// NC pass in 1° steps.

@@ -3,8 +3,8 @@
 
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::engine::gpu::GpuEngine;
-use toolmark::io::job::Job;
-use toolmark::run::{RunResult, simulate};
+use toolmark::model::Job;
+use toolmark::pipeline::{RunResult, simulate};
 
 /// The GPU engine, or a failing test: in CI a missing adapter is an error, never a skip.
 pub fn gpu_engine() -> GpuEngine {

@@ -15,14 +15,14 @@ use super::files::{Placement, load_measurement, merge_source};
 use super::measurement::Instrument;
 use super::report::write_outputs;
 use super::{Options, diagnose};
+use crate::diagnose::synth::{MeasurementKind, MeasurementModel, Rng, Synthetic, synthesize};
 use crate::engine::RemovalEngine;
-use crate::io::atomic::write_bytes_atomically;
-use crate::io::job::Job;
-use crate::io::measured::{
+use crate::formats::atomic::write_bytes_atomically;
+use crate::formats::measured::{
     HeightMap, HeightProfile, LengthUnit, ReadInfo, ReadOptions, UnitSource, write_map,
     write_profile_csv,
 };
-use crate::synth::{MeasurementKind, MeasurementModel, Rng, Synthetic, synthesize};
+use crate::model::Job;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 

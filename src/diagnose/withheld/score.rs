@@ -321,7 +321,8 @@ fn score_case(truth: &Truth, d: &serde_json::Value) -> CaseScore {
     for t in &truth.effects {
         match fitted(&t.effect) {
             Some((values, sigmas, order)) => {
-                let line = truth.measurement.kind == crate::synth::MeasurementKind::Profile;
+                let line =
+                    truth.measurement.kind == crate::diagnose::synth::MeasurementKind::Profile;
                 let (error, sigma_ratio) = parameter_error(t, &values, &sigmas, order, line);
                 errors.push(error);
                 sigma_ratios.push(sigma_ratio);
