@@ -3,7 +3,7 @@
 // CPU, per branch: direct, mirrored past the axis, flank), find where the tool enters
 // the sample's normal ray and apply the entries in that order by the spring-back rule
 // (`after_pass`; without spring-back: keep the lowest entry).
-// f64 twin: `sample_dexel` and its helpers in src/engine/cpu.rs, `EdgeModel::entry` in
+// f64 twin: `sample_dexel` and its helpers in src/engine/cpu_turning_scalar.rs, `EdgeModel::entry` in
 // src/geometry/tool.rs, pass bookkeeping in src/engine/scene.rs — change them together.
 //
 // Precision: nanometre features on 20 mm parts do not fit f32 absolute coordinates

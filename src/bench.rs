@@ -281,7 +281,7 @@ harmonics = [{ order = 20, amplitude_mm = 0.00005, phase_deg = 10.0 }]
 /// the same run.
 fn bench_wavy_edge() -> Result<(), String> {
     use crate::engine::Scene;
-    use crate::engine::cpu::sample_dexel;
+    use crate::engine::cpu_turning_scalar::sample_dexel;
     use rayon::prelude::*;
     println!("\n## wavy edge (R9 sphere, 2 µm/rev, 0.3 mm nose, order-20 waviness of 50 nm), CPU");
     println!("| path | samples | pairs | removal s | pairs/s | ratio |");

@@ -1,5 +1,5 @@
 //! The CPU engine's batched turning kernel (`engine::cpu_turning`) against the scalar
-//! twin it was rearranged from (`engine::cpu::sample_dexel`, the f64 twin of the WGSL
+//! twin it was rearranged from (`engine::cpu_turning_scalar::sample_dexel`, the f64 twin of the WGSL
 //! shader, itself held to closed forms and the golden files): the same IEEE operations
 //! in the same order, so every sample's depth must agree to the bit and its winning
 //! pass exactly — on centre and off (above centre: the flank branch; below), XZ and
@@ -7,7 +7,8 @@
 
 mod common;
 use common::*;
-use toolmark::engine::cpu::{CpuEngine, sample_dexel};
+use toolmark::engine::cpu::CpuEngine;
+use toolmark::engine::cpu_turning_scalar::sample_dexel;
 use toolmark::engine::{RemovalEngine, Scene};
 use toolmark::model::Job;
 use toolmark::pipeline::prepare_scenes;
@@ -235,7 +236,7 @@ harmonics = [{ order = 20, amplitude_mm = 0.00005, phase_deg = 10.0 }]
 
 /// Every sample of `job` against the brute force; the samples compared.
 fn assert_as_brute_force(name: &str, job: &Job) -> usize {
-    use toolmark::engine::cpu::pass_entry;
+    use toolmark::engine::cpu_turning_scalar::pass_entry;
     use toolmark::engine::scene::{Branch, PASS_ID_STRIDE};
     let mut samples = 0;
     for scene in prepare_scenes(job) {

@@ -1,5 +1,5 @@
 //! The CPU engine's turning removal: the arithmetic of the scalar twin
-//! ([`super::cpu::sample_dexel`]) rearranged so that nothing transcendental runs per
+//! ([`super::cpu_turning_scalar::sample_dexel`]) rearranged so that nothing transcendental runs per
 //! dexel–pass pair and eight neighbouring rings of one azimuth row are evaluated side by
 //! side in SIMD lanes. Every pair goes through the same IEEE operations in the same
 //! order as in the twin (Rust never fuses a multiply and an add), and each sample keeps
@@ -26,7 +26,9 @@
 //! such an edge off centre or with spring-back, the flank branch (the few rings inside
 //! |y₀|) and a pass that falls exactly on the table's last node.
 
-use super::cpu::{PRUNE_MARGIN_MM, RAY_REFINEMENTS, branch_dexel, local_bound_entry, pass_entry};
+use super::cpu_turning_scalar::{
+    PRUNE_MARGIN_MM, RAY_REFINEMENTS, branch_dexel, local_bound_entry, pass_entry,
+};
 use super::scene::{Branch, PASS_ID_STRIDE, RevRange, SpringBack, TurningScene};
 use crate::field::NO_PASS;
 use crate::geometry::tool::{EdgeSolver, tip_direction};
@@ -461,7 +463,7 @@ impl<'a> TurningKernel<'a> {
     }
 
     /// [`Self::run`] for an edge off its circle (waviness, a measured edge), on centre
-    /// without spring-back, as the twin prunes it (`cpu::prune_limit`): every pass's
+    /// without spring-back, as the twin prunes it (`cpu_turning_scalar::prune_limit`): every pass's
     /// [`EdgeSolver::entry_bound`] in lanes (a circle holding the whole edge: one square
     /// root), the full entry (arctangents) only where the bound reaches below the lane's
     /// limit — the lowest entry so far, and the entry of the pass whose bound is lowest.
@@ -653,7 +655,7 @@ impl<'a> TurningKernel<'a> {
         }
     }
 
-    /// `cpu::edge_entry` for an edge on its circle, lane `l`: +∞ for a miss.
+    /// `cpu_turning_scalar::edge_entry` for an edge on its circle, lane `l`: +∞ for a miss.
     #[inline(always)]
     fn edge_entry<const OFF_CENTRE: bool>(
         &self,
@@ -670,7 +672,7 @@ impl<'a> TurningKernel<'a> {
         if !OFF_CENTRE || RAY_REFINEMENTS == 0 {
             return if hit { d } else { f64::INFINITY };
         }
-        // One re-linearisation of the ray's image in the rake plane (see `cpu::edge_entry`).
+        // One re-linearisation of the ray's image in the rake plane (see `cpu_turning_scalar::edge_entry`).
         let y0 = self.scene.edge_plane_y_mm;
         let (r, n) = (ray.radius[l], [ray.normal_x[l], ray.normal_y[l]]);
         let rho = r + d * n[0];

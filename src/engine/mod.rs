@@ -5,6 +5,7 @@ pub mod cpu;
 pub mod cpu_generating;
 pub mod cpu_milling;
 pub mod cpu_turning;
+pub mod cpu_turning_scalar;
 pub mod generating_scene;
 pub mod gpu;
 pub mod milling_scene;

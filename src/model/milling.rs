@@ -4,8 +4,8 @@
 use super::effects::milling_effects;
 use super::surface::{self, usable_at};
 use super::{
-    Aperture, FluteModel, JobError, JobFile, ToolKind, ToolSpec, check, error, reject_unused,
-    required,
+    Aperture, FluteModel, JobError, JobFile, ProcessSpec, ToolKind, ToolSpec, check, error,
+    reject_unused, required,
 };
 use crate::geometry::SurfaceOfRevolution;
 use crate::geometry::cutter::Cutter;
@@ -24,33 +24,7 @@ pub fn validate_milling(
     warnings: &mut Vec<String>,
 ) -> Result<(SurfaceOfRevolution, Aperture, Process), JobError> {
     let spec = &file.process;
-    reject_unused(
-        "process",
-        "milling",
-        &[
-            ("mode", spec.mode.is_some()),
-            ("feed_per_rev_mm", spec.feed_per_rev_mm.is_some()),
-            ("feed_mm_per_min", spec.feed_mm_per_min.is_some()),
-            ("feed_along", spec.feed_along.is_some()),
-            ("start_radius_mm", spec.start_radius_mm.is_some()),
-            ("end_radius_mm", spec.end_radius_mm.is_some()),
-            ("nc_program", spec.nc_program.is_some()),
-            ("nc_reference", spec.nc_reference.is_some()),
-            ("nc_feed_mode", spec.nc_feed_mode.is_some()),
-            ("nc_units", spec.nc_units.is_some()),
-            ("compensation", spec.compensation.is_some()),
-            ("inclination_deg", spec.inclination_deg.is_some()),
-            ("plunge_axis", spec.plunge_axis.is_some()),
-            ("tool_rpm", spec.tool_rpm.is_some()),
-            ("workpiece_rpm", spec.workpiece_rpm.is_some()),
-            (
-                "spark_out_revolutions",
-                spec.spark_out_revolutions.is_some(),
-            ),
-            ("tooth_phase_deg", spec.tooth_phase_deg.is_some()),
-            ("cutter_offset_mm", spec.cutter_offset_mm.is_some()),
-        ],
-    )?;
+    reject_other_processes(spec)?;
     let (tool, teeth) = validate_tool(&file.tool)?;
     let (surface, aperture) = surface::validate(&file.surface)?;
     let path = required(
@@ -60,90 +34,9 @@ pub fn validate_milling(
     )?;
     let cylinder = file.surface.kind == super::SurfaceKind::Cylinder;
     if cylinder {
-        if path != MillingPathKind::Raster {
-            return Err(error(
-                "process.path",
-                "a cylinder is milled in raster passes along its axis; allowed with surface.kind = \"cylinder\": \"raster\"",
-            ));
-        }
-        if spec.raster_angle_deg.is_some() {
-            return Err(error(
-                "process.raster_angle_deg",
-                "a cylinder's passes run along its axis (Y), stepping around it; remove it",
-            ));
-        }
+        check_cylinder_path(spec, path)?;
     }
-    let angle = |field: &str, value: Option<f64>, low: f64, high: f64| -> Result<f64, JobError> {
-        let degrees = value.unwrap_or(0.0);
-        if !degrees.is_finite() || degrees < low || degrees >= high {
-            return Err(error(
-                field,
-                format!("{degrees} is out of range; allowed: [{low}, {high})"),
-            ));
-        }
-        Ok(degrees.to_radians())
-    };
-    let five_axis = match spec.axes.unwrap_or(3) {
-        3 => false,
-        5 => true,
-        other => {
-            return Err(error(
-                "process.axes",
-                format!("{other} is not supported; allowed: 3 or 5"),
-            ));
-        }
-    };
-    if !five_axis && matches!(tool, MillingTool::EndMill(_)) {
-        for (field, value) in [
-            ("lead_deg", spec.lead_deg),
-            ("tilt_deg", spec.tilt_deg),
-            ("lead_end_deg", spec.lead_end_deg),
-            ("tilt_end_deg", spec.tilt_end_deg),
-        ] {
-            if value.is_some_and(|v| v != 0.0) {
-                return Err(error(
-                    &format!("process.{field}"),
-                    "leans the tool from the surface normal, which needs axes = 5 (with axes = 3 the axis stays vertical)",
-                ));
-            }
-        }
-    }
-    let lead = angle("process.lead_deg", spec.lead_deg, 0.0, 90.0)?;
-    let tilt = check(
-        "process.tilt_deg",
-        spec.tilt_deg.unwrap_or(0.0),
-        -90.0,
-        90.0,
-        true,
-    )?
-    .to_radians();
-    let lead_end = angle(
-        "process.lead_end_deg",
-        spec.lead_end_deg.or(spec.lead_deg),
-        0.0,
-        90.0,
-    )?;
-    let tilt_end = check(
-        "process.tilt_end_deg",
-        spec.tilt_end_deg.or(spec.tilt_deg).unwrap_or(0.0),
-        -90.0,
-        90.0,
-        true,
-    )?
-    .to_radians();
-    let turn = angle("process.turn_deg", spec.turn_deg, 0.0, 90.0)?;
-    if spec.turn_deg.is_some() && !matches!(tool, MillingTool::Disc(_)) {
-        return Err(error(
-            "process.turn_deg",
-            "is only used with tool.kind = \"disc\"; remove it",
-        ));
-    }
-    let raster_angle = angle(
-        "process.raster_angle_deg",
-        spec.raster_angle_deg,
-        -360.0,
-        360.0,
-    )?;
+    let lean = Lean::validate(spec, &tool)?;
     let feed_per_tooth = check(
         "process.feed_per_tooth_mm",
         spec.feed_per_tooth_mm.unwrap_or(0.0),
@@ -174,13 +67,13 @@ pub fn validate_milling(
         tool,
         teeth,
         path,
-        five_axis,
+        five_axis: lean.five_axis,
         stepover_mm: 0.0,
         scallop_mm: 0.0,
-        raster_angle_rad: raster_angle,
-        lead_rad: [lead, lead_end],
-        tilt_rad: [tilt, tilt_end],
-        turn_rad: turn,
+        raster_angle_rad: lean.raster_angle,
+        lead_rad: lean.lead,
+        tilt_rad: lean.tilt,
+        turn_rad: lean.turn,
         feed_per_tooth_mm: feed_per_tooth,
         flutes: validate_flutes(&file.tool, &tool, teeth, feed_per_tooth)?,
         spindle_rpm,
@@ -197,11 +90,188 @@ pub fn validate_milling(
         ));
     }
     check_fit(&surface, &aperture, &tool, profile)?;
+    (setup.stepover_mm, setup.scallop_mm) = plan_stepover(spec, path, &surface, &tool, profile)?;
+    setup.contact_radius_mm = contact_radius_mm(&surface, &aperture, &tool, setup.stepover_mm);
+    if cylinder {
+        setup.part_length_mm = file.surface.length_mm;
+    }
+    if path == MillingPathKind::ConstantScallop {
+        setup.stepover_mm = tightest_spacing_mm(&setup, &surface);
+    }
+    check_path_size(&setup, &surface)?;
+    let expected_scallop =
+        crate::geometry::formulas::flat_scallop_height(profile, setup.stepover_mm);
+    if expected_scallop >= stock {
+        warnings.push(format!(
+            "the step-over leaves scallops of about {:.3} µm, more than the {:.3} µm stock allowance: their tops will show the uncut stock; raise process.stock_allowance_mm",
+            expected_scallop * 1e3,
+            stock * 1e3
+        ));
+    }
 
-    // Step-over: given, or from the scallop (at the centre's curvature; the
-    // constant-scallop spiral re-plans it at every radius).
+    record_resolved(resolved, spec, &setup, &lean);
+    let effects = milling_effects(&file.effects, &setup, &mut resolved.effects)?;
+    Ok((
+        surface,
+        aperture,
+        Process::Milling(MillingProcess { setup, effects }),
+    ))
+}
+
+/// The turning and generating keys a milling job must not carry.
+fn reject_other_processes(spec: &ProcessSpec) -> Result<(), JobError> {
+    reject_unused(
+        "process",
+        "milling",
+        &[
+            ("mode", spec.mode.is_some()),
+            ("feed_per_rev_mm", spec.feed_per_rev_mm.is_some()),
+            ("feed_mm_per_min", spec.feed_mm_per_min.is_some()),
+            ("feed_along", spec.feed_along.is_some()),
+            ("start_radius_mm", spec.start_radius_mm.is_some()),
+            ("end_radius_mm", spec.end_radius_mm.is_some()),
+            ("nc_program", spec.nc_program.is_some()),
+            ("nc_reference", spec.nc_reference.is_some()),
+            ("nc_feed_mode", spec.nc_feed_mode.is_some()),
+            ("nc_units", spec.nc_units.is_some()),
+            ("compensation", spec.compensation.is_some()),
+            ("inclination_deg", spec.inclination_deg.is_some()),
+            ("plunge_axis", spec.plunge_axis.is_some()),
+            ("tool_rpm", spec.tool_rpm.is_some()),
+            ("workpiece_rpm", spec.workpiece_rpm.is_some()),
+            (
+                "spark_out_revolutions",
+                spec.spark_out_revolutions.is_some(),
+            ),
+            ("tooth_phase_deg", spec.tooth_phase_deg.is_some()),
+            ("cutter_offset_mm", spec.cutter_offset_mm.is_some()),
+        ],
+    )
+}
+
+/// A cylinder is milled in raster passes along its axis.
+fn check_cylinder_path(spec: &ProcessSpec, path: MillingPathKind) -> Result<(), JobError> {
+    if path != MillingPathKind::Raster {
+        return Err(error(
+            "process.path",
+            "a cylinder is milled in raster passes along its axis; allowed with surface.kind = \"cylinder\": \"raster\"",
+        ));
+    }
+    if spec.raster_angle_deg.is_some() {
+        return Err(error(
+            "process.raster_angle_deg",
+            "a cylinder's passes run along its axis (Y), stepping around it; remove it",
+        ));
+    }
+    Ok(())
+}
+
+/// The tool's axes and leans (rad): lead and tilt at the path's start and end, a disc's
+/// turn, and the raster's angle.
+struct Lean {
+    five_axis: bool,
+    lead: [f64; 2],
+    tilt: [f64; 2],
+    turn: f64,
+    raster_angle: f64,
+}
+
+impl Lean {
+    fn validate(spec: &ProcessSpec, tool: &MillingTool) -> Result<Lean, JobError> {
+        let angle =
+            |field: &str, value: Option<f64>, low: f64, high: f64| -> Result<f64, JobError> {
+                let degrees = value.unwrap_or(0.0);
+                if !degrees.is_finite() || degrees < low || degrees >= high {
+                    return Err(error(
+                        field,
+                        format!("{degrees} is out of range; allowed: [{low}, {high})"),
+                    ));
+                }
+                Ok(degrees.to_radians())
+            };
+        let five_axis = match spec.axes.unwrap_or(3) {
+            3 => false,
+            5 => true,
+            other => {
+                return Err(error(
+                    "process.axes",
+                    format!("{other} is not supported; allowed: 3 or 5"),
+                ));
+            }
+        };
+        if !five_axis && matches!(*tool, MillingTool::EndMill(_)) {
+            for (field, value) in [
+                ("lead_deg", spec.lead_deg),
+                ("tilt_deg", spec.tilt_deg),
+                ("lead_end_deg", spec.lead_end_deg),
+                ("tilt_end_deg", spec.tilt_end_deg),
+            ] {
+                if value.is_some_and(|v| v != 0.0) {
+                    return Err(error(
+                        &format!("process.{field}"),
+                        "leans the tool from the surface normal, which needs axes = 5 (with axes = 3 the axis stays vertical)",
+                    ));
+                }
+            }
+        }
+        let lead = angle("process.lead_deg", spec.lead_deg, 0.0, 90.0)?;
+        let tilt = check(
+            "process.tilt_deg",
+            spec.tilt_deg.unwrap_or(0.0),
+            -90.0,
+            90.0,
+            true,
+        )?
+        .to_radians();
+        let lead_end = angle(
+            "process.lead_end_deg",
+            spec.lead_end_deg.or(spec.lead_deg),
+            0.0,
+            90.0,
+        )?;
+        let tilt_end = check(
+            "process.tilt_end_deg",
+            spec.tilt_end_deg.or(spec.tilt_deg).unwrap_or(0.0),
+            -90.0,
+            90.0,
+            true,
+        )?
+        .to_radians();
+        let turn = angle("process.turn_deg", spec.turn_deg, 0.0, 90.0)?;
+        if spec.turn_deg.is_some() && !matches!(*tool, MillingTool::Disc(_)) {
+            return Err(error(
+                "process.turn_deg",
+                "is only used with tool.kind = \"disc\"; remove it",
+            ));
+        }
+        let raster_angle = angle(
+            "process.raster_angle_deg",
+            spec.raster_angle_deg,
+            -360.0,
+            360.0,
+        )?;
+        Ok(Lean {
+            five_axis,
+            lead: [lead, lead_end],
+            tilt: [tilt, tilt_end],
+            turn,
+            raster_angle,
+        })
+    }
+}
+
+/// The step-over and the scallop height it was planned from (0 when given as a
+/// step-over): given, or from the scallop at the centre's curvature (the
+/// constant-scallop spiral re-plans it at every radius); below the tool's cutting width.
+fn plan_stepover(
+    spec: &ProcessSpec,
+    path: MillingPathKind,
+    surface: &SurfaceOfRevolution,
+    tool: &MillingTool,
+    profile: f64,
+) -> Result<(f64, f64), JobError> {
     let curvature = surface.meridional_curvature(0.0);
-    match (spec.stepover_mm, spec.scallop_mm, path) {
+    let (stepover, scallop) = match (spec.stepover_mm, spec.scallop_mm, path) {
         (Some(_), Some(_), _) => {
             return Err(error(
                 "process.scallop_mm",
@@ -215,13 +285,13 @@ pub fn validate_milling(
                 "missing: path = \"constant_scallop\" plans its step-over from the scallop height; allowed: a finite number > 0",
             ));
         }
-        (Some(step), None, _) => {
-            setup.stepover_mm = check("process.stepover_mm", step, 0.0, 1e3, false)?
-        }
+        (Some(step), None, _) => (check("process.stepover_mm", step, 0.0, 1e3, false)?, 0.0),
         (None, Some(h), _) => {
             let h = check("process.scallop_mm", h, 0.0, profile, false)?;
-            setup.scallop_mm = h;
-            setup.stepover_mm = stepover_for_scallop(h, profile, curvature.abs(), curvature < 0.0);
+            (
+                stepover_for_scallop(h, profile, curvature.abs(), curvature < 0.0),
+                h,
+            )
         }
         (None, None, _) => {
             return Err(error(
@@ -229,44 +299,53 @@ pub fn validate_milling(
                 "missing; give stepover_mm, or scallop_mm to plan it",
             ));
         }
-    }
-    let width = cutting_width(&tool);
-    if setup.stepover_mm >= width {
+    };
+    let width = cutting_width(tool);
+    if stepover >= width {
         return Err(error(
             "process.stepover_mm",
             format!(
-                "{:.6} mm is not below the tool's cutting width {width:.6} mm: passes would leave uncut strips; allowed: (0, {width:.6})",
-                setup.stepover_mm
+                "{stepover:.6} mm is not below the tool's cutting width {width:.6} mm: passes would leave uncut strips; allowed: (0, {width:.6})"
             ),
         ));
     }
+    Ok((stepover, scallop))
+}
 
-    // The contact path runs a little past the rim, as far as the surface is usable.
+/// How far the contact path runs: a little past the rim, as far as the surface is usable.
+fn contact_radius_mm(
+    surface: &SurfaceOfRevolution,
+    aperture: &Aperture,
+    tool: &MillingTool,
+    stepover_mm: f64,
+) -> f64 {
     let outer = aperture.outer_radius_mm;
-    let mut contact = outer + (2.0 * setup.stepover_mm).min(tool.reach_mm());
-    while contact > outer && !usable_at(&surface, contact) {
+    let mut contact = outer + (2.0 * stepover_mm).min(tool.reach_mm());
+    while contact > outer && !usable_at(surface, contact) {
         contact = outer + 0.5 * (contact - outer);
         if contact - outer < 1e-6 {
             contact = outer;
         }
     }
-    setup.contact_radius_mm = contact;
-    if cylinder {
-        setup.part_length_mm = file.surface.length_mm;
-    }
-    if path == MillingPathKind::ConstantScallop {
-        // The tightest spacing of the turns along the surface, for the default grid and
-        // the reports.
-        setup.stepover_mm = (0..=200)
-            .map(|i| {
-                let r = contact * i as f64 / 200.0;
-                setup.radial_step(&surface, r) * surface.arc_length_rate(r)
-            })
-            .fold(f64::INFINITY, f64::min);
-    }
+    contact
+}
 
-    // Path size.
-    let nodes = match path {
+/// The tightest spacing of a constant-scallop spiral's turns along the surface (for the
+/// default grid and the reports).
+fn tightest_spacing_mm(setup: &MillingSetup, surface: &SurfaceOfRevolution) -> f64 {
+    let contact = setup.contact_radius_mm;
+    (0..=200)
+        .map(|i| {
+            let r = contact * i as f64 / 200.0;
+            setup.radial_step(surface, r) * surface.arc_length_rate(r)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The path's node count, held below `MAX_NODES`.
+fn check_path_size(setup: &MillingSetup, surface: &SurfaceOfRevolution) -> Result<(), JobError> {
+    let (contact, tool) = (setup.contact_radius_mm, &setup.tool);
+    let nodes = match setup.path {
         MillingPathKind::Raster => {
             let passes = 2.0 * contact / setup.stepover_mm;
             passes * 2.0 * contact / (0.25 * tool.reach_mm()).min(0.05)
@@ -277,7 +356,7 @@ pub fn validate_milling(
             let turns: f64 = (0..steps)
                 .map(|i| {
                     let r = contact * (i as f64 + 0.5) / steps as f64;
-                    contact / steps as f64 / setup.radial_step(&surface, r)
+                    contact / steps as f64 / setup.radial_step(surface, r)
                 })
                 .sum();
             turns * SPIRAL_NODES_PER_TURN as f64
@@ -292,43 +371,34 @@ pub fn validate_milling(
             ),
         ));
     }
-    let expected_scallop =
-        crate::geometry::formulas::flat_scallop_height(profile, setup.stepover_mm);
-    if expected_scallop >= stock {
-        warnings.push(format!(
-            "the step-over leaves scallops of about {:.3} µm, more than the {:.3} µm stock allowance: their tops will show the uncut stock; raise process.stock_allowance_mm",
-            expected_scallop * 1e3,
-            stock * 1e3
-        ));
-    }
+    Ok(())
+}
 
-    resolved.tool.teeth = Some(teeth);
-    resolved.process.axes = Some(if five_axis { 5 } else { 3 });
+/// The defaults a milling job filled in, written back to the resolved job.
+fn record_resolved(resolved: &mut JobFile, spec: &ProcessSpec, setup: &MillingSetup, lean: &Lean) {
+    let [lead, lead_end] = lean.lead;
+    let [tilt, tilt_end] = lean.tilt;
+    resolved.tool.teeth = Some(setup.teeth);
+    resolved.process.axes = Some(if setup.five_axis { 5 } else { 3 });
     resolved.process.stepover_mm = (spec.scallop_mm.is_none()).then_some(setup.stepover_mm);
-    resolved.process.raster_angle_deg = Some(raster_angle.to_degrees());
+    resolved.process.raster_angle_deg = Some(lean.raster_angle.to_degrees());
     resolved.process.lead_deg = Some(lead.to_degrees());
     resolved.process.tilt_deg = Some(tilt.to_degrees());
     resolved.process.lead_end_deg = Some(lead_end.to_degrees());
     resolved.process.tilt_end_deg = Some(tilt_end.to_degrees());
-    resolved.process.feed_per_tooth_mm = Some(feed_per_tooth);
-    if feed_per_tooth > 0.0 {
+    resolved.process.feed_per_tooth_mm = Some(setup.feed_per_tooth_mm);
+    if setup.feed_per_tooth_mm > 0.0 {
         resolved.tool.flutes = Some(if setup.flutes.edges {
             FluteModel::Edges
         } else {
             FluteModel::Body
         });
     }
-    resolved.process.stock_allowance_mm = Some(stock);
-    resolved.process.depth_of_cut_mm = Some(depth);
-    if matches!(tool, MillingTool::Disc(_)) {
-        resolved.process.turn_deg = Some(turn.to_degrees());
+    resolved.process.stock_allowance_mm = Some(setup.stock_allowance_mm);
+    resolved.process.depth_of_cut_mm = Some(setup.depth_of_cut_mm);
+    if matches!(setup.tool, MillingTool::Disc(_)) {
+        resolved.process.turn_deg = Some(lean.turn.to_degrees());
     }
-    let effects = milling_effects(&file.effects, &setup, &mut resolved.effects)?;
-    Ok((
-        surface,
-        aperture,
-        Process::Milling(MillingProcess { setup, effects }),
-    ))
 }
 
 fn validate_tool(spec: &ToolSpec) -> Result<(MillingTool, u32), JobError> {

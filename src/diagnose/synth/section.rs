@@ -1,5 +1,5 @@
 //! A turned surface computed from the physics of the cut, written apart from the
-//! simulation engine (`engine/scene.rs`, `engine/cpu.rs`) and the diagnosis's forward
+//! simulation engine (`engine/scene.rs`, `engine/cpu_turning_scalar.rs`) and the diagnosis's forward
 //! model (`diagnose/forward.rs`), so that synthetic data made with it can check both.
 //!
 //! The surface height at part radius r and azimuth φ is the lowest point any pass of

@@ -4,9 +4,9 @@
 use super::layout;
 use super::{split_count, split_f64};
 use crate::engine::EngineError;
-use crate::engine::cpu::RAY_REFINEMENTS;
 use crate::engine::cpu_generating::MAX_NEWTON_STEPS;
 use crate::engine::cpu_milling::TIE_MM;
+use crate::engine::cpu_turning_scalar::RAY_REFINEMENTS;
 use crate::engine::generating_scene::{GeneratingScene, MAX_CONTACTS};
 use crate::engine::milling_scene::{MillingScene, ToothStamps};
 use crate::engine::milling_search::{FIRST_BRACKET, REFINE_STEPS};

@@ -140,13 +140,85 @@ fn size_at(dimension: &Element, key: &str) -> Result<usize, MeasuredError> {
 }
 
 pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<MeasuredSurface, MeasuredError> {
-    let zip_error = |e: String| error(None, format!("X3P archive: {e}"));
     let mut archive = Archive::parse(bytes).map_err(|e| {
         error(
             None,
             format!("not a readable zip archive (an X3P file is one): {e}"),
         )
     })?;
+    let (main, root) = read_main_xml(&mut archive)?;
+    let mut notes = Vec::new();
+    let is_profile = is_profile(&root)?;
+    let Some(axes) = root.at(&["Record1", "Axes"]) else {
+        return fail(None, "main.xml has no Record1/Axes");
+    };
+    let cx = lateral_axis(axes, "CX")?;
+    let cy = if is_profile {
+        None
+    } else {
+        Some(lateral_axis(axes, "CY")?)
+    };
+    let z = HeightAxis::of(axes, &mut notes)?;
+    let (nx, ny) = matrix_size(&root, is_profile)?;
+    let mut raw = point_data(&root, &mut archive, &z, (nx, ny), &mut notes)?;
+    apply_validity_mask(&root, &mut archive, &mut raw, &mut notes)?;
+    let checksum_file = root
+        .text_at(&["Record4", "ChecksumFile"])
+        .unwrap_or("md5checksum.hex");
+    if let Some(sum) = archive.read(checksum_file).map_err(zip_error)? {
+        let sum = String::from_utf8_lossy(&sum);
+        let declared = sum.split_whitespace().next();
+        check_md5(declared, &main, "main.xml", &mut notes);
+    }
+    let metres = |what: &str| FileUnit {
+        unit: LengthUnit::Metre,
+        source: format!("X3P (ISO 25178-72 gives {what} in metres)"),
+    };
+    let (lateral_unit, lateral_source) =
+        resolve_unit(Axis::Lateral, Some(metres("positions")), options, "")?;
+    let (height_unit, height_source) =
+        resolve_unit(Axis::Height, Some(metres("heights")), options, "")?;
+    let height_mm: Vec<f64> = raw
+        .iter()
+        .map(|v| LengthUnit::Metre.to_mm(v * z.increment + z.offset))
+        .map(|h| if h.is_finite() { h } else { f64::NAN })
+        .collect();
+    let mm = |m: f64| LengthUnit::Metre.to_mm(m);
+    let mut info = ReadInfo {
+        format: FORMAT.into(),
+        lateral_unit,
+        lateral_unit_source: lateral_source,
+        height_unit,
+        height_unit_source: height_source,
+        invalid_points: 0,
+        notes,
+    };
+    match cy {
+        None => {
+            if options.pixel_mm.is_some() {
+                info.notes
+                    .push("the declared pixel size is not used: the profile gives its own".into());
+            }
+            let x = (0..nx).map(|i| mm(cx.offset + i as f64 * cx.increment));
+            HeightProfile::new(x.collect(), height_mm, info).map(MeasuredSurface::Profile)
+        }
+        Some(cy) => {
+            let file_pixel = [mm(cx.increment), mm(cy.increment)];
+            // A declared pitch must agree with the file's.
+            let (pixel, _) =
+                resolve_pixel(Some((file_pixel, "CX/CY Increment".into())), options, "")?;
+            let origin = [mm(cx.offset), mm(cy.offset)];
+            HeightMap::new((nx, ny), origin, pixel, height_mm, info).map(MeasuredSurface::Map)
+        }
+    }
+}
+
+fn zip_error(e: String) -> MeasuredError {
+    error(None, format!("X3P archive: {e}"))
+}
+
+/// The archive's main.xml (its bytes, for the checksum) and its root element.
+fn read_main_xml(archive: &mut Archive) -> Result<(Vec<u8>, Element), MeasuredError> {
     let Some(main) = archive.read("main.xml").map_err(zip_error)? else {
         let names = archive.names();
         return fail(
@@ -168,57 +240,70 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<MeasuredSurfac
             ),
         );
     }
-    let mut notes = Vec::new();
+    Ok((main, root))
+}
 
-    let is_profile = match root.text_at(&["Record1", "FeatureType"]) {
-        Some("PRF") => true,
-        Some("SUR") => false,
-        Some("PCL") => {
-            return fail(
-                None,
-                "point clouds (FeatureType PCL) are not supported: only PRF profiles and SUR surfaces",
-            );
-        }
-        other => {
-            return fail(
-                None,
-                format!(
-                    "Record1/FeatureType `{}` is not PRF (profile) or SUR (surface)",
-                    other.unwrap_or("")
-                ),
-            );
-        }
-    };
-    let Some(axes) = root.at(&["Record1", "Axes"]) else {
-        return fail(None, "main.xml has no Record1/Axes");
-    };
-    let cx = lateral_axis(axes, "CX")?;
-    let cy = if is_profile {
-        None
-    } else {
-        Some(lateral_axis(axes, "CY")?)
-    };
-    let code = axes.text_at(&["CZ", "DataType"]).unwrap_or("");
-    let Some(data_type) = DataType::parse(code) else {
-        return fail(
+/// Whether the record is a profile (PRF) rather than a surface (SUR).
+fn is_profile(root: &Element) -> Result<bool, MeasuredError> {
+    match root.text_at(&["Record1", "FeatureType"]) {
+        Some("PRF") => Ok(true),
+        Some("SUR") => Ok(false),
+        Some("PCL") => fail(
             None,
-            format!("CZ DataType `{code}` is not D, F, I or L (f64, f32, i16, i32)"),
-        );
-    };
-    let z_increment = number_at(axes, &["CZ", "Increment"], "CZ Increment")?;
-    let z_offset = number_at(axes, &["CZ", "Offset"], "CZ Offset")?.unwrap_or(0.0);
-    let z_increment = match (z_increment, data_type.is_integer()) {
-        (Some(0.0), true) => return fail(None, "CZ Increment must not be 0"),
-        (Some(inc), true) => inc,
-        (Some(inc), false) if inc != 1.0 => {
-            notes.push(format!(
-                "CZ Increment {inc} not applied: it scales integer data only"
-            ));
-            1.0
-        }
-        _ => 1.0,
-    };
+            "point clouds (FeatureType PCL) are not supported: only PRF profiles and SUR surfaces",
+        ),
+        other => fail(
+            None,
+            format!(
+                "Record1/FeatureType `{}` is not PRF (profile) or SUR (surface)",
+                other.unwrap_or("")
+            ),
+        ),
+    }
+}
 
+/// The height axis: how its values are stored and scaled.
+struct HeightAxis {
+    data_type: DataType,
+    /// The file's DataType code, for messages.
+    code: String,
+    increment: f64,
+    offset: f64,
+}
+
+impl HeightAxis {
+    fn of(axes: &Element, notes: &mut Vec<String>) -> Result<HeightAxis, MeasuredError> {
+        let code = axes.text_at(&["CZ", "DataType"]).unwrap_or("");
+        let Some(data_type) = DataType::parse(code) else {
+            return fail(
+                None,
+                format!("CZ DataType `{code}` is not D, F, I or L (f64, f32, i16, i32)"),
+            );
+        };
+        let z_increment = number_at(axes, &["CZ", "Increment"], "CZ Increment")?;
+        let z_offset = number_at(axes, &["CZ", "Offset"], "CZ Offset")?.unwrap_or(0.0);
+        let z_increment = match (z_increment, data_type.is_integer()) {
+            (Some(0.0), true) => return fail(None, "CZ Increment must not be 0"),
+            (Some(inc), true) => inc,
+            (Some(inc), false) if inc != 1.0 => {
+                notes.push(format!(
+                    "CZ Increment {inc} not applied: it scales integer data only"
+                ));
+                1.0
+            }
+            _ => 1.0,
+        };
+        Ok(HeightAxis {
+            data_type,
+            code: code.to_string(),
+            increment: z_increment,
+            offset: z_offset,
+        })
+    }
+}
+
+/// The point matrix's size (SizeX, SizeY): a single layer, one row for a profile.
+fn matrix_size(root: &Element, is_profile: bool) -> Result<(usize, usize), MeasuredError> {
     if root.at(&["Record3", "ListDimension"]).is_some() {
         return fail(
             None,
@@ -245,14 +330,25 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<MeasuredSurfac
             format!("a profile (PRF) must have SizeY = 1, not {ny}"),
         );
     }
-    let Some(n) = nx.checked_mul(ny) else {
+    if nx.checked_mul(ny).is_none() {
         return fail(
             None,
             format!("SizeX × SizeY = {nx} × {ny} is impossibly large"),
         );
-    };
+    }
+    Ok((nx, ny))
+}
 
-    let mut raw = if let Some(link) = root.text_at(&["Record3", "DataLink", "PointDataLink"]) {
+/// The heights as stored, in point order: binary (DataLink) or inline (DataList).
+fn point_data(
+    root: &Element,
+    archive: &mut Archive,
+    z: &HeightAxis,
+    (nx, ny): (usize, usize),
+    notes: &mut Vec<String>,
+) -> Result<Vec<f64>, MeasuredError> {
+    let (data_type, code, n) = (z.data_type, &z.code, nx * ny);
+    let raw = if let Some(link) = root.text_at(&["Record3", "DataLink", "PointDataLink"]) {
         let Some(data) = archive.read(link).map_err(zip_error)? else {
             return fail(
                 None,
@@ -273,7 +369,7 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<MeasuredSurfac
             );
         }
         let declared = root.text_at(&["Record3", "DataLink", "MD5ChecksumPointData"]);
-        check_md5(declared, &data, link, &mut notes);
+        check_md5(declared, &data, link, notes);
         let raw: Vec<f64> = data
             .chunks_exact(data_type.size())
             .map(|b| data_type.decode(b))
@@ -312,8 +408,18 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<MeasuredSurfac
             "Record3 has neither a DataLink (binary data) nor a DataList (inline data)",
         );
     };
+    Ok(raw)
+}
 
-    // Validity mask: 1 bit per point, least significant bit first.
+/// Marks the points the validity mask (1 bit per point, least significant bit first)
+/// flags invalid as NaN.
+fn apply_validity_mask(
+    root: &Element,
+    archive: &mut Archive,
+    raw: &mut [f64],
+    notes: &mut Vec<String>,
+) -> Result<(), MeasuredError> {
+    let n = raw.len();
     let linked = root.text_at(&["Record3", "DataLink", "ValidPointsLink"]);
     let mask_name = linked.unwrap_or("bindata/valid.bin");
     if let Some(mask) = archive.read(mask_name).map_err(zip_error)? {
@@ -333,7 +439,7 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<MeasuredSurfac
             ));
         }
         let declared = root.text_at(&["Record3", "DataLink", "MD5ChecksumValidPoints"]);
-        check_md5(declared, &mask, mask_name, &mut notes);
+        check_md5(declared, &mask, mask_name, notes);
         for (k, v) in raw.iter_mut().enumerate() {
             if mask[k / 8] >> (k % 8) & 1 == 0 {
                 *v = f64::NAN;
@@ -347,57 +453,7 @@ pub(super) fn read(bytes: &[u8], options: &ReadOptions) -> Result<MeasuredSurfac
             ),
         );
     }
-
-    let checksum_file = root
-        .text_at(&["Record4", "ChecksumFile"])
-        .unwrap_or("md5checksum.hex");
-    if let Some(sum) = archive.read(checksum_file).map_err(zip_error)? {
-        let sum = String::from_utf8_lossy(&sum);
-        let declared = sum.split_whitespace().next();
-        check_md5(declared, &main, "main.xml", &mut notes);
-    }
-
-    let metres = |what: &str| FileUnit {
-        unit: LengthUnit::Metre,
-        source: format!("X3P (ISO 25178-72 gives {what} in metres)"),
-    };
-    let (lateral_unit, lateral_source) =
-        resolve_unit(Axis::Lateral, Some(metres("positions")), options, "")?;
-    let (height_unit, height_source) =
-        resolve_unit(Axis::Height, Some(metres("heights")), options, "")?;
-    let height_mm: Vec<f64> = raw
-        .iter()
-        .map(|v| LengthUnit::Metre.to_mm(v * z_increment + z_offset))
-        .map(|h| if h.is_finite() { h } else { f64::NAN })
-        .collect();
-    let mm = |m: f64| LengthUnit::Metre.to_mm(m);
-    let mut info = ReadInfo {
-        format: FORMAT.into(),
-        lateral_unit,
-        lateral_unit_source: lateral_source,
-        height_unit,
-        height_unit_source: height_source,
-        invalid_points: 0,
-        notes,
-    };
-    match cy {
-        None => {
-            if options.pixel_mm.is_some() {
-                info.notes
-                    .push("the declared pixel size is not used: the profile gives its own".into());
-            }
-            let x = (0..nx).map(|i| mm(cx.offset + i as f64 * cx.increment));
-            HeightProfile::new(x.collect(), height_mm, info).map(MeasuredSurface::Profile)
-        }
-        Some(cy) => {
-            let file_pixel = [mm(cx.increment), mm(cy.increment)];
-            // A declared pitch must agree with the file's.
-            let (pixel, _) =
-                resolve_pixel(Some((file_pixel, "CX/CY Increment".into())), options, "")?;
-            let origin = [mm(cx.offset), mm(cy.offset)];
-            HeightMap::new((nx, ny), origin, pixel, height_mm, info).map(MeasuredSurface::Map)
-        }
-    }
+    Ok(())
 }
 
 /// Notes a declared MD5 that does not match `data`.
