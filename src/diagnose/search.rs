@@ -95,58 +95,7 @@ pub fn search<'a>(
     let fitted = problem.measurement;
     let seen = Seen::new(fitted, job);
     let orders = OrderRange::new(job, fitted);
-    let nominal_frame = problem.shift;
-    let numbered: Vec<(usize, Candidate)> = candidates.iter().copied().enumerate().collect();
-    let singles = side_by_side::each(
-        problem,
-        &numbered,
-        |(_, c)| c.is_waviness(),
-        |problem, &(i, c), log| -> Result<Option<Fit>, DiagnoseError> {
-            let n = candidates.len();
-            log(&format!(
-                "fitting {} (candidate {} of {n})",
-                c.label(),
-                i + 1
-            ));
-            let Some(fit) = fit_new(problem, &base.set, &base.values, c, job, fitted)? else {
-                return Ok(None);
-            };
-            let fit = refit_if_axis_moves(
-                problem,
-                fit,
-                base,
-                nominal_frame,
-                period_mm,
-                job,
-                fitted,
-                log,
-            )?;
-            Ok(Some(fit))
-        },
-        log,
-    );
-    let mut fits = Vec::new();
-    for fit in singles {
-        fits.extend(fit?);
-    }
-    // The combinations start in the frame of the single that fits best.
-    if let Some(best) = fits
-        .iter()
-        .min_by(|a, b| a.objective.total_cmp(&b.objective))
-    {
-        problem.shift = best.frame;
-        problem.clear_cache();
-    }
-    let (rss0, k0) = (base.objective, base.parameter_count());
-    let n_eff = common_effective_points(&fits, problem, fitted)?;
-    found.singles = fits
-        .into_iter()
-        .map(|fit| {
-            let e = evidence(rss0, k0, &fit, n_eff);
-            (fit, e)
-        })
-        .collect();
-    found.singles.sort_by(|a, b| b.1.total_cmp(&a.1));
+    found.singles = fit_singles(problem, base, candidates, job, period_mm, log)?;
 
     let mut current: Fit = base.clone();
     while current.effect_members().len() < options.max_effects {
@@ -262,6 +211,73 @@ pub fn search<'a>(
     found.accepted = (!current.effect_members().is_empty()).then_some(current);
     widen_for_look_alikes(problem, &mut found, job, &base.evaluation.registered, log)?;
     Ok(found)
+}
+
+/// Each candidate fitted alone beside the registration (side by side on worker threads),
+/// a fit whose axis moved re-fitted there, ranked by evidence against `base`; the
+/// problem is left in the frame of the single that fits best.
+fn fit_singles(
+    problem: &mut Problem,
+    base: &Fit,
+    candidates: &[Candidate],
+    job: &Job,
+    period_mm: f64,
+    log: &dyn Fn(&str),
+) -> Result<Vec<(Fit, f64)>, DiagnoseError> {
+    let numbered: Vec<(usize, Candidate)> = candidates.iter().copied().enumerate().collect();
+    let fitted = problem.measurement;
+    let nominal_frame = problem.shift;
+    let singles = side_by_side::each(
+        problem,
+        &numbered,
+        |(_, c)| c.is_waviness(),
+        |problem, &(i, c), log| -> Result<Option<Fit>, DiagnoseError> {
+            let n = candidates.len();
+            log(&format!(
+                "fitting {} (candidate {} of {n})",
+                c.label(),
+                i + 1
+            ));
+            let Some(fit) = fit_new(problem, &base.set, &base.values, c, job, fitted)? else {
+                return Ok(None);
+            };
+            let fit = refit_if_axis_moves(
+                problem,
+                fit,
+                base,
+                nominal_frame,
+                period_mm,
+                job,
+                fitted,
+                log,
+            )?;
+            Ok(Some(fit))
+        },
+        log,
+    );
+    let mut fits = Vec::new();
+    for fit in singles {
+        fits.extend(fit?);
+    }
+    // The combinations start in the frame of the single that fits best.
+    if let Some(best) = fits
+        .iter()
+        .min_by(|a, b| a.objective.total_cmp(&b.objective))
+    {
+        problem.shift = best.frame;
+        problem.clear_cache();
+    }
+    let (rss0, k0) = (base.objective, base.parameter_count());
+    let n_eff = common_effective_points(&fits, problem, fitted)?;
+    let mut singles: Vec<(Fit, f64)> = fits
+        .into_iter()
+        .map(|fit| {
+            let e = evidence(rss0, k0, &fit, n_eff);
+            (fit, e)
+        })
+        .collect();
+    singles.sort_by(|a, b| b.1.total_cmp(&a.1));
+    Ok(singles)
 }
 
 /// Greedy selection commits to the single that fits best, and a flexible effect (two

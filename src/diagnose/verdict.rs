@@ -74,135 +74,31 @@ pub fn verdict(
     refused: &[(String, String)],
 ) -> Verdict {
     if !check.fits {
-        let why: Vec<&str> = check
-            .findings
-            .iter()
-            .filter(|f| f.severity == "severe")
-            .map(|f| f.message.as_str())
-            .collect();
-        return Verdict {
-            status: "does_not_fit".into(),
-            sentence: format!(
-                "The measurement does not fit this job, so no effect is claimed: {}.",
-                why.join("; ")
-            ),
-            advice: vec!["check the units, the part and the job before diagnosing".into()],
-        };
+        return does_not_fit(check);
     }
     if let Some(c) = compared_only {
-        return Verdict {
-            status: "compared".into(),
-            sentence: format!(
-                "Measured PV {:.0} nm, RMS {:.1} nm; the job predicts PV {:.0} nm ({:+.1} %), RMS {:.1} nm ({:+.1} %){}; no effect was fitted (toolmark diagnose fits them).",
-                c.measured.pv_nm,
-                c.measured.rms_nm,
-                c.simulated.pv_nm,
-                100.0 * (c.simulated.pv_nm / c.measured.pv_nm - 1.0),
-                c.simulated.rms_nm,
-                100.0 * (c.simulated.rms_nm / c.measured.rms_nm - 1.0),
-                c.mark_spacing_ratio.map_or(String::new(), |q| format!(
-                    "; the marks lie {q:.4}× as far apart as the job puts them (median of {} bands)",
-                    c.mark_spacing.len()
-                ))
-            ),
-            advice: Vec::new(),
-        };
+        return compared(c);
     }
-
-    let noise = after.white_noise_nm.max(1e-3);
-    let excess = |r: &ResidualInfo| (r.rms_nm.powi(2) - noise.powi(2)).max(0.0);
-    let explained = 1.0 - excess(after) / excess(before).max(1e-300);
-    // Near the noise: within twice its level, or a residual as short-correlated as noise
-    // that is not far above it (a mark-scale structure, such as ploughed bands beside
-    // each cusp, is short-correlated too, and stands well above the noise).
-    let near_noise = after.rms_nm <= 2.0 * noise
-        || (after.correlation_length_points < 3.0 && after.rms_nm <= 3.0 * noise);
-    let location = where_it_lies(before);
-    // Marks whose shape the model lacks stand out only once folded over hundreds of
-    // marks: near the noise point by point, they are still a gap.
-    let marks_left = after
-        .mark_shape
-        .as_ref()
-        .filter(|s| s.unexplained(noise))
-        .map(|s| format!(" The marks are not explained: {}.", s.describe()));
+    let gap = Gap::of(before, after);
     match fit {
-        Some(f) => {
-            let members = f.effect_members();
-            let parts: Vec<String> = members.iter().map(|&i| f.describe(i)).collect();
-            let mut sentence = capitalise(&parts.join("; "));
-            let which = if members.len() == 1 {
-                "correcting it"
-            } else {
-                "correcting them"
-            };
-            sentence.push_str(&format!(
-                "; {which} cuts the residual from {:.0} nm to {:.0} nm PV ({:.1} → {:.1} nm RMS).",
-                before.pv_nm, after.pv_nm, before.rms_nm, after.rms_nm
-            ));
-            if let Some(h) = held {
-                sentence.push_str(&format!(
-                    " On the {} held-out points it cuts the residual from {:.1} to {:.1} nm RMS.",
-                    h.points, h.before_rms_nm, h.after_rms_nm
-                ));
-            }
-            let beyond = if members.len() == 1 { "it" } else { "them" };
-            match ambiguous {
-                [] => {}
-                [one] => sentence.push_str(&format!(
-                    " Beyond {beyond}, {} would explain about as much: this measurement cannot tell whether it is there, so it is not claimed.",
-                    one.label
-                )),
-                _ => sentence.push_str(&format!(
-                    " Beyond {beyond}, {} would explain about as much more: this measurement cannot tell them apart, so neither is claimed.",
-                    labels(ambiguous).join(" or ")
-                )),
-            }
-            let mut advice: Vec<String> = members
-                .iter()
-                .map(|&i| f.set[i].advice(f.values_of(i).0))
-                .collect();
-            if let Some(marks) = &marks_left {
-                sentence.push_str(marks);
-            }
-            let status = if near_noise || explained >= EXPLAINED {
-                if marks_left.is_none() {
-                    sentence.push_str(&left_over(after, noise));
-                }
-                "effects_found"
-            } else {
-                sentence.push_str(&format!(
-                    " It explains {:.0} % of the gap: {:.1} nm RMS remains, well above the noise of {:.1} nm, that no modelled effect explains{location}.",
-                    100.0 * explained.max(0.0),
-                    after.rms_nm,
-                    noise
-                ));
-                advice.push(
-                    "look for a cause outside the model for the rest (material, measurement, machine dynamics)".into(),
-                );
-                "unexplained_residual"
-            };
-            Verdict {
-                status: status.into(),
-                sentence,
-                advice,
-            }
-        }
+        Some(f) => effects_found(f, &gap, (before, after), ambiguous, held),
         None if !ambiguous.is_empty() => Verdict {
             status: "ambiguous".into(),
             sentence: format!(
-                "The gap is explained about equally well by {}: this measurement cannot tell them apart, so none is claimed{location}.{}",
+                "The gap is explained about equally well by {}: this measurement cannot tell them apart, so none is claimed{}.{}",
                 labels(ambiguous).join(" or "),
+                gap.location,
                 each_alone(ambiguous)
             ),
             advice: vec![tie_advice(ambiguous)],
         },
-        None if near_noise && marks_left.is_none() => Verdict {
+        None if gap.near_noise && gap.marks_left.is_none() => Verdict {
             status: "no_effect_beyond_noise".into(),
             sentence: format!(
                 "No modelled effect explains the residual beyond noise: it is {:.1} nm RMS ({:.0} nm PV) against a noise level of {:.1} nm{}.",
                 after.rms_nm,
                 after.pv_nm,
-                noise,
+                gap.noise,
                 refused
                     .first()
                     .map_or(String::new(), |(label, why)| format!(
@@ -211,33 +107,188 @@ pub fn verdict(
             ),
             advice: vec!["nothing to correct from this measurement".into()],
         },
-        None => {
-            let mut sentence = match &marks_left {
-                Some(marks) if near_noise => format!(
-                    "This gap is not explained by any modelled effect: {:.1} nm RMS ({:.0} nm PV) remains against a noise level of {:.1} nm, and it is not noise.{marks}",
-                    after.rms_nm, after.pv_nm, noise
-                ),
-                _ => format!(
-                    "This gap is not explained by any modelled effect: {:.1} nm RMS ({:.0} nm PV) remains, well above the noise level of {:.1} nm{location}.{}",
-                    after.rms_nm,
-                    after.pv_nm,
-                    noise,
-                    marks_left.as_deref().unwrap_or("")
-                ),
-            };
-            if let Some((label, why)) = refused.first() {
-                sentence.push_str(&format!(
-                    " The strongest candidate, {label}, was not accepted: {why}."
-                ));
-            }
-            Verdict {
-                status: "unexplained_residual".into(),
-                sentence,
-                advice: vec![
-                    "correct nothing on the strength of this measurement; look for a cause outside the model (material, measurement, machine dynamics)".into(),
-                ],
-            }
+        None => unexplained(&gap, after, refused),
+    }
+}
+
+/// The measurement does not fit the job: its severe findings.
+fn does_not_fit(check: &FitCheck) -> Verdict {
+    let why: Vec<&str> = check
+        .findings
+        .iter()
+        .filter(|f| f.severity == "severe")
+        .map(|f| f.message.as_str())
+        .collect();
+    Verdict {
+        status: "does_not_fit".into(),
+        sentence: format!(
+            "The measurement does not fit this job, so no effect is claimed: {}.",
+            why.join("; ")
+        ),
+        advice: vec!["check the units, the part and the job before diagnosing".into()],
+    }
+}
+
+/// `compare-profile`: the measured and predicted figures, nothing fitted.
+fn compared(c: &Comparison) -> Verdict {
+    Verdict {
+        status: "compared".into(),
+        sentence: format!(
+            "Measured PV {:.0} nm, RMS {:.1} nm; the job predicts PV {:.0} nm ({:+.1} %), RMS {:.1} nm ({:+.1} %){}; no effect was fitted (toolmark diagnose fits them).",
+            c.measured.pv_nm,
+            c.measured.rms_nm,
+            c.simulated.pv_nm,
+            100.0 * (c.simulated.pv_nm / c.measured.pv_nm - 1.0),
+            c.simulated.rms_nm,
+            100.0 * (c.simulated.rms_nm / c.measured.rms_nm - 1.0),
+            c.mark_spacing_ratio.map_or(String::new(), |q| format!(
+                "; the marks lie {q:.4}× as far apart as the job puts them (median of {} bands)",
+                c.mark_spacing.len()
+            ))
+        ),
+        advice: Vec::new(),
+    }
+}
+
+/// What the gap is against the noise, once the accepted effects (if any) are taken out.
+struct Gap {
+    /// The white noise level (nm).
+    noise: f64,
+    /// The share of the gap above the noise the accepted effects explain.
+    explained: f64,
+    /// Whether what is left is within reach of the noise.
+    near_noise: bool,
+    /// Where the gap lies (a clause, or empty).
+    location: String,
+    /// The marks' shape the model lacks, said as a sentence.
+    marks_left: Option<String>,
+}
+
+impl Gap {
+    fn of(before: &ResidualInfo, after: &ResidualInfo) -> Gap {
+        let noise = after.white_noise_nm.max(1e-3);
+        let excess = |r: &ResidualInfo| (r.rms_nm.powi(2) - noise.powi(2)).max(0.0);
+        let explained = 1.0 - excess(after) / excess(before).max(1e-300);
+        // Near the noise: within twice its level, or a residual as short-correlated as noise
+        // that is not far above it (a mark-scale structure, such as ploughed bands beside
+        // each cusp, is short-correlated too, and stands well above the noise).
+        let near_noise = after.rms_nm <= 2.0 * noise
+            || (after.correlation_length_points < 3.0 && after.rms_nm <= 3.0 * noise);
+        let location = where_it_lies(before);
+        // Marks whose shape the model lacks stand out only once folded over hundreds of
+        // marks: near the noise point by point, they are still a gap.
+        let marks_left = after
+            .mark_shape
+            .as_ref()
+            .filter(|s| s.unexplained(noise))
+            .map(|s| format!(" The marks are not explained: {}.", s.describe()));
+        Gap {
+            noise,
+            explained,
+            near_noise,
+            location,
+            marks_left,
         }
+    }
+}
+
+/// Effects were accepted: what they are, how much they explain, and what is left.
+fn effects_found(
+    f: &Fit,
+    gap: &Gap,
+    (before, after): (&ResidualInfo, &ResidualInfo),
+    ambiguous: &[Tie],
+    held: Option<&HeldOut>,
+) -> Verdict {
+    let members = f.effect_members();
+    let parts: Vec<String> = members.iter().map(|&i| f.describe(i)).collect();
+    let mut sentence = capitalise(&parts.join("; "));
+    let which = if members.len() == 1 {
+        "correcting it"
+    } else {
+        "correcting them"
+    };
+    sentence.push_str(&format!(
+        "; {which} cuts the residual from {:.0} nm to {:.0} nm PV ({:.1} → {:.1} nm RMS).",
+        before.pv_nm, after.pv_nm, before.rms_nm, after.rms_nm
+    ));
+    if let Some(h) = held {
+        sentence.push_str(&format!(
+            " On the {} held-out points it cuts the residual from {:.1} to {:.1} nm RMS.",
+            h.points, h.before_rms_nm, h.after_rms_nm
+        ));
+    }
+    let beyond = if members.len() == 1 { "it" } else { "them" };
+    match ambiguous {
+        [] => {}
+        [one] => sentence.push_str(&format!(
+            " Beyond {beyond}, {} would explain about as much: this measurement cannot tell whether it is there, so it is not claimed.",
+            one.label
+        )),
+        _ => sentence.push_str(&format!(
+            " Beyond {beyond}, {} would explain about as much more: this measurement cannot tell them apart, so neither is claimed.",
+            labels(ambiguous).join(" or ")
+        )),
+    }
+    let mut advice: Vec<String> = members
+        .iter()
+        .map(|&i| f.set[i].advice(f.values_of(i).0))
+        .collect();
+    if let Some(marks) = &gap.marks_left {
+        sentence.push_str(marks);
+    }
+    let status = if gap.near_noise || gap.explained >= EXPLAINED {
+        if gap.marks_left.is_none() {
+            sentence.push_str(&left_over(after, gap.noise));
+        }
+        "effects_found"
+    } else {
+        sentence.push_str(&format!(
+            " It explains {:.0} % of the gap: {:.1} nm RMS remains, well above the noise of {:.1} nm, that no modelled effect explains{}.",
+            100.0 * gap.explained.max(0.0),
+            after.rms_nm,
+            gap.noise,
+            gap.location
+        ));
+        advice.push(
+            "look for a cause outside the model for the rest (material, measurement, machine dynamics)".into(),
+        );
+        "unexplained_residual"
+    };
+    Verdict {
+        status: status.into(),
+        sentence,
+        advice,
+    }
+}
+
+/// Nothing accepted and nothing tied, and the residual stands above the noise.
+fn unexplained(gap: &Gap, after: &ResidualInfo, refused: &[(String, String)]) -> Verdict {
+    let mut sentence = match &gap.marks_left {
+        Some(marks) if gap.near_noise => format!(
+            "This gap is not explained by any modelled effect: {:.1} nm RMS ({:.0} nm PV) remains against a noise level of {:.1} nm, and it is not noise.{marks}",
+            after.rms_nm, after.pv_nm, gap.noise
+        ),
+        _ => format!(
+            "This gap is not explained by any modelled effect: {:.1} nm RMS ({:.0} nm PV) remains, well above the noise level of {:.1} nm{}.{}",
+            after.rms_nm,
+            after.pv_nm,
+            gap.noise,
+            gap.location,
+            gap.marks_left.as_deref().unwrap_or("")
+        ),
+    };
+    if let Some((label, why)) = refused.first() {
+        sentence.push_str(&format!(
+            " The strongest candidate, {label}, was not accepted: {why}."
+        ));
+    }
+    Verdict {
+        status: "unexplained_residual".into(),
+        sentence,
+        advice: vec![
+            "correct nothing on the strength of this measurement; look for a cause outside the model (material, measurement, machine dynamics)".into(),
+        ],
     }
 }
 

@@ -4,7 +4,8 @@
 use super::effects::generating_effects;
 use super::surface;
 use super::{
-    Aperture, JobError, JobFile, SurfaceKind, ToolKind, check, error, reject_unused, required,
+    Aperture, JobError, JobFile, ProcessSpec, SurfaceKind, ToolKind, check, error, reject_unused,
+    required,
 };
 use crate::geometry::cup_wheel::{CupWheel, inclination_for};
 use crate::geometry::{Form, SurfaceOfRevolution};
@@ -19,36 +20,7 @@ pub fn validate_generating(
     warnings: &mut Vec<String>,
 ) -> Result<(SurfaceOfRevolution, Aperture, Process), JobError> {
     let spec = &file.process;
-    reject_unused(
-        "process",
-        "generating",
-        &[
-            ("mode", spec.mode.is_some()),
-            ("feed_per_rev_mm", spec.feed_per_rev_mm.is_some()),
-            ("spindle_rpm", spec.spindle_rpm.is_some()),
-            ("feed_mm_per_min", spec.feed_mm_per_min.is_some()),
-            ("feed_along", spec.feed_along.is_some()),
-            ("depth_of_cut_mm", spec.depth_of_cut_mm.is_some()),
-            ("start_radius_mm", spec.start_radius_mm.is_some()),
-            ("end_radius_mm", spec.end_radius_mm.is_some()),
-            ("nc_program", spec.nc_program.is_some()),
-            ("nc_reference", spec.nc_reference.is_some()),
-            ("nc_feed_mode", spec.nc_feed_mode.is_some()),
-            ("nc_units", spec.nc_units.is_some()),
-            ("compensation", spec.compensation.is_some()),
-            ("path", spec.path.is_some()),
-            ("axes", spec.axes.is_some()),
-            ("stepover_mm", spec.stepover_mm.is_some()),
-            ("scallop_mm", spec.scallop_mm.is_some()),
-            ("raster_angle_deg", spec.raster_angle_deg.is_some()),
-            ("lead_deg", spec.lead_deg.is_some()),
-            ("tilt_deg", spec.tilt_deg.is_some()),
-            ("lead_end_deg", spec.lead_end_deg.is_some()),
-            ("tilt_end_deg", spec.tilt_end_deg.is_some()),
-            ("turn_deg", spec.turn_deg.is_some()),
-            ("feed_per_tooth_mm", spec.feed_per_tooth_mm.is_some()),
-        ],
-    )?;
+    reject_other_processes(spec)?;
     let wheel = validate_wheel(file)?;
     if file.surface.kind != SurfaceKind::Sphere {
         return Err(error(
@@ -83,26 +55,7 @@ pub fn validate_generating(
         None => exact_inclination,
     };
     let plunge_axis = spec.plunge_axis.unwrap_or(PlungeAxis::Z);
-    let workpiece_rpm = check(
-        "process.workpiece_rpm",
-        spec.workpiece_rpm.unwrap_or(10.0),
-        0.0,
-        1e4,
-        false,
-    )?;
-    let tool_rpm = spec.tool_rpm.unwrap_or(3000.0);
-    if !tool_rpm.is_finite()
-        || tool_rpm.abs() > 1e6
-        || tool_rpm.abs() < MIN_SPEED_RATIO * workpiece_rpm
-    {
-        return Err(error(
-            "process.tool_rpm",
-            format!(
-                "{tool_rpm} is out of range; allowed: a finite number with {MIN_SPEED_RATIO}·workpiece_rpm = {} ≤ |tool_rpm| ≤ 1e6 (the wheel must pass each point many times per workpiece turn)",
-                MIN_SPEED_RATIO * workpiece_rpm
-            ),
-        ));
-    }
+    let (tool_rpm, workpiece_rpm) = validate_speeds(spec)?;
     let spark_out_revolutions = check(
         "process.spark_out_revolutions",
         spec.spark_out_revolutions.unwrap_or(2.0),
@@ -180,6 +133,66 @@ pub fn validate_generating(
         aperture,
         Process::Generating(GeneratingProcess { setup, effects }),
     ))
+}
+
+/// The turning and milling keys a generating job must not carry.
+fn reject_other_processes(spec: &ProcessSpec) -> Result<(), JobError> {
+    reject_unused(
+        "process",
+        "generating",
+        &[
+            ("mode", spec.mode.is_some()),
+            ("feed_per_rev_mm", spec.feed_per_rev_mm.is_some()),
+            ("spindle_rpm", spec.spindle_rpm.is_some()),
+            ("feed_mm_per_min", spec.feed_mm_per_min.is_some()),
+            ("feed_along", spec.feed_along.is_some()),
+            ("depth_of_cut_mm", spec.depth_of_cut_mm.is_some()),
+            ("start_radius_mm", spec.start_radius_mm.is_some()),
+            ("end_radius_mm", spec.end_radius_mm.is_some()),
+            ("nc_program", spec.nc_program.is_some()),
+            ("nc_reference", spec.nc_reference.is_some()),
+            ("nc_feed_mode", spec.nc_feed_mode.is_some()),
+            ("nc_units", spec.nc_units.is_some()),
+            ("compensation", spec.compensation.is_some()),
+            ("path", spec.path.is_some()),
+            ("axes", spec.axes.is_some()),
+            ("stepover_mm", spec.stepover_mm.is_some()),
+            ("scallop_mm", spec.scallop_mm.is_some()),
+            ("raster_angle_deg", spec.raster_angle_deg.is_some()),
+            ("lead_deg", spec.lead_deg.is_some()),
+            ("tilt_deg", spec.tilt_deg.is_some()),
+            ("lead_end_deg", spec.lead_end_deg.is_some()),
+            ("tilt_end_deg", spec.tilt_end_deg.is_some()),
+            ("turn_deg", spec.turn_deg.is_some()),
+            ("feed_per_tooth_mm", spec.feed_per_tooth_mm.is_some()),
+        ],
+    )
+}
+
+/// The wheel's and the workpiece's speeds (rpm): the wheel must pass each point many
+/// times per workpiece turn.
+fn validate_speeds(spec: &ProcessSpec) -> Result<(f64, f64), JobError> {
+    let workpiece_rpm = check(
+        "process.workpiece_rpm",
+        spec.workpiece_rpm.unwrap_or(10.0),
+        0.0,
+        1e4,
+        false,
+    )?;
+    let tool_rpm = spec.tool_rpm.unwrap_or(3000.0);
+    if !tool_rpm.is_finite()
+        || tool_rpm.abs() > 1e6
+        || tool_rpm.abs() < MIN_SPEED_RATIO * workpiece_rpm
+    {
+        return Err(error(
+            "process.tool_rpm",
+            format!(
+                "{tool_rpm} is out of range; allowed: a finite number with {MIN_SPEED_RATIO}·workpiece_rpm = {} ≤ |tool_rpm| ≤ 1e6 (the wheel must pass each point many times per workpiece turn)",
+                MIN_SPEED_RATIO * workpiece_rpm
+            ),
+        ));
+    }
+    Ok((tool_rpm, workpiece_rpm))
 }
 
 fn validate_wheel(file: &JobFile) -> Result<CupWheel, JobError> {
