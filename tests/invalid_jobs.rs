@@ -75,3 +75,43 @@ fn the_cli_refuses_invalid_jobs_with_exit_code_2_and_no_panic() {
     }
     assert!(!out.exists(), "a refused job must not write outputs");
 }
+
+/// A job derived on another grid (`Job::on_grid`, the diagnosis's model grid) is the job
+/// its own file would give with that grid, and a derived grid is checked as a file's is.
+#[test]
+fn a_derived_grid_is_the_grid_a_file_gives_and_is_checked_alike() {
+    let text = std::fs::read_to_string("examples/flat_facing.toml").unwrap();
+    let job = Job::from_toml_str(&text, "flat").unwrap();
+    let annulus = toolmark::model::Aperture {
+        inner_radius_mm: 1.0,
+        outer_radius_mm: 3.0,
+    };
+    let derived = job.on_grid(annulus, 0.5e-3, 16).unwrap();
+    let edited = text
+        .replace(
+            "aperture_diameter_mm = 10.0",
+            "aperture_diameter_mm = 6.0\ninner_diameter_mm = 2.0",
+        )
+        .replace("pitch_um = 1.0", "pitch_um = 0.5")
+        .replace("azimuths = 32", "azimuths = 16");
+    let from_file = Job::from_toml_str(&edited, "flat").unwrap();
+    assert_eq!(derived.sample_count(), from_file.sample_count());
+    assert_eq!(derived.resolved.grid, from_file.resolved.grid);
+    assert_eq!(derived.aperture, from_file.aperture);
+
+    // Past the sample limit: refused by the grid's name, as a file would be.
+    let err = job.on_grid(job.aperture, 1e-6, 65_536).unwrap_err();
+    assert_eq!(err.field, "grid.pitch_um", "{err}");
+    // An annulus outside the part, or empty.
+    let outside = toolmark::model::Aperture {
+        inner_radius_mm: 1.0,
+        outer_radius_mm: 6.0,
+    };
+    let err = job.on_grid(outside, 1e-3, 16).unwrap_err();
+    assert_eq!(err.field, "surface.aperture_diameter_mm", "{err}");
+    let empty = toolmark::model::Aperture {
+        inner_radius_mm: 2.0,
+        outer_radius_mm: 2.0,
+    };
+    assert!(job.on_grid(empty, 1e-3, 16).is_err());
+}

@@ -942,12 +942,15 @@ impl<'a, 'e> Problem<'a, 'e> {
 
     /// Runs `work` with the forward model on rings half as far apart, then puts the
     /// job's own pitch back; nothing simulated on either pitch is reused on the other.
-    fn on_finer_rings<T>(&mut self, work: impl FnOnce(&mut Self) -> T) -> T {
+    fn on_finer_rings<T>(
+        &mut self,
+        work: impl FnOnce(&mut Self) -> Result<T, ForwardError>,
+    ) -> Result<T, ForwardError> {
         let pitch = self.model.pitch_mm();
-        self.model.set_pitch_mm(0.5 * pitch);
+        self.model.set_pitch_mm(0.5 * pitch)?;
         self.forget_all();
         let out = work(self);
-        self.model.set_pitch_mm(pitch);
+        self.model.set_pitch_mm(pitch)?;
         self.forget_all();
         out
     }

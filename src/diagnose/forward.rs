@@ -6,7 +6,7 @@ use super::measurement::{Instrument, Measurement, Shape};
 use crate::engine::cpu::CpuEngine;
 use crate::engine::{EngineError, RemovalEngine};
 use crate::field::{Layout, PolarGrid};
-use crate::model::Job;
+use crate::model::{Aperture, Job, JobError};
 use crate::pipeline::{Groundwork, job_grid, remove_all, scenes_on};
 use crate::process::Process;
 use glam::DVec2;
@@ -150,6 +150,12 @@ impl Frame {
     }
 }
 
+/// The model's grid refused (too many samples for the measurement's pixels, or an
+/// annulus outside the part).
+fn model_grid_error(e: JobError) -> ForwardError {
+    ForwardError(format!("the model's grid for this measurement: {e}"))
+}
+
 /// A job is a part of revolution the diagnosis can simulate.
 fn check_layout(job: &Job) -> Result<(), ForwardError> {
     if job.layout != Layout::Polar {
@@ -179,31 +185,34 @@ impl<'e> ForwardModel<'e> {
         engine: &'e mut dyn RemovalEngine,
     ) -> Result<Self, ForwardError> {
         check_layout(job)?;
-        let mut base = job.clone();
         let room =
             room_mm + 3.0 * job.pitch_mm + measurement.instrument.stylus_tip_mm.unwrap_or(0.0);
         let radii = measurement.xy_mm.iter().map(|p| p.length());
         let (r_min, r_max) = radii.fold((f64::INFINITY, 0.0_f64), |(lo, hi), r| {
             (lo.min(r), hi.max(r))
         });
-        base.aperture.inner_radius_mm = job.aperture.inner_radius_mm.max(r_min - room).max(0.0);
-        base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(r_max + room);
+        let aperture = Aperture {
+            inner_radius_mm: job.aperture.inner_radius_mm.max(r_min - room).max(0.0),
+            outer_radius_mm: job.aperture.outer_radius_mm.min(r_max + room),
+        };
         let turning = job.process.turning().is_some();
+        let mut pitch_mm = job.pitch_mm;
+        let rows;
         let (line_rows, azimuth_rad) = match measurement.shape {
             // A turned part looks the same along every azimuth but for the spiral's
             // phase: the program is turned instead, and two rows suffice.
             Shape::Line { azimuth_rad } if turning => {
-                base.azimuths = 2;
+                rows = 2;
                 (Some((0, 1)), azimuth_rad)
             }
             Shape::Line { azimuth_rad } => {
-                let (rows, row) = line_rows_through(azimuth_rad).ok_or_else(|| {
+                let (through, row) = line_rows_through(azimuth_rad).ok_or_else(|| {
                     ForwardError(format!(
                         "the profile's azimuth {:.4}° is not a multiple of 0.5°",
                         azimuth_rad.to_degrees()
                     ))
                 })?;
-                base.azimuths = rows;
+                rows = through;
                 (Some((row, (row + rows / 2) % rows)), 0.0)
             }
             Shape::Raster { pixel_mm, .. } => {
@@ -214,18 +223,21 @@ impl<'e> ForwardModel<'e> {
                 // apart at most (a pixel then averages resolved marks, not aliased
                 // ones), and rows that move the marks no more than a quarter of that
                 // or an eighth of a pixel.
-                base.pitch_mm = job.pitch_mm.max(0.5 * pixel);
-                let mut rows = (TAU * base.aperture.outer_radius_mm / (0.5 * pixel)).ceil();
+                pitch_mm = job.pitch_mm.max(0.5 * pixel);
+                let mut along = (TAU * aperture.outer_radius_mm / (0.5 * pixel)).ceil();
                 if let Process::Turning(turning) = &job.process {
                     let feed = turning.path.pass_spacing_mm();
-                    base.pitch_mm = base.pitch_mm.min(feed / 8.0).max(job.pitch_mm);
-                    let spiral = feed / (0.25 * base.pitch_mm).max(pixel / 8.0);
-                    rows = rows.min(spiral.ceil());
+                    pitch_mm = pitch_mm.min(feed / 8.0).max(job.pitch_mm);
+                    let spiral = feed / (0.25 * pitch_mm).max(pixel / 8.0);
+                    along = along.min(spiral.ceil());
                 }
-                base.azimuths = (rows as u32).clamp(16, 8192).next_multiple_of(4);
+                rows = (along as u32).clamp(16, 8192).next_multiple_of(4);
                 (None, 0.0)
             }
         };
+        let base = job
+            .on_grid(aperture, pitch_mm, rows)
+            .map_err(model_grid_error)?;
         let pixel_mm = match measurement.shape {
             Shape::Raster { pixel_mm, .. } if measurement.instrument.pixel_averaging => {
                 Some(pixel_mm)
@@ -259,10 +271,13 @@ impl<'e> ForwardModel<'e> {
         engine: &'e mut dyn RemovalEngine,
     ) -> Result<Self, ForwardError> {
         check_layout(job)?;
-        let mut base = job.clone();
-        base.aperture.inner_radius_mm = 0.0;
-        base.aperture.outer_radius_mm = job.aperture.outer_radius_mm.min(outer_radius_mm);
-        base.azimuths = rows;
+        let aperture = Aperture {
+            inner_radius_mm: 0.0,
+            outer_radius_mm: job.aperture.outer_radius_mm.min(outer_radius_mm),
+        };
+        let base = job
+            .on_grid(aperture, job.pitch_mm, rows)
+            .map_err(model_grid_error)?;
         let groundwork = Arc::new(Groundwork::of(&base));
         Ok(Self {
             grid: job_grid(&base, &groundwork),
@@ -290,9 +305,14 @@ impl<'e> ForwardModel<'e> {
     }
 
     /// Simulates on rings `pitch_mm` apart from now on (the same rows and aperture).
-    pub fn set_pitch_mm(&mut self, pitch_mm: f64) {
-        self.base.pitch_mm = pitch_mm;
+    pub fn set_pitch_mm(&mut self, pitch_mm: f64) -> Result<(), ForwardError> {
+        let (aperture, rows) = (self.base.aperture, self.base.azimuths);
+        self.base = self
+            .base
+            .on_grid(aperture, pitch_mm, rows)
+            .map_err(model_grid_error)?;
         self.grid = job_grid(&self.base, &self.groundwork);
+        Ok(())
     }
 
     /// The engine, for another model to borrow while this one rests.

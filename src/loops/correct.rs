@@ -24,6 +24,7 @@ use crate::geometry::cup_wheel::inclination_for;
 use crate::model::Job;
 use crate::pipeline::{RunResult, simulate};
 use crate::process::{GeneratingSetup, Process};
+use std::path::Path;
 
 /// Which side of the axis the cutting circle passes on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -207,17 +208,17 @@ pub fn central_pv_nm(grid: &PolarGrid, field: &DexelField, zone_radius_mm: f64) 
     (high - low).max(0.0) * 1e6
 }
 
-fn with_settings(job: &Job, inclination_rad: f64, offset_mm: f64) -> Job {
-    let mut job = job.clone();
-    job.name = format!("{} (corrected)", job.name);
-    job.resolved.name = Some(job.name.clone());
-    if let Process::Generating(generating) = &mut job.process {
-        generating.setup.inclination_rad = inclination_rad;
-        generating.setup.cutter_offset_mm = offset_mm;
-    }
-    job.resolved.process.inclination_deg = Some(inclination_rad.to_degrees());
-    job.resolved.process.cutter_offset_mm = Some(offset_mm);
-    job
+/// The job with the generator set to `inclination_rad` and `offset_mm`: derived from
+/// the job as resolved and checked again (nothing edits a checked job), so a setting
+/// out of the machine's range is refused by name.
+fn with_settings(job: &Job, inclination_rad: f64, offset_mm: f64) -> Result<Job, EngineError> {
+    let mut file = job.resolved.clone();
+    let name = format!("{} (corrected)", job.name);
+    file.name = Some(name.clone());
+    file.process.inclination_deg = Some(inclination_rad.to_degrees());
+    file.process.cutter_offset_mm = Some(offset_mm);
+    Job::from_file(file, &name, Path::new("."))
+        .map_err(|e| EngineError(format!("the corrected set-up is not a valid job: {e}")))
 }
 
 /// Machines the job as set (its effects play the machine's unknown errors), estimates
@@ -270,7 +271,7 @@ pub fn correction_loop(
             job,
             setup.inclination_rad + hypothesis.tilt_deg.to_radians(),
             setup.cutter_offset_mm + hypothesis.move_mm,
-        );
+        )?;
         let result = simulate(candidate.clone(), engine, &|_, _| {})?;
         cuts.push(report(
             index + 1,

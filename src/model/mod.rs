@@ -665,6 +665,55 @@ impl Job {
         })
     }
 
+    /// The same job on another grid — an annulus of its aperture, a ring pitch, a number
+    /// of rows — as the diagnosis's model and a synthetic measurement's fine grid
+    /// simulate it. A new job, checked as a job's own grid is, whose resolved file says
+    /// the grid it has: nothing edits a checked job.
+    pub fn on_grid(
+        &self,
+        aperture: Aperture,
+        pitch_mm: f64,
+        azimuths: u32,
+    ) -> Result<Job, JobError> {
+        let (inner, outer) = (aperture.inner_radius_mm, aperture.outer_radius_mm);
+        if !(0.0 <= inner && inner < outer && outer <= self.aperture.outer_radius_mm) {
+            return Err(error(
+                "surface.aperture_diameter_mm",
+                format!(
+                    "the annulus {inner:.6}–{outer:.6} mm is not within the job's aperture; allowed: 0 ≤ inner < outer ≤ {:.6} mm",
+                    self.aperture.outer_radius_mm
+                ),
+            ));
+        }
+        let pitch_um = check("grid.pitch_um", pitch_mm * 1e3, 0.0, 1e4, false)?;
+        if !(1..=65_536).contains(&azimuths) {
+            return Err(error(
+                "grid.azimuths",
+                format!("{azimuths} is out of range; allowed: 1 to 65536"),
+            ));
+        }
+        let samples = grid_samples(&self.meridian(), &aperture, self.layout, pitch_mm, azimuths);
+        if samples > MAX_SAMPLES {
+            return Err(error(
+                "grid.pitch_um",
+                format!(
+                    "{pitch_um} µm with {azimuths} azimuths over {inner:.4}–{outer:.4} mm gives {samples:.3e} samples, more than the {MAX_SAMPLES:.0e} allowed"
+                ),
+            ));
+        }
+        let mut job = self.clone();
+        job.aperture = aperture;
+        job.pitch_mm = pitch_mm;
+        job.azimuths = azimuths;
+        job.resolved.grid = GridSpec {
+            pitch_um: Some(pitch_um),
+            azimuths: Some(azimuths),
+        };
+        job.resolved.surface.aperture_diameter_mm = Some(2.0 * outer);
+        job.resolved.surface.inner_diameter_mm = 2.0 * inner;
+        Ok(job)
+    }
+
     /// The meridian arc-length table over the aperture and the path (shared by both).
     pub fn meridian(&self) -> MeridianArcLength {
         MeridianArcLength::new(

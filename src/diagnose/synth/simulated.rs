@@ -6,7 +6,7 @@
 
 use crate::engine::RemovalEngine;
 use crate::field::PolarGrid;
-use crate::model::Job;
+use crate::model::{Aperture, Job};
 use crate::pipeline::simulate;
 use glam::DVec2;
 use std::f64::consts::TAU;
@@ -35,11 +35,13 @@ impl SimulatedPart {
         rows: u32,
         engine: &mut dyn RemovalEngine,
     ) -> Result<Self, String> {
-        let mut fine = job.clone();
-        fine.aperture.inner_radius_mm = inner_mm.max(job.aperture.inner_radius_mm);
-        fine.aperture.outer_radius_mm = outer_mm.min(job.aperture.outer_radius_mm);
-        fine.pitch_mm = pitch_mm;
-        fine.azimuths = rows;
+        let annulus = Aperture {
+            inner_radius_mm: inner_mm.max(job.aperture.inner_radius_mm),
+            outer_radius_mm: outer_mm.min(job.aperture.outer_radius_mm),
+        };
+        let fine = job
+            .on_grid(annulus, pitch_mm, rows)
+            .map_err(|e| format!("the synthetic part's fine grid: {e}"))?;
         let rings = ((fine.aperture.outer_radius_mm - fine.aperture.inner_radius_mm) / pitch_mm)
             .ceil() as usize
             + 1;
