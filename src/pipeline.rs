@@ -1,6 +1,9 @@
 //! The pipeline, one way: job → process → scene → engine → field → analysis.
 
+use crate::analysis::Raster;
+use crate::analysis::maps::{RowSource, full_half_width_mm, top_views_within};
 use crate::analysis::sphere_fit::{self, SphereFit};
+use crate::analysis::texture::Texture;
 use crate::analysis::{
     self, DeviationStats, ProfilePoint, Protrusion, ScallopAnalysis, ScallopDirection, Surround,
     default_zone_radius_mm,
@@ -353,4 +356,101 @@ pub fn simulate(
             analysis_s,
         },
     })
+}
+
+/// What a run's files show beyond its statistics — the top views (`surface.exr` and the
+/// map PNGs) and the texture figures — made from the run before any writer starts, and
+/// only where files are written (the loops and the diagnosis do without).
+pub struct Products {
+    pub maps: TopViews,
+    pub texture: Texture,
+    /// Seconds spent making them (reported with the analysis).
+    pub elapsed_s: f64,
+}
+
+/// The top views and the texture figures of `result`, side by side.
+pub fn products(result: &RunResult) -> Products {
+    let started = Instant::now();
+    let (maps, texture) = rayon::join(|| top_views(result), || texture_of(result));
+    Products {
+        maps,
+        texture,
+        elapsed_s: started.elapsed().as_secs_f64(),
+    }
+}
+
+/// The top views a run draws (nm, mm for heights and diameters) on the job's map grid.
+pub struct TopViews {
+    pub deviation_nm: Raster,
+    pub scallop_nm: Raster,
+    pub height_mm: Raster,
+    pub protrusion_nm: Raster,
+    /// Milling only.
+    pub cutting_diameter_mm: Option<Raster>,
+}
+
+/// Every top view of a run (what `surface.exr` holds), made together: each quantity is
+/// produced row by row as the maps read it (no full-resolution copy), and the maps share
+/// their resampling weights.
+pub fn top_views(result: &RunResult) -> TopViews {
+    let grid = result.grid();
+    let field = &result.field;
+    let pixels = result.job.map_pixels as usize;
+    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
+    let scallop = |row: u32, out: &mut [f64]| {
+        result.scallops.row_mm(grid, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let height = |row: u32, out: &mut [f64]| {
+        let (depths, _) = field.row(grid, row);
+        for ((out, depth), ring) in out.iter_mut().zip(depths).zip(&grid.rings) {
+            *out = ring.height_mm + depth / ring.normal.y;
+        }
+    };
+    let protrusion = |row: u32, out: &mut [f64]| {
+        result.protrusion.row_mm(grid, field, row, out);
+        out.iter_mut().for_each(|v| *v *= 1e6);
+    };
+    let diameter = |row: u32, out: &mut [f64]| diameter_row_mm(result, row, out);
+    let mut sources: Vec<RowSource> = vec![&deviation, &scallop, &height, &protrusion];
+    if result.cutting_diameter_mm.is_some() {
+        sources.push(&diameter);
+    }
+    let mut maps = top_views_within(grid, &sources, pixels, full_half_width_mm(grid)).into_iter();
+    let mut next = || maps.next().expect("one map per quantity");
+    TopViews {
+        deviation_nm: next(),
+        scallop_nm: next(),
+        height_mm: next(),
+        protrusion_nm: next(),
+        cutting_diameter_mm: result.cutting_diameter_mm.as_ref().map(|_| next()),
+    }
+}
+
+/// One azimuth row of the deviation (nm).
+pub fn deviation_row_nm(result: &RunResult, row: u32, out: &mut [f64]) {
+    let (depths, _) = result.field.row(result.grid(), row);
+    for (out, depth) in out.iter_mut().zip(depths) {
+        *out = depth * 1e6;
+    }
+}
+
+/// One azimuth row of the milling cutting diameter (mm; 0 where uncut).
+pub fn diameter_row_mm(result: &RunResult, row: u32, out: &mut [f64]) {
+    let rings = result.grid().ring_count();
+    let start = row as usize * rings;
+    if let Some(diameters) = &result.cutting_diameter_mm {
+        for (out, v) in out.iter_mut().zip(&diameters[start..start + rings]) {
+            *out = if v.is_finite() { *v } else { 0.0 };
+        }
+    }
+}
+
+/// The texture figures of a run's field (ISO 25178 / 4287 parameters, PSD, Zernike).
+fn texture_of(result: &RunResult) -> Texture {
+    analysis::texture::analyse_texture(
+        result.grid(),
+        &result.field,
+        result.job.process.pass_spacing_mm(),
+    )
 }

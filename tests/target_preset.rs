@@ -86,7 +86,8 @@ fn the_scaled_target_job_runs_end_to_end_and_its_figures_check_out() {
 
     // Every output file, written from the streamed analysis.
     let dir = std::env::temp_dir().join(format!("toolmark-target-test-{}", std::process::id()));
-    let written = write_outputs(&dir, &result).expect("outputs");
+    let written =
+        write_outputs(&dir, &result, &toolmark::pipeline::products(&result)).expect("outputs");
     assert!(written.iter().all(|path| path.is_file()), "{written:?}");
     assert!(written.iter().any(|p| p.ends_with("polar.exr")));
     std::fs::remove_dir_all(&dir).expect("temporary folder removed");

@@ -18,7 +18,8 @@ use toolmark::engine::cpu::CpuEngine;
 use toolmark::engine::gpu::GpuEngine;
 use toolmark::formats::measured::{LengthUnit, ReadOptions};
 use toolmark::model::{EffectsFragment, Job, JobError as LibJobError, JobFile};
-use toolmark::output::run_files::{summary, top_views, write_outputs};
+use toolmark::output::run_files::{summary, write_outputs};
+use toolmark::pipeline::products;
 
 create_exception!(_toolmark, JobError, PyValueError);
 
@@ -106,9 +107,10 @@ fn run_job<'py>(
         toolmark::pipeline::simulate(job, engine.as_mut(), &|_, _| {})
             .map_err(|e| PyRuntimeError::new_err(e.to_string()))
     })?;
-    let views = py.detach(|| top_views(&result));
+    let made = py.detach(|| products(&result));
+    let views = &made.maps;
     let dict = PyDict::new(py);
-    let summary_json = summary(&result, &views.deviation_nm);
+    let summary_json = summary(&result, &made);
     dict.set_item("summary", summary_json.to_string())?;
     dict.set_item("pixels", views.deviation_nm.pixels)?;
     dict.set_item("pixel_mm", views.deviation_nm.pitch_mm)?;
@@ -157,7 +159,7 @@ fn run_job<'py>(
         let written = py
             .detach(|| {
                 toolmark::output::run_files::prepare_output_dir(&out)?;
-                write_outputs(&out, &result)
+                write_outputs(&out, &result, &made)
             })
             .map_err(|e| PyRuntimeError::new_err(format!("writing {}: {e}", out.display())))?;
         let paths: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();

@@ -11,6 +11,7 @@ use toolmark::formats::measured::read_radial_deviation_csv;
 use toolmark::loops::correct::{MissSide, SetupEstimate, correction_loop, estimate_setup};
 use toolmark::model::{Job, JobFile};
 use toolmark::output::run_files::{write_centre_map, write_centre_profile, write_outputs};
+use toolmark::pipeline::products;
 
 #[derive(clap::Args)]
 pub struct CorrectArgs {
@@ -251,8 +252,8 @@ fn correct_simulated(
     );
 
     let runtime = |err: std::io::Error| Failure::Runtime(err.to_string());
-    write_outputs(&out.join("before"), &run.first).map_err(runtime)?;
-    write_outputs(&out.join("after"), &run.last).map_err(runtime)?;
+    write_outputs(&out.join("before"), &run.first, &products(&run.first)).map_err(runtime)?;
+    write_outputs(&out.join("after"), &run.last, &products(&run.last)).map_err(runtime)?;
     // Both zooms on one scale, symmetric about zero and set by the part before
     // correction, so "after" reads as clean.
     let half_width = (3.0 * run.first.protrusion.radius_um * 1e-3)

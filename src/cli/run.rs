@@ -3,10 +3,11 @@
 use super::{EngineChoice, Failure, load_job, load_job_with_effects, open_engine, slug};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 use toolmark::engine::RemovalEngine;
 use toolmark::model::resources;
 use toolmark::output::run_files::{prepare_output_dir, write_outputs};
-use toolmark::pipeline::{RunResult, simulate};
+use toolmark::pipeline::{Products, RunResult, products, simulate};
 use toolmark::process::Process;
 
 #[derive(clap::Args, Default)]
@@ -102,9 +103,11 @@ pub fn run(args: RunArgs) -> Result<(), Failure> {
     prepare_out(&out)?;
 
     let result = simulate_with_progress(job, engine.as_mut())?;
-    let written = write_outputs(&out, &result)
+    let made = products(&result);
+    let started = Instant::now();
+    let written = write_outputs(&out, &result, &made)
         .map_err(|err| Failure::Runtime(format!("writing outputs to {}: {err}", out.display())))?;
-    print_result(&result);
+    print_result(&result, &made, started.elapsed().as_secs_f64());
     println!("wrote {} files to {}", written.len(), out.display());
     Ok(())
 }
@@ -132,7 +135,7 @@ fn simulate_with_progress(
 
 /// The grid and motion, the stage times, the deviation, the scallop, the central feature
 /// and, for a generated part, its fitted sphere.
-fn print_result(result: &RunResult) {
+fn print_result(result: &RunResult, made: &Products, output_s: f64) {
     let grid = result.grid();
     let t = &result.timings;
     println!(
@@ -145,11 +148,13 @@ fn print_result(result: &RunResult) {
         result.pair_count() as f64
     );
     println!(
-        "time: prepare {:.2} s, removal {:.2} s ({:.3e} pairs/s), analysis {:.2} s",
+        "time: prepare {:.2} s, removal {:.2} s ({:.3e} pairs/s), analysis {:.2} s (maps and texture {:.2} s), output {:.2} s",
         t.prepare_s,
         t.removal_s,
         result.pair_count() as f64 / t.removal_s.max(1e-12),
-        t.analysis_s
+        t.analysis_s + made.elapsed_s,
+        made.elapsed_s,
+        output_s
     );
     println!(
         "deviation: PV {:.2} nm, RMS {:.2} nm (mean {:.2} nm)",

@@ -18,12 +18,12 @@ use super::colour::ColourMap;
 use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
 use super::png_out::{FalseColourPlot, MapGeometry, write_map_png, write_png16_gray};
 use crate::analysis::Raster;
-use crate::analysis::maps::{RowSource, full_half_width_mm, top_views_within};
+use crate::analysis::maps::top_views_within;
 use crate::field::PolarGrid;
 use crate::formats::atomic::write_bytes_atomically;
 use crate::formats::exr_io::{ExrImage, write_exr_owned};
 use crate::model::resources::POLAR_EXR_MAX_SAMPLES;
-use crate::pipeline::RunResult;
+use crate::pipeline::{Products, RunResult, TopViews, deviation_row_nm, diameter_row_mm};
 use crate::process::Process;
 use rayon::prelude::*;
 use serde_json::json;
@@ -110,36 +110,34 @@ fn clear_outputs(dir: &Path) -> io::Result<Vec<PathBuf>> {
     Ok(removed)
 }
 
-/// Writes all outputs of a run into `dir` and returns the paths written. Independent
-/// groups run side by side: the top views and then the EXR files and map PNGs made
-/// from them, beside the centre zoom and tables and the texture figures for the
-/// summary; the summary and report come last.
-pub fn write_outputs(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
+/// Writes all outputs of a run into `dir` from the run and the products made from it
+/// ([`crate::pipeline::products`]), and returns the paths written. Independent groups
+/// run side by side: the EXR files and the map PNGs, beside the centre zoom and the
+/// tables; the summary and report come last.
+pub fn write_outputs(
+    dir: &Path,
+    result: &RunResult,
+    products: &Products,
+) -> io::Result<Vec<PathBuf>> {
     let started = Instant::now();
     std::fs::create_dir_all(dir)?;
-    let ((maps, exrs, pngs), (centre, texture)) = rayon::join(
-        || {
-            let maps = top_views(result);
-            let attributes = common_attributes(result, &maps.deviation_nm);
-            let (exrs, pngs) = rayon::join(
-                || write_exrs(dir, result, &maps, &attributes),
-                || write_map_pngs(dir, result, &maps, &attributes),
-            );
-            (maps, exrs, pngs)
-        },
+    let maps = &products.maps;
+    let attributes = common_attributes(result, &maps.deviation_nm);
+    let ((exrs, pngs), centre) = rayon::join(
         || {
             rayon::join(
-                || write_centre_and_tables(dir, result),
-                || texture_of(result),
+                || write_exrs(dir, result, maps, &attributes),
+                || write_map_pngs(dir, result, maps, &attributes),
             )
         },
+        || write_centre_and_tables(dir, result),
     );
     let ((png_scale, pngs), mut written) = (pngs?, exrs?);
     written.extend(pngs);
     written.extend(centre?);
 
     let output_s = started.elapsed().as_secs_f64();
-    let summary = summary_json(result, &maps.deviation_nm, png_scale, output_s, texture);
+    let summary = summary_json(result, products, png_scale, output_s);
     let text = serde_json::to_string_pretty(&summary).map_err(io::Error::other)?;
     write_bytes_atomically(&dir.join("summary.json"), text.as_bytes())?;
     written.push(dir.join("summary.json"));
@@ -438,15 +436,6 @@ fn write_centre_and_tables(dir: &Path, result: &RunResult) -> io::Result<Vec<Pat
     .to_vec())
 }
 
-/// The texture figures of a run's field (for the summary).
-fn texture_of(result: &RunResult) -> crate::analysis::texture::Texture {
-    crate::analysis::texture::analyse_texture(
-        result.grid(),
-        &result.field,
-        result.job.process.pass_spacing_mm(),
-    )
-}
-
 /// Half-width of the central zoom: three times the central feature's radius, or a
 /// tenth of the part when there is none; at least 20 grid pitches.
 pub fn centre_half_width_mm(result: &RunResult) -> f64 {
@@ -704,73 +693,6 @@ pub fn png16_scale(map: &Raster) -> Png16Scale {
     }
 }
 
-/// The top views a run draws (nm, mm for heights and diameters) on the job's map grid.
-pub struct TopViews {
-    pub deviation_nm: Raster,
-    pub scallop_nm: Raster,
-    pub height_mm: Raster,
-    pub protrusion_nm: Raster,
-    /// Milling only.
-    pub cutting_diameter_mm: Option<Raster>,
-}
-
-/// Every top view of a run (what `surface.exr` holds), made together: each quantity is
-/// produced row by row as the maps read it (no full-resolution copy), and the maps share
-/// their resampling weights.
-pub fn top_views(result: &RunResult) -> TopViews {
-    let grid = result.grid();
-    let field = &result.field;
-    let pixels = result.job.map_pixels as usize;
-    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
-    let scallop = |row: u32, out: &mut [f64]| {
-        result.scallops.row_mm(grid, row, out);
-        out.iter_mut().for_each(|v| *v *= 1e6);
-    };
-    let height = |row: u32, out: &mut [f64]| {
-        let (depths, _) = field.row(grid, row);
-        for ((out, depth), ring) in out.iter_mut().zip(depths).zip(&grid.rings) {
-            *out = ring.height_mm + depth / ring.normal.y;
-        }
-    };
-    let protrusion = |row: u32, out: &mut [f64]| {
-        result.protrusion.row_mm(grid, field, row, out);
-        out.iter_mut().for_each(|v| *v *= 1e6);
-    };
-    let diameter = |row: u32, out: &mut [f64]| diameter_row_mm(result, row, out);
-    let mut sources: Vec<RowSource> = vec![&deviation, &scallop, &height, &protrusion];
-    if result.cutting_diameter_mm.is_some() {
-        sources.push(&diameter);
-    }
-    let mut maps = top_views_within(grid, &sources, pixels, full_half_width_mm(grid)).into_iter();
-    let mut next = || maps.next().expect("one map per quantity");
-    TopViews {
-        deviation_nm: next(),
-        scallop_nm: next(),
-        height_mm: next(),
-        protrusion_nm: next(),
-        cutting_diameter_mm: result.cutting_diameter_mm.as_ref().map(|_| next()),
-    }
-}
-
-/// One azimuth row of the deviation (nm).
-fn deviation_row_nm(result: &RunResult, row: u32, out: &mut [f64]) {
-    let (depths, _) = result.field.row(result.grid(), row);
-    for (out, depth) in out.iter_mut().zip(depths) {
-        *out = depth * 1e6;
-    }
-}
-
-/// One azimuth row of the milling cutting diameter (mm; 0 where uncut).
-fn diameter_row_mm(result: &RunResult, row: u32, out: &mut [f64]) {
-    let rings = result.grid().ring_count();
-    let start = row as usize * rings;
-    if let Some(diameters) = &result.cutting_diameter_mm {
-        for (out, v) in out.iter_mut().zip(&diameters[start..start + rings]) {
-            *out = if v.is_finite() { *v } else { 0.0 };
-        }
-    }
-}
-
 /// Whether a run on `grid` writes `polar.exr`.
 pub fn polar_exr_written(grid: &PolarGrid) -> bool {
     grid.sample_count() <= POLAR_EXR_MAX_SAMPLES
@@ -818,14 +740,9 @@ fn polar_channels(result: &RunResult) -> Vec<(String, Vec<f32>)> {
 }
 
 /// `summary.json` of a run without writing anything (the timing of the output step is 0).
-pub fn summary(result: &RunResult, deviation_map: &Raster) -> serde_json::Value {
-    summary_json(
-        result,
-        deviation_map,
-        png16_scale(deviation_map),
-        0.0,
-        texture_of(result),
-    )
+pub fn summary(result: &RunResult, products: &Products) -> serde_json::Value {
+    let scale = png16_scale(&products.maps.deviation_nm);
+    summary_json(result, products, scale, 0.0)
 }
 
 fn write_deviation_png16(
@@ -898,11 +815,11 @@ fn radial_profile_csv(result: &RunResult) -> String {
 
 fn summary_json(
     result: &RunResult,
-    map: &Raster,
+    products: &Products,
     png_scale: Png16Scale,
     output_s: f64,
-    texture: crate::analysis::texture::Texture,
 ) -> serde_json::Value {
+    let (map, texture) = (&products.maps.deviation_nm, &products.texture);
     let grid = result.grid();
     let job = &result.job;
     let pairs = result.pair_count();
@@ -941,9 +858,9 @@ fn summary_json(
         "timings_s": {
             "prepare": t.prepare_s,
             "removal": t.removal_s,
-            "analysis": t.analysis_s,
+            "analysis": t.analysis_s + products.elapsed_s,
             "output": output_s,
-            "total": t.prepare_s + t.removal_s + t.analysis_s + output_s,
+            "total": t.prepare_s + t.removal_s + t.analysis_s + products.elapsed_s + output_s,
         },
         "deviation": result.deviation,
         "scallop": scallop,
