@@ -363,6 +363,10 @@ pub fn simulate(
 /// only where files are written (the loops and the diagnosis do without).
 pub struct Products {
     pub maps: TopViews,
+    /// The deviation (nm) over the central zoom, `centre_half_width_mm` either side of
+    /// the axis.
+    pub centre_nm: Raster,
+    pub centre_half_width_mm: f64,
     pub texture: Texture,
     /// Seconds spent making them (reported with the analysis).
     pub elapsed_s: f64,
@@ -371,9 +375,20 @@ pub struct Products {
 /// The top views and the texture figures of `result`, side by side.
 pub fn products(result: &RunResult) -> Products {
     let started = Instant::now();
-    let (maps, texture) = rayon::join(|| top_views(result), || texture_of(result));
+    let centre_half_width_mm = centre_half_width_mm(result);
+    let ((maps, centre_nm), texture) = rayon::join(
+        || {
+            rayon::join(
+                || top_views(result),
+                || centre_map(result, centre_half_width_mm),
+            )
+        },
+        || texture_of(result),
+    );
     Products {
         maps,
+        centre_nm,
+        centre_half_width_mm,
         texture,
         elapsed_s: started.elapsed().as_secs_f64(),
     }
@@ -453,4 +468,27 @@ fn texture_of(result: &RunResult) -> Texture {
         &result.field,
         result.job.process.pass_spacing_mm(),
     )
+}
+
+/// Half-width of the central zoom: three times the central feature's radius, or a
+/// tenth of the part when there is none; at least 20 grid pitches.
+pub fn centre_half_width_mm(result: &RunResult) -> f64 {
+    let grid = result.grid();
+    let outer = grid.rings[grid.ring_count() - 1].radius_mm;
+    let feature = result.protrusion.radius_um * 1e-3;
+    let wanted = if feature > 0.0 {
+        3.0 * feature
+    } else {
+        0.1 * outer
+    };
+    wanted.max(20.0 * grid.pitch_mm).min(outer)
+}
+
+/// Pixels across the central zoom.
+const CENTRE_PIXELS: usize = 512;
+
+/// The deviation (nm) over the central zoom, `half_width_mm` either side of the axis.
+pub fn centre_map(result: &RunResult, half_width_mm: f64) -> Raster {
+    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
+    top_views_within(result.grid(), &[&deviation], CENTRE_PIXELS, half_width_mm).remove(0)
 }

@@ -11,7 +11,7 @@ use toolmark::formats::measured::read_radial_deviation_csv;
 use toolmark::loops::correct::{MissSide, SetupEstimate, correction_loop, estimate_setup};
 use toolmark::model::{Job, JobFile};
 use toolmark::output::run_files::{write_centre_map, write_centre_profile, write_outputs};
-use toolmark::pipeline::products;
+use toolmark::pipeline::{centre_map, products};
 
 #[derive(clap::Args)]
 pub struct CorrectArgs {
@@ -260,14 +260,19 @@ fn correct_simulated(
         .max(20.0 * job.pitch_mm)
         .min(zone);
     let before_png = out.join("centre_before.png");
-    let (low, high) =
-        write_centre_map(&before_png, &run.first, half_width, None).map_err(runtime)?;
+    let (before_map, after_map) = (
+        centre_map(&run.first, half_width),
+        centre_map(&run.last, half_width),
+    );
+    let (low, high) = write_centre_map(&before_png, &run.first, (&before_map, half_width), None)
+        .map_err(runtime)?;
     let extent = low.abs().max(high.abs());
-    for (path, result) in [
-        (before_png, &run.first),
-        (out.join("centre_after.png"), &run.last),
+    for (path, result, map) in [
+        (before_png, &run.first, &before_map),
+        (out.join("centre_after.png"), &run.last, &after_map),
     ] {
-        write_centre_map(&path, result, half_width, Some((-extent, extent))).map_err(runtime)?;
+        write_centre_map(&path, result, (map, half_width), Some((-extent, extent)))
+            .map_err(runtime)?;
     }
     write_centre_profile(
         &out.join("centre_profiles.png"),

@@ -18,7 +18,6 @@ use super::colour::ColourMap;
 use super::plot::{LinePlot, PALETTE, Series, write_line_plot};
 use super::png_out::{FalseColourPlot, MapGeometry, write_map_png, write_png16_gray};
 use crate::analysis::Raster;
-use crate::analysis::maps::top_views_within;
 use crate::field::PolarGrid;
 use crate::formats::atomic::write_bytes_atomically;
 use crate::formats::exr_io::{ExrImage, write_exr_owned};
@@ -130,7 +129,7 @@ pub fn write_outputs(
                 || write_map_pngs(dir, result, maps, &attributes),
             )
         },
-        || write_centre_and_tables(dir, result),
+        || write_centre_and_tables(dir, result, products),
     );
     let ((png_scale, pngs), mut written) = (pngs?, exrs?);
     written.extend(pngs);
@@ -408,9 +407,14 @@ fn write_cutting_diameter(
 }
 
 /// The centre zoom and profile, `radial_profile.csv` and `job.resolved.toml`.
-fn write_centre_and_tables(dir: &Path, result: &RunResult) -> io::Result<Vec<PathBuf>> {
-    let half_width = centre_half_width_mm(result);
-    write_centre_map(&dir.join("deviation_centre.png"), result, half_width, None)?;
+fn write_centre_and_tables(
+    dir: &Path,
+    result: &RunResult,
+    products: &Products,
+) -> io::Result<Vec<PathBuf>> {
+    let half_width = products.centre_half_width_mm;
+    let centre = (&products.centre_nm, half_width);
+    write_centre_map(&dir.join("deviation_centre.png"), result, centre, None)?;
     write_centre_profile(&dir.join("centre_profile.png"), &[("", result)], half_width)?;
     write_bytes_atomically(
         &dir.join("radial_profile.csv"),
@@ -436,34 +440,16 @@ fn write_centre_and_tables(dir: &Path, result: &RunResult) -> io::Result<Vec<Pat
     .to_vec())
 }
 
-/// Half-width of the central zoom: three times the central feature's radius, or a
-/// tenth of the part when there is none; at least 20 grid pitches.
-pub fn centre_half_width_mm(result: &RunResult) -> f64 {
-    let grid = result.grid();
-    let outer = grid.rings[grid.ring_count() - 1].radius_mm;
-    let feature = result.protrusion.radius_um * 1e-3;
-    let wanted = if feature > 0.0 {
-        3.0 * feature
-    } else {
-        0.1 * outer
-    };
-    wanted.max(20.0 * grid.pitch_mm).min(outer)
-}
-
 /// Writes a false-colour top view of the central zone. `range` fixes the colour scale
 /// (to compare parts); by default it is centred on the zone's mean and spans at least
 /// ±1 nm, so a clean part does not show its numerical dust. Returns the range used.
 pub fn write_centre_map(
     path: &Path,
     result: &RunResult,
-    half_width_mm: f64,
+    (map, half_width_mm): (&Raster, f64),
     range: Option<(f32, f32)>,
 ) -> io::Result<(f32, f32)> {
-    const PIXELS: usize = 512;
-    let grid = result.grid();
-    let deviation = |row: u32, out: &mut [f64]| deviation_row_nm(result, row, out);
-    let map = top_views_within(grid, &[&deviation], PIXELS, half_width_mm).remove(0);
-    let (low, high, mean) = valid_range(&map);
+    let (low, high, mean) = valid_range(map);
     let range = range.unwrap_or_else(|| {
         let half = (high - mean).max(mean - low).max(1.0);
         (mean - half, mean + half)
@@ -476,14 +462,14 @@ pub fn write_centre_map(
             p.height_nm, p.radius_um
         ),
     };
-    let attributes = common_attributes(result, &map);
+    let attributes = common_attributes(result, map);
     write_map_png(
         path,
         &FalseColourPlot {
             values: &map.values,
             valid: &map.valid,
-            width: PIXELS as u32,
-            height: PIXELS as u32,
+            width: map.pixels as u32,
+            height: map.pixels as u32,
             range,
             colour_map: ColourMap::Diverging,
             title: &format!("{}: central ±{:.3} mm", result.job.name, half_width_mm),
@@ -491,11 +477,11 @@ pub fn write_centre_map(
             footer: &format!(
                 "map PV {:.2} nm  RMS {:.2} nm  {feature}  {} engine",
                 high - low,
-                raster_rms(&map),
+                raster_rms(map),
                 result.engine.kind
             ),
         },
-        &MapGeometry::centred(half_width_mm, PIXELS),
+        &MapGeometry::centred(half_width_mm, map.pixels),
         &png_text(&attributes),
     )?;
     Ok(range)
