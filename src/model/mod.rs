@@ -607,22 +607,7 @@ impl Job {
             (None, None) => aperture.outer_radius_mm / 4000.0,
         };
         let azimuths = file.grid.azimuths.unwrap_or(64);
-        if !(1..=65_536).contains(&azimuths) {
-            return Err(error(
-                "grid.azimuths",
-                format!("{azimuths} is out of range; allowed: 1 to 65536"),
-            ));
-        }
-        let samples = grid_samples(&meridian, &aperture, layout, pitch_mm, azimuths);
-        if samples > MAX_SAMPLES {
-            return Err(error(
-                "grid.pitch_um",
-                format!(
-                    "{pitch} µm with {azimuths} azimuths gives {samples:.3e} samples, more than the {MAX_SAMPLES:.0e} allowed; raise grid.pitch_um or lower grid.azimuths",
-                    pitch = pitch_mm * 1e3
-                ),
-            ));
-        }
+        check_grid_size(&meridian, &aperture, layout, pitch_mm, azimuths)?;
         match &process {
             Process::Turning(_) | Process::Milling(_) => {
                 let pass_spacing = process.pass_spacing_mm().unwrap_or(f64::INFINITY);
@@ -686,21 +671,7 @@ impl Job {
             ));
         }
         let pitch_um = check("grid.pitch_um", pitch_mm * 1e3, 0.0, 1e4, false)?;
-        if !(1..=65_536).contains(&azimuths) {
-            return Err(error(
-                "grid.azimuths",
-                format!("{azimuths} is out of range; allowed: 1 to 65536"),
-            ));
-        }
-        let samples = grid_samples(&self.meridian(), &aperture, self.layout, pitch_mm, azimuths);
-        if samples > MAX_SAMPLES {
-            return Err(error(
-                "grid.pitch_um",
-                format!(
-                    "{pitch_um} µm with {azimuths} azimuths over {inner:.4}–{outer:.4} mm gives {samples:.3e} samples, more than the {MAX_SAMPLES:.0e} allowed"
-                ),
-            ));
-        }
+        check_grid_size(&self.meridian(), &aperture, self.layout, pitch_mm, azimuths)?;
         let mut job = self.clone();
         job.aperture = aperture;
         job.pitch_mm = pitch_mm;
@@ -753,6 +724,34 @@ impl Job {
 }
 
 /// Rings over the meridian span times azimuth rows.
+/// A grid's row count in range and its samples within `MAX_SAMPLES` (a job file's own
+/// grid and a grid derived from a checked job alike).
+fn check_grid_size(
+    meridian: &MeridianArcLength,
+    aperture: &Aperture,
+    layout: crate::field::Layout,
+    pitch_mm: f64,
+    azimuths: u32,
+) -> Result<(), JobError> {
+    if !(1..=65_536).contains(&azimuths) {
+        return Err(error(
+            "grid.azimuths",
+            format!("{azimuths} is out of range; allowed: 1 to 65536"),
+        ));
+    }
+    let samples = grid_samples(meridian, aperture, layout, pitch_mm, azimuths);
+    if samples > MAX_SAMPLES {
+        return Err(error(
+            "grid.pitch_um",
+            format!(
+                "{pitch} µm with {azimuths} azimuths gives {samples:.3e} samples, more than the {MAX_SAMPLES:.0e} allowed; raise grid.pitch_um or lower grid.azimuths",
+                pitch = pitch_mm * 1e3
+            ),
+        ));
+    }
+    Ok(())
+}
+
 fn grid_samples(
     meridian: &MeridianArcLength,
     aperture: &Aperture,
