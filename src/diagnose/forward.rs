@@ -706,8 +706,28 @@ impl SimulatedSurface {
                 let s0 = frame.shift_mm.dot(measurement.line_direction());
                 trace.sample(&measurement.along_mm, s0, frame.signed_scale())
             }
-            None => self.sample_at(&self.places(measurement, frame)),
+            None => self.sample_raster(measurement, frame),
         }
+    }
+
+    /// [`SimulatedSurface::sample_at`] of [`SimulatedSurface::places`], each pixel read
+    /// where it lies (no table of places and rings between), the pixels side by side.
+    fn sample_raster(&self, measurement: &Measurement, frame: Frame) -> Vec<f64> {
+        let offsets = self.midpoints(frame.scale);
+        let read = |p: &DVec2| {
+            let p = frame.to_part(*p);
+            let mut values = offsets.iter().map(|o| self.at(p + *o));
+            match offsets.len() {
+                1 => values.next().unwrap_or(f64::NAN),
+                n => values.fold(0.0, |sum, v| sum + v) / n as f64,
+            }
+        };
+        measurement
+            .xy_mm
+            .par_iter()
+            .with_min_len(RASTER_CHUNK)
+            .map(read)
+            .collect()
     }
 
     /// Where a raster's points (each pixel's midpoints where pixels average) fall on the
@@ -883,6 +903,9 @@ impl SimulatedSurface {
             .collect()
     }
 }
+
+/// Fewest pixels a thread reads at once ([`SimulatedSurface::sample_raster`]).
+const RASTER_CHUNK: usize = 256;
 
 /// Where a point lies between a grid's rings: the rings either side (`k0`, `k1`) and
 /// how far it lies from `k0` toward `k1` (`t`, 0..1); [`Ring::OFF`] beyond them.
@@ -1168,6 +1191,13 @@ fn bent_chord(x: &[f64], z: &[f64], k: usize) -> [f64; 3] {
 /// each x, touches no point of it. Exact for the piecewise-linear surface, so samples
 /// coarser than the tip still give the right ride-up on slopes (ρ(√(1+m²) − 1)).
 pub fn stylus_trace(x: &[f64], z: &[f64], tip: f64) -> Vec<f64> {
+    // Per segment: its slope, the tip's lateral offset to its contact point, and the
+    // lift there (each segment is met by every tip centre within reach: computed once).
+    let segments: Vec<Segment> = x
+        .windows(2)
+        .zip(z.windows(2))
+        .map(|(x, z)| Segment::of([x[0], x[1]], [z[0], z[1]], tip))
+        .collect();
     let mut out = Vec::with_capacity(x.len());
     let mut first = 0;
     for &xi in x {
@@ -1180,13 +1210,11 @@ pub fn stylus_trace(x: &[f64], z: &[f64], tip: f64) -> Vec<f64> {
             if d.abs() <= tip {
                 top = top.max(z[j] + (tip * tip - d * d).sqrt());
             }
-            if j + 1 < x.len() {
+            if let Some(segment) = segments.get(j) {
                 // Where the tip touches the segment to the next sample, if inside it.
-                let slope = (z[j + 1] - z[j]) / (x[j + 1] - x[j]);
-                let root = (1.0 + slope * slope).sqrt();
-                let u = xi + tip * slope / root;
+                let u = xi + segment.reach;
                 if u > x[j] && u < x[j + 1] {
-                    top = top.max(z[j] + slope * (u - x[j]) + tip / root);
+                    top = top.max(z[j] + segment.slope * (u - x[j]) + segment.lift);
                 }
             }
             if d > tip {
@@ -1196,6 +1224,26 @@ pub fn stylus_trace(x: &[f64], z: &[f64], tip: f64) -> Vec<f64> {
         out.push(top - tip);
     }
     out
+}
+
+/// A segment of a stylus-traced profile as a tip of radius ρ meets it: slope m, the
+/// contact point's offset from the tip's centre ρm/√(1+m²) and its lift ρ/√(1+m²).
+struct Segment {
+    slope: f64,
+    reach: f64,
+    lift: f64,
+}
+
+impl Segment {
+    fn of(x: [f64; 2], z: [f64; 2], tip: f64) -> Segment {
+        let slope = (z[1] - z[0]) / (x[1] - x[0]);
+        let root = (1.0 + slope * slope).sqrt();
+        Segment {
+            slope,
+            reach: tip * slope / root,
+            lift: tip / root,
+        }
+    }
 }
 
 #[cfg(test)]

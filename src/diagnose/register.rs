@@ -856,14 +856,6 @@ impl LineFit {
         }
     }
 
-    fn row(m: &Measurement, i: usize, origin: f64, shift: DVec2) -> [f64; 3] {
-        [
-            1.0,
-            m.along_mm[i] - origin,
-            (m.xy_mm[i] - shift).length_squared(),
-        ]
-    }
-
     /// Σr² after the terms are removed.
     fn rss(&self) -> f64 {
         (self.squares - self.explained).max(0.0)
@@ -871,13 +863,17 @@ impl LineFit {
 
     /// The squared residuals of the points used.
     fn squared_residuals(&self, m: &Measurement, simulated: &[f64], shift: DVec2) -> Vec<f64> {
+        let [piston, tilt, power] = self.coefficients;
         simulated
             .iter()
             .enumerate()
             .filter(|(_, s)| s.is_finite())
             .map(|(i, s)| {
-                let row = Self::row(m, i, self.origin, shift);
-                let model: f64 = row.iter().zip(&self.coefficients).map(|(r, c)| r * c).sum();
+                let mut model = piston + (m.along_mm[i] - self.origin) * tilt;
+                // Without power its coefficient is 0: the r² column adds nothing.
+                if power != 0.0 {
+                    model += (m.xy_mm[i] - shift).length_squared() * power;
+                }
                 (m.height_mm[i] - s - model).powi(2)
             })
             .collect()
