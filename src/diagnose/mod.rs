@@ -137,16 +137,8 @@ pub fn diagnose(
 ) -> Result<Outcome, DiagnoseError> {
     let started = Instant::now();
     require_points(measurement)?;
-    let binned = measurement.binned(0.5 * job.pitch_mm);
+    let binned = binned_for_the_model(job, measurement, log);
     let bin_mm = binned.as_ref().and_then(|b| b.instrument.line_bin_mm);
-    if let (Some(b), Some(width)) = (&binned, bin_mm) {
-        log(&format!(
-            "averaging {} points in {} runs of {:.3} µm (up to half the job's pitch; the model averaged alike)",
-            measurement.len(),
-            b.len(),
-            width * 1e3
-        ));
-    }
     let measurement = binned.as_ref().unwrap_or(measurement);
     let located = locate::locate(
         job,
@@ -158,40 +150,22 @@ pub fn diagnose(
         },
         log,
     )?;
-    let on_part = check_coverage(job, &measurement.placed(located.frame))?;
-    let fitted = on_part;
+    let fitted = check_coverage(job, &measurement.placed(located.frame))?;
     let calibration = calibration_mask(&fitted, options.calibrate_on_mm)?;
-    let period = mark_period_mm(job, &fitted);
+    let stage = Stage {
+        job,
+        fitted: &fitted,
+        period: mark_period_mm(job, &fitted),
+        options,
+        log,
+    };
+    let period = stage.period;
     let folds = validate::Folds {
         measurement: &fitted,
         calibration: calibration.clone(),
     };
-    let comb = axis_comb(job, measurement, &located, period).filter(|_| options.terms.shift);
-    let room = forward::shift_room_mm(&fitted).max(comb_reach_mm(comb) + 0.5 * period);
-    let mut model = ForwardModel::around(job, &fitted, room, engine)?;
-    if located.azimuth_fitted {
-        model.set_azimuth(located.azimuth_rad);
-    }
-    log("simulating the job as given and registering it");
-    let mut problem = Problem::new(
-        &fitted,
-        model,
-        options.terms,
-        local_search(DVec2::ZERO, period, comb),
-    );
-    problem.calibrate_on(calibration.clone());
-    let spiral = located.azimuth_fitted && fitted.is_line();
-    let members: Vec<Candidate> = [
-        (spiral, Candidate::SpiralAzimuth),
-        (located.scale_fitted, Candidate::LateralScale),
-    ]
-    .into_iter()
-    .filter_map(|(on, c)| on.then_some(c))
-    .collect();
-    if spiral && measurement.azimuth_stated {
-        believe_stated_azimuth(&mut problem, measurement, &located, &members)?;
-    }
-    let base = search::registration_base(&mut problem, &members)?;
+    let (mut problem, base) =
+        registered_problem(&stage, measurement, &located, calibration.clone(), engine)?;
     let nominal = base.evaluation.registered.clone();
     // Marks that placed nothing (lost in the noise) have no spacing to compare.
     let spacing = |from: f64, to: f64| {
@@ -201,54 +175,19 @@ pub fn diagnose(
     };
     let comparison = compare::compare(&fitted, &nominal, options.terms.power, &spacing);
     let mut check = checks::fit_check(&fitted, &nominal, job, options.terms, period, &comparison);
-
     let (candidates, not_diagnosable) = candidates_to_try(job, &fitted, options);
-    let mut found = if checks::may_search(&check) && !options.compare_only {
-        search::search(
-            &mut problem,
-            &base,
-            &candidates,
-            job,
-            &folds,
-            period,
-            options,
-            log,
-        )?
-    } else {
-        Search::default()
-    };
-    // What may settle a departure from the form: each candidate alone, and what the
-    // search accepted (two effects can each bend the other's print alone).
-    let explanations: Vec<(String, &[f64])> = found
-        .singles
-        .iter()
-        .map(|(fit, _)| (search::labels(&fit.set[fit.set.len() - 1..]), fit))
-        .chain(
-            found
-                .accepted
-                .iter()
-                .map(|fit| (search::labels(&fit.effects()), fit)),
-        )
-        .map(|(label, fit)| (label, fit.evaluation.registered.residual_mm.as_slice()))
-        .collect();
-    checks::settle_form(&mut check, &fitted, period, &explanations);
-    if !check.fits {
-        found = Search::default();
-    }
-    let baseline = base.evaluation.clone();
-    let indistinguishable = indistinguishable(&found.singles, &baseline.registered);
-    let contenders: Vec<DVec2> = found
-        .accepted
-        .iter()
-        .chain(&found.alternative)
-        .map(|f| f.evaluation.registered.shift_mm)
-        .collect();
-    let ambiguous = withdraw_if_ambiguous(&mut found, &indistinguishable, log);
-    let rival_axes = rival_axes(&found, contenders, &ambiguous);
-    if fitted.is_line() && check.fits {
-        refine_reported(&mut problem, &mut found, log)?;
-        withdraw_if_not_significant(&mut found, log);
-    }
+    let Settled {
+        mut found,
+        indistinguishable,
+        ambiguous,
+        rival_axes,
+    } = search_and_settle(
+        &stage,
+        &mut problem,
+        &base,
+        (&candidates, &folds),
+        &mut check,
+    )?;
     let zones = Zones::new(fitted.max_radius_mm());
     let analysis = ResidualAnalysis {
         measurement: &fitted,
@@ -256,28 +195,13 @@ pub fn diagnose(
         period_mm: period,
         mark_spacing_mm: folded_mark_spacing_mm(job),
     };
-    let nominal_marks = judged_mark_shape(&mut problem, &analysis, &base)?;
-    let accepted_marks = match &found.accepted {
-        Some(fit) => judged_mark_shape(&mut problem, &analysis, fit)?,
-        None => None,
-    };
-    withdraw_if_marks_unexplained(
-        &mut found,
-        (nominal_marks.as_ref(), accepted_marks.as_ref()),
-        &analysis,
-        &baseline.registered,
-        log,
-    );
-    let after_marks = if found.accepted.is_some() {
-        accepted_marks
-    } else {
-        nominal_marks.clone()
-    };
-    let rss0 = baseline.rss();
+    let (nominal_marks, after_marks) =
+        judge_marks(&mut problem, &analysis, &base, &mut found, log)?;
+    let rss0 = base.evaluation.rss();
     let after = found
         .accepted
         .as_ref()
-        .map_or(baseline.clone(), |f| f.evaluation.clone());
+        .map_or(base.evaluation.clone(), |f| f.evaluation.clone());
     let zone: Vec<usize> = radii(&fitted, nominal.shift_mm)
         .iter()
         .map(|r| zones.of(*r))
@@ -289,12 +213,11 @@ pub fn diagnose(
     let accepted = found.accepted.as_ref();
     let (candidate_results, accepted_results) = candidate_results(&found, rss0);
     let shrinkage = shrinkage(&fitted, &nominal, &found, &zones);
-    let held = match (&calibration, check.fits) {
-        (Some(calibration), true) => {
-            Some(judge_held_out(&mut problem, calibration, &base, accepted)?)
-        }
-        _ => None,
-    };
+    let held = calibration
+        .as_ref()
+        .filter(|_| check.fits)
+        .map(|c| judge_held_out(&mut problem, c, &base, accepted))
+        .transpose()?;
     let fragment = effects_fragment(job, accepted);
     let verdict = verdict::verdict(
         options.compare_only.then_some(&comparison),
@@ -305,29 +228,14 @@ pub fn diagnose(
         held.as_ref(),
         &found.refused,
     );
-    // Where the data lies: as the final model places it — or, when rivals tie, as the
-    // best of them does (they explain the same residual and place the axis alike; the
-    // job as given, without what they explain, may not).
-    let final_fit = accepted
-        .or_else(|| {
-            found
-                .singles
-                .first()
-                .map(|s| &s.0)
-                .filter(|_| !ambiguous.is_empty())
-        })
-        .unwrap_or(&base);
-    let judge_axis = fitted.is_line() && options.terms.shift && check.fits;
-    let registration = placement(
+    let registration = final_placement(
+        &stage,
         &mut problem,
-        final_fit,
+        (&found, &ambiguous, &rival_axes),
+        &base,
         located,
-        (measurement, &fitted),
-        (options.terms, judge_axis),
-        nominal
-            .registration
-            .unstretched(fit::fitted_stretch(&base).0),
-        &rival_axes,
+        measurement,
+        check.fits,
     )?;
     if let Some(note) = scale_or_nose_radius(job, &registration, accepted, &candidates) {
         check.findings.push(note);
@@ -335,11 +243,7 @@ pub fn diagnose(
     let diagnosis = Diagnosis {
         schema: SCHEMA,
         toolmark_version: env!("CARGO_PKG_VERSION"),
-        job: JobInfo {
-            name: job.name.clone(),
-            process: process_name(job).into(),
-            carried_effects: None,
-        },
+        job: job_info(job),
         measurement: MeasurementInfo::of(
             &fitted,
             measurement,
@@ -360,14 +264,7 @@ pub fn diagnose(
         ambiguous,
         held_out: held,
         verdict,
-        run: RunInfo {
-            engine: problem.model.engine_kind(),
-            simulations: problem.model.simulations,
-            prepare_s: problem.model.prepare_s,
-            removal_s: problem.model.removal_s,
-            total_s: started.elapsed().as_secs_f64(),
-            mark_period_um: period * 1e3,
-        },
+        run: run_info(&problem, started, period),
     };
     Ok(Outcome {
         diagnosis,
@@ -380,6 +277,241 @@ pub fn diagnose(
         effects_fragment: fragment,
         fitted,
     })
+}
+
+/// What every stage of one diagnosis reads: the job, the points fitted, the marks'
+/// period (mm), the options and the log.
+struct Stage<'s> {
+    job: &'s Job,
+    fitted: &'s Measurement,
+    period: f64,
+    options: &'s Options,
+    log: &'s dyn Fn(&str),
+}
+
+/// The measurement averaged in runs of up to half the job's pitch where its points lie
+/// closer than that (the model is averaged alike); `None` where they do not.
+fn binned_for_the_model(
+    job: &Job,
+    measurement: &Measurement,
+    log: &dyn Fn(&str),
+) -> Option<Measurement> {
+    let binned = measurement.binned(0.5 * job.pitch_mm);
+    let bin_mm = binned.as_ref().and_then(|b| b.instrument.line_bin_mm);
+    if let (Some(b), Some(width)) = (&binned, bin_mm) {
+        log(&format!(
+            "averaging {} points in {} runs of {:.3} µm (up to half the job's pitch; the model averaged alike)",
+            measurement.len(),
+            b.len(),
+            width * 1e3
+        ));
+    }
+    binned
+}
+
+/// The forward model around the fitted points, the problem that fits effects on it,
+/// and the job as given registered on it (the spiral's azimuth and the lateral scale
+/// fitted with it where the placement found them).
+fn registered_problem<'a, 'e>(
+    stage: &Stage<'a>,
+    measurement: &Measurement,
+    located: &Located,
+    calibration: Option<Arc<Vec<bool>>>,
+    engine: &'e mut dyn RemovalEngine,
+) -> Result<(Problem<'a, 'e>, Fit), DiagnoseError> {
+    let (job, fitted, period, terms) = (stage.job, stage.fitted, stage.period, stage.options.terms);
+    let comb = axis_comb(job, measurement, located, period).filter(|_| terms.shift);
+    let room = forward::shift_room_mm(fitted).max(comb_reach_mm(comb) + 0.5 * period);
+    let mut model = ForwardModel::around(job, fitted, room, engine)?;
+    if located.azimuth_fitted {
+        model.set_azimuth(located.azimuth_rad);
+    }
+    (stage.log)("simulating the job as given and registering it");
+    let mut problem = Problem::new(
+        fitted,
+        model,
+        terms,
+        local_search(DVec2::ZERO, period, comb),
+    );
+    problem.calibrate_on(calibration);
+    let spiral = located.azimuth_fitted && fitted.is_line();
+    let members: Vec<Candidate> = [
+        (spiral, Candidate::SpiralAzimuth),
+        (located.scale_fitted, Candidate::LateralScale),
+    ]
+    .into_iter()
+    .filter_map(|(on, c)| on.then_some(c))
+    .collect();
+    if spiral && measurement.azimuth_stated {
+        believe_stated_azimuth(&mut problem, measurement, located, &members)?;
+    }
+    let base = search::registration_base(&mut problem, &members)?;
+    Ok((problem, base))
+}
+
+/// What the search for effects settled: what it found (withdrawn where ambiguous or
+/// not significant), the candidates the data cannot tell from the job, the tied labels
+/// and the axis positions of the rivals.
+struct Settled {
+    found: Search,
+    indistinguishable: Vec<String>,
+    ambiguous: Vec<String>,
+    rival_axes: Vec<DVec2>,
+}
+
+/// The search for effects where the fit check allows one, then what settles it: the
+/// form's departure explained by a candidate or not, ties withdrawn as ambiguous, and
+/// on a line the accepted effects refitted on finer rings and kept while significant.
+fn search_and_settle<'a>(
+    stage: &Stage<'a>,
+    problem: &mut Problem<'a, '_>,
+    base: &Fit,
+    (candidates, folds): (&[Candidate], &'a validate::Folds<'a>),
+    check: &mut FitCheck,
+) -> Result<Settled, DiagnoseError> {
+    let (fitted, options, log) = (stage.fitted, stage.options, stage.log);
+    let mut found = if checks::may_search(check) && !options.compare_only {
+        search::search(
+            problem,
+            base,
+            candidates,
+            stage.job,
+            folds,
+            stage.period,
+            options,
+            log,
+        )?
+    } else {
+        Search::default()
+    };
+    // What may settle a departure from the form: each candidate alone, and what the
+    // search accepted (two effects can each bend the other's print alone).
+    let explanations: Vec<(String, &[f64])> = found
+        .singles
+        .iter()
+        .map(|(fit, _)| (search::labels(&fit.set[fit.set.len() - 1..]), fit))
+        .chain(
+            found
+                .accepted
+                .iter()
+                .map(|fit| (search::labels(&fit.effects()), fit)),
+        )
+        .map(|(label, fit)| (label, fit.evaluation.registered.residual_mm.as_slice()))
+        .collect();
+    checks::settle_form(check, fitted, stage.period, &explanations);
+    if !check.fits {
+        found = Search::default();
+    }
+    let indistinguishable = indistinguishable(&found.singles, &base.evaluation.registered);
+    let contenders: Vec<DVec2> = found
+        .accepted
+        .iter()
+        .chain(&found.alternative)
+        .map(|f| f.evaluation.registered.shift_mm)
+        .collect();
+    let ambiguous = withdraw_if_ambiguous(&mut found, &indistinguishable, log);
+    let rival_axes = rival_axes(&found, contenders, &ambiguous);
+    if fitted.is_line() && check.fits {
+        refine_reported(problem, &mut found, log)?;
+        withdraw_if_not_significant(&mut found, log);
+    }
+    Ok(Settled {
+        found,
+        indistinguishable,
+        ambiguous,
+        rival_axes,
+    })
+}
+
+/// The marks' shape judged before and after (the accepted effects withdrawn where the
+/// marks they leave are no better explained): the nominal job's fold, and the fold
+/// after what stays accepted.
+fn judge_marks(
+    problem: &mut Problem,
+    analysis: &ResidualAnalysis,
+    base: &Fit,
+    found: &mut Search,
+    log: &dyn Fn(&str),
+) -> Result<(Option<MarkShape>, Option<MarkShape>), DiagnoseError> {
+    let nominal_marks = judged_mark_shape(problem, analysis, base)?;
+    let accepted_marks = match &found.accepted {
+        Some(fit) => judged_mark_shape(problem, analysis, fit)?,
+        None => None,
+    };
+    withdraw_if_marks_unexplained(
+        found,
+        (nominal_marks.as_ref(), accepted_marks.as_ref()),
+        analysis,
+        &base.evaluation.registered,
+        log,
+    );
+    let after_marks = if found.accepted.is_some() {
+        accepted_marks
+    } else {
+        nominal_marks.clone()
+    };
+    Ok((nominal_marks, after_marks))
+}
+
+/// Where the data lies: as the final model places it — or, when rivals tie, as the
+/// best of them does (they explain the same residual and place the axis alike; the
+/// job as given, without what they explain, may not).
+fn final_placement(
+    stage: &Stage,
+    problem: &mut Problem,
+    (found, ambiguous, rival_axes): (&Search, &[String], &[DVec2]),
+    base: &Fit,
+    located: Located,
+    measurement: &Measurement,
+    fits: bool,
+) -> Result<RegistrationInfo, DiagnoseError> {
+    let final_fit = found
+        .accepted
+        .as_ref()
+        .or_else(|| {
+            found
+                .singles
+                .first()
+                .map(|s| &s.0)
+                .filter(|_| !ambiguous.is_empty())
+        })
+        .unwrap_or(base);
+    let terms = stage.options.terms;
+    let judge_axis = stage.fitted.is_line() && terms.shift && fits;
+    placement(
+        problem,
+        final_fit,
+        located,
+        (measurement, stage.fitted),
+        (terms, judge_axis),
+        base.evaluation
+            .registered
+            .registration
+            .unstretched(fit::fitted_stretch(base).0),
+        rival_axes,
+    )
+}
+
+/// The job as the diagnosis names it (effects carried from an earlier part are added
+/// by the caller that carried them).
+fn job_info(job: &Job) -> JobInfo {
+    JobInfo {
+        name: job.name.clone(),
+        process: process_name(job).into(),
+        carried_effects: None,
+    }
+}
+
+/// What the diagnosis ran: the engine, its simulations and their time.
+fn run_info(problem: &Problem, started: Instant, period: f64) -> RunInfo {
+    RunInfo {
+        engine: problem.model.engine_kind(),
+        simulations: problem.model.simulations,
+        prepare_s: problem.model.prepare_s,
+        removal_s: problem.model.removal_s,
+        total_s: started.elapsed().as_secs_f64(),
+        mark_period_um: period * 1e3,
+    }
 }
 
 /// Weighs the spiral's azimuth the profile's file states ([`AzimuthPrior`]), its weight
