@@ -205,128 +205,28 @@ fn locate_line(
     options: LocateOptions,
     log: &dyn Fn(&str),
 ) -> Result<Located, DiagnoseError> {
-    let outer = job.aperture.outer_radius_mm;
-    let (lo, hi) = (quantile(&m.along_mm, 0.02), quantile(&m.along_mm, 0.98));
-    // Axis positions that keep the bulk of the points on the part — where the process
-    // leaves marks to place the line by. Without marks (a generated sphere) a shift is
-    // a tilt to first order and only a central feature tells: the axis is looked for
-    // near where the file puts it.
-    let marked = mark_spacing_mm(job, outer).is_some();
-    let near = shift_room_mm(m);
-    let (a_min, a_max) = match (options.terms.shift, marked) {
-        (false, _) => (0.0, 0.0),
-        (true, true) => (hi - outer, lo + outer),
-        (true, false) => ((hi - outer).max(-near), (lo + outer).min(near)),
-    };
-    if a_min > a_max {
-        return Err(DiagnoseError::DoesNotFit(format!(
-            "the profile spans {:.4} mm (between its 2nd and 98th percentile points), more than the part's diameter of {:.4} mm: a lateral unit error, or another part",
-            hi - lo,
-            2.0 * outer
-        )));
-    }
-    let reach = (hi - a_min).max(a_max - lo).min(outer);
-    let typical = local_mark_spacing_mm(job, 0.0, reach);
-    // Marks the profile resolves (six points a mark, six marks) may place it.
-    let spaced = typical.filter(|f| *f >= 6.0 * m.spacing_mm() && hi - lo >= 6.0 * f);
+    let WideScan {
+        range: (a_min, a_max),
+        typical,
+        marks,
+        scale,
+        rows,
+        r_model,
+        surface,
+        traces,
+        judged,
+        step,
+        starts,
+    } = wide_line_scan(job, m, line_azimuth, engine, options, log)?;
     let turning = job.process.turning().is_some();
-    let room =
-        typical.unwrap_or(0.0) + 4.0 * job.pitch_mm + m.instrument.stylus_tip_mm.unwrap_or(0.0);
-    let r_model = (reach * (1.0 + SCALE_BOUND) + room).min(outer);
-
-    // The wide search on one simulation — every azimuth (turning) or the line's own.
-    // Where the profile resolves the marks, they alone place it (the form taken out of
-    // both): a form error the job lacks — a decentre's cone, a radius error — would
-    // otherwise pull the axis, and on a sphere an axis shift is a tilt to first order.
-    let rows = if turning {
-        SCAN_ROWS
-    } else {
-        line_rows(line_azimuth)?.0
-    };
-    // The wide scan reads the point trace: averaging it over a binned line's runs (a
-    // tenth of a nanometre at sharp crests) matters to the fits, not to where it lies.
-    let unbinned = Instrument {
-        line_bin_mm: None,
-        ..m.instrument
-    };
-    let mut model = ForwardModel::covering(job, r_model, rows, unbinned, engine)?;
-    let surface = model.simulate(&|_| {})?;
-    // Marks too shallow to stand out of the noise place nothing (matching the noise
-    // would); nor do they fix the scale.
-    let noise = white_noise_mm(m, &m.height_mm);
-    let marks = spaced.filter(|f| marks_stand_out(m, noise, &surface.trace_along(0), *f, reach));
-    let scale = options.scale && marks.is_some();
-    // Without marks or form to place it, a compact feature far out of the noise — a
-    // centre height's boss or cone — is where the axis is.
-    let feature = (marked && marks.is_none())
-        .then(|| central_feature(m, noise))
-        .flatten();
-    let (a_min, a_max) = match feature {
-        Some((centre, half)) => ((centre - half).max(a_min), (centre + half).min(a_max)),
-        None => (a_min, a_max),
-    };
-    log(&format!(
-        "locating the profile: axis anywhere in {:.4}–{:.4} mm of the file{}{}",
-        m.file_position_of(DVec2::new(a_min, 0.0)).x,
-        m.file_position_of(DVec2::new(a_max, 0.0)).x,
-        if turning {
-            ", every azimuth of the spiral"
-        } else {
-            ""
-        },
-        if scale {
-            ", lateral scale within ±2 %"
-        } else {
-            ""
-        }
-    ));
-
-    let seen = |trace: Trace| match marks {
-        Some(f) => high_passed_trace(trace, 2.5 * f),
-        None => trace,
-    };
-    let traces: Vec<ScanTrace> = if turning {
-        (0..rows)
-            .map(|j| ScanTrace::new(TAU * j as f64 / rows as f64, surface.trace_along(j), &seen))
-            .collect()
-    } else {
-        let row = line_rows(line_azimuth)?.1;
-        vec![ScanTrace::new(
-            line_azimuth,
-            surface.trace_along(row),
-            &seen,
-        )]
-    };
-    let raw = subsample(m, REFINE_POINTS);
-    let judged = match marks {
-        Some(f) => high_passed(m, 2.5 * f),
-        None => m.clone(),
-    };
-    let step = typical.map_or((a_max - lo).max(hi - a_min) / 200.0, |f| f / 8.0);
     let power = options.terms.power;
-    let scales = match marks.filter(|_| scale) {
-        Some(f) => scale_grid(f, hi - lo),
-        None => vec![1.0],
-    };
-    let starts = wide_scan(
-        (&judged, marks.is_some().then_some(m)),
-        &traces,
-        grid(a_min, a_max, step),
-        &scales,
-        power,
-        typical.unwrap_or(step),
-    );
+    let raw = subsample(m, REFINE_POINTS);
     let m = &judged;
-    if starts.is_empty() {
-        return Err(DiagnoseError::DoesNotFit(
-            "no placement of the profile keeps its points on the simulated part".into(),
-        ));
-    }
 
     // Refine each start: the azimuth by golden section (a fresh two-row simulation per
     // trial), the axis by Gauss–Newton.
     let fine = subsample(m, REFINE_POINTS);
-    let mut line = ForwardModel::covering(job, r_model, 2, m.instrument, model.engine())?;
+    let mut line = ForwardModel::covering(job, r_model, 2, m.instrument, engine)?;
     let row_step = TAU / rows as f64;
     // (the trace as simulated, and as judged: its form taken out where the marks rule).
     let mut trace_at = |phi: f64| -> Result<(Trace, Trace), DiagnoseError> {
@@ -336,7 +236,7 @@ fn locate_line(
         } else {
             surface.trace_along(line_rows(line_azimuth)?.1)
         };
-        Ok((as_simulated.clone(), seen(as_simulated)))
+        Ok((as_simulated.clone(), seen(as_simulated, marks)))
     };
     let scale_range = scale.then_some((1.0 - SCALE_BOUND, 1.0 + SCALE_BOUND));
     let mut refine = |a: f64,
@@ -392,33 +292,12 @@ fn locate_line(
             trace_at(best.azimuth_rad + h)?.1,
             trace_at(best.azimuth_rad - h)?.1,
         );
-        let (a, b) = (
-            ahead.sample(&fine.along_mm, fit.along, fit.scale),
-            behind.sample(&fine.along_mm, fit.along, fit.scale),
-        );
-        Some(
-            a.iter()
-                .zip(&b)
-                .map(|(p, q)| (p - q) / (2.0 * h))
-                .collect::<Vec<f64>>(),
-        )
+        Some(central_difference(&fine, &fit, (&ahead, &behind), h))
     } else {
         None
     };
     let sigmas = line_sigmas(&fine, &fit, azimuth_column.as_deref(), power, false);
-    log(&format!(
-        "axis at {:.4} mm of the file (± {:.4}), lateral scale {:.4}{}, residual {:.1} nm RMS",
-        m.file_position_of(best.frame.shift_mm.dot(m.line_direction()) * DVec2::X)
-            .x,
-        sigmas.along * m.file_per_mm,
-        best.frame.scale,
-        if turning {
-            format!(", azimuth {:.1}°", best.azimuth_rad.to_degrees())
-        } else {
-            String::new()
-        },
-        best.rms_mm * 1e6
-    ));
+    announce_placement(m, &best, &sigmas, turning, log);
     Ok(Located {
         frame: best.frame,
         azimuth_rad: best.azimuth_rad,
@@ -433,6 +312,227 @@ fn locate_line(
         marks_mm: marks,
         axis_range_mm: Some((a_min, a_max)),
     })
+}
+
+/// The wide search's outcome on a line: where the axis may lie (mm along it), the
+/// job's typical mark spacing and the marks that place the line (if they stand out),
+/// whether the scale is searched, the simulation scanned (its rows, the radius it
+/// covers) and its traces, the points as judged (the form taken out where the marks
+/// rule), the scan's step and the placements it found to refine.
+struct WideScan {
+    range: (f64, f64),
+    typical: Option<f64>,
+    marks: Option<f64>,
+    scale: bool,
+    rows: u32,
+    r_model: f64,
+    surface: SimulatedSurface,
+    traces: Vec<ScanTrace>,
+    judged: Measurement,
+    step: f64,
+    starts: Vec<Start>,
+}
+
+/// The wide search on one simulation — every azimuth (turning) or the line's own —
+/// for the axis anywhere that keeps the bulk of the points on the part.
+fn wide_line_scan(
+    job: &Job,
+    m: &Measurement,
+    line_azimuth: f64,
+    engine: &mut dyn RemovalEngine,
+    options: LocateOptions,
+    log: &dyn Fn(&str),
+) -> Result<WideScan, DiagnoseError> {
+    let outer = job.aperture.outer_radius_mm;
+    let (lo, hi) = (quantile(&m.along_mm, 0.02), quantile(&m.along_mm, 0.98));
+    let marked = mark_spacing_mm(job, outer).is_some();
+    let (a_min, a_max) = axis_range(m, (lo, hi), outer, (options.terms.shift, marked))?;
+    let reach = (hi - a_min).max(a_max - lo).min(outer);
+    let typical = local_mark_spacing_mm(job, 0.0, reach);
+    // Marks the profile resolves (six points a mark, six marks) may place it.
+    let spaced = typical.filter(|f| *f >= 6.0 * m.spacing_mm() && hi - lo >= 6.0 * f);
+    let turning = job.process.turning().is_some();
+    let room =
+        typical.unwrap_or(0.0) + 4.0 * job.pitch_mm + m.instrument.stylus_tip_mm.unwrap_or(0.0);
+    let r_model = (reach * (1.0 + SCALE_BOUND) + room).min(outer);
+
+    // Where the profile resolves the marks, they alone place it (the form taken out of
+    // both): a form error the job lacks — a decentre's cone, a radius error — would
+    // otherwise pull the axis, and on a sphere an axis shift is a tilt to first order.
+    let rows = if turning {
+        SCAN_ROWS
+    } else {
+        line_rows(line_azimuth)?.0
+    };
+    // The wide scan reads the point trace: averaging it over a binned line's runs (a
+    // tenth of a nanometre at sharp crests) matters to the fits, not to where it lies.
+    let unbinned = Instrument {
+        line_bin_mm: None,
+        ..m.instrument
+    };
+    let mut model = ForwardModel::covering(job, r_model, rows, unbinned, engine)?;
+    let surface = model.simulate(&|_| {})?;
+    // Marks too shallow to stand out of the noise place nothing (matching the noise
+    // would); nor do they fix the scale.
+    let noise = white_noise_mm(m, &m.height_mm);
+    let marks = spaced.filter(|f| marks_stand_out(m, noise, &surface.trace_along(0), *f, reach));
+    let scale = options.scale && marks.is_some();
+    // Without marks or form to place it, a compact feature far out of the noise — a
+    // centre height's boss or cone — is where the axis is.
+    let feature = (marked && marks.is_none())
+        .then(|| central_feature(m, noise))
+        .flatten();
+    let (a_min, a_max) = match feature {
+        Some((centre, half)) => ((centre - half).max(a_min), (centre + half).min(a_max)),
+        None => (a_min, a_max),
+    };
+    announce_line_search(m, (a_min, a_max), turning, scale, log);
+    let traces: Vec<ScanTrace> = if turning {
+        (0..rows)
+            .map(|j| {
+                let trace = surface.trace_along(j);
+                ScanTrace::new(TAU * j as f64 / rows as f64, trace, &|t| seen(t, marks))
+            })
+            .collect()
+    } else {
+        let row = line_rows(line_azimuth)?.1;
+        let trace = surface.trace_along(row);
+        vec![ScanTrace::new(line_azimuth, trace, &|t| seen(t, marks))]
+    };
+    let judged = match marks {
+        Some(f) => high_passed(m, 2.5 * f),
+        None => m.clone(),
+    };
+    let step = typical.map_or((a_max - lo).max(hi - a_min) / 200.0, |f| f / 8.0);
+    let scales = match marks.filter(|_| scale) {
+        Some(f) => scale_grid(f, hi - lo),
+        None => vec![1.0],
+    };
+    let starts = wide_scan(
+        (&judged, marks.is_some().then_some(m)),
+        &traces,
+        grid(a_min, a_max, step),
+        &scales,
+        options.terms.power,
+        typical.unwrap_or(step),
+    );
+    if starts.is_empty() {
+        return Err(DiagnoseError::DoesNotFit(
+            "no placement of the profile keeps its points on the simulated part".into(),
+        ));
+    }
+    Ok(WideScan {
+        range: (a_min, a_max),
+        typical,
+        marks,
+        scale,
+        rows,
+        r_model,
+        surface,
+        traces,
+        judged,
+        step,
+        starts,
+    })
+}
+
+/// Axis positions along the line (mm) that keep the bulk of the points — those between
+/// the 2nd and 98th percentiles, `lo`–`hi` — on a part of radius `outer`, where the
+/// process leaves marks to place the line by. Without marks (a generated sphere) a
+/// shift is a tilt to first order and only a central feature tells: the axis is looked
+/// for near where the file puts it. None searched: at the file's zero.
+fn axis_range(
+    m: &Measurement,
+    (lo, hi): (f64, f64),
+    outer: f64,
+    (shift, marked): (bool, bool),
+) -> Result<(f64, f64), DiagnoseError> {
+    let near = shift_room_mm(m);
+    let (a_min, a_max) = match (shift, marked) {
+        (false, _) => (0.0, 0.0),
+        (true, true) => (hi - outer, lo + outer),
+        (true, false) => ((hi - outer).max(-near), (lo + outer).min(near)),
+    };
+    if a_min > a_max {
+        return Err(DiagnoseError::DoesNotFit(format!(
+            "the profile spans {:.4} mm (between its 2nd and 98th percentile points), more than the part's diameter of {:.4} mm: a lateral unit error, or another part",
+            hi - lo,
+            2.0 * outer
+        )));
+    }
+    Ok((a_min, a_max))
+}
+
+/// A trace as the line's placement judges it: the form taken out (high-passed at two
+/// and a half marks) where the marks place the line.
+fn seen(trace: Trace, marks: Option<f64>) -> Trace {
+    match marks {
+        Some(f) => high_passed_trace(trace, 2.5 * f),
+        None => trace,
+    }
+}
+
+/// Per point of `fine`, the change of the placed trace with the azimuth: the central
+/// difference of the traces `h` (rad) ahead and behind, read where `fit` places them.
+fn central_difference(
+    fine: &Measurement,
+    fit: &LineFit,
+    (ahead, behind): (&Trace, &Trace),
+    h: f64,
+) -> Vec<f64> {
+    let (a, b) = (
+        ahead.sample(&fine.along_mm, fit.along, fit.scale),
+        behind.sample(&fine.along_mm, fit.along, fit.scale),
+    );
+    a.iter().zip(&b).map(|(p, q)| (p - q) / (2.0 * h)).collect()
+}
+
+/// Says where the line's axis is searched (in the file's positions), and what else.
+fn announce_line_search(
+    m: &Measurement,
+    (a_min, a_max): (f64, f64),
+    turning: bool,
+    scale: bool,
+    log: &dyn Fn(&str),
+) {
+    log(&format!(
+        "locating the profile: axis anywhere in {:.4}–{:.4} mm of the file{}{}",
+        m.file_position_of(DVec2::new(a_min, 0.0)).x,
+        m.file_position_of(DVec2::new(a_max, 0.0)).x,
+        if turning {
+            ", every azimuth of the spiral"
+        } else {
+            ""
+        },
+        if scale {
+            ", lateral scale within ±2 %"
+        } else {
+            ""
+        }
+    ));
+}
+
+/// Says where the placement put the line's axis, its scale, azimuth and residual.
+fn announce_placement(
+    m: &Measurement,
+    best: &Placement,
+    sigmas: &LineSigmas,
+    turning: bool,
+    log: &dyn Fn(&str),
+) {
+    log(&format!(
+        "axis at {:.4} mm of the file (± {:.4}), lateral scale {:.4}{}, residual {:.1} nm RMS",
+        m.file_position_of(best.frame.shift_mm.dot(m.line_direction()) * DVec2::X)
+            .x,
+        sigmas.along * m.file_per_mm,
+        best.frame.scale,
+        if turning {
+            format!(", azimuth {:.1}°", best.azimuth_rad.to_degrees())
+        } else {
+            String::new()
+        },
+        best.rms_mm * 1e6
+    ));
 }
 
 /// Whether the marks of `trace` (a mark `mark_mm` apart, the form taken out as the
