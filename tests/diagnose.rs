@@ -801,9 +801,12 @@ seed = 94
 /// edge spans 0.6 and 1.3 of their cycles: the suite's case 094. One order beside an X
 /// decentre (its cone standing in for the low order's bend) explains the data to the
 /// noise; so do two orders. The decentre must not be claimed: either the two orders
-/// are found, or the verdict says the explanations cannot be told apart. (Before: "the
-/// tool stops 0.558 ± 0.023 µm short of the axis" beside order 50.5. On 1 µm rings with
-/// another draw both orders are found, before and now.)
+/// are found, or the verdict says the explanations cannot be told apart, or that
+/// nothing modelled explains the gap. (Before: "the tool stops 0.558 ± 0.023 µm short
+/// of the axis" beside order 50.5. On 1 µm rings with another draw both orders are
+/// found, before and now. Since vibrations slower than two cycles across the data are
+/// no longer tried, no near-DC vibration's pair ties the decentre's: the verdict is
+/// `unexplained_residual`, nothing claimed.)
 #[test]
 fn two_waviness_orders_are_never_claimed_as_a_decentre_beside_one() {
     let base = withheld::TURNING_SPHERE.job;
@@ -822,7 +825,7 @@ fn two_waviness_orders_are_never_claimed_as_a_decentre_beside_one() {
         assert_eq!(a.effect, "edge_waviness", "{}", d.verdict.sentence);
     }
     assert!(
-        ["effects_found", "ambiguous"].contains(&d.verdict.status.as_str()),
+        ["effects_found", "ambiguous", "unexplained_residual"].contains(&d.verdict.status.as_str()),
         "{}",
         d.verdict.sentence
     );

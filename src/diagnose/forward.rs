@@ -716,11 +716,7 @@ impl SimulatedSurface {
         let offsets = self.midpoints(frame.scale);
         let read = |p: &DVec2| {
             let p = frame.to_part(*p);
-            let mut values = offsets.iter().map(|o| self.at(p + *o));
-            match offsets.len() {
-                1 => values.next().unwrap_or(f64::NAN),
-                n => values.fold(0.0, |sum, v| sum + v) / n as f64,
-            }
+            pixel_mean(offsets.iter().map(|o| self.at(p + *o)), offsets.len())
         };
         measurement
             .xy_mm
@@ -894,13 +890,19 @@ impl SimulatedSurface {
             .chunks(per_pixel)
             .zip(rings.chunks(per_pixel))
             .map(|(pixel, on)| {
-                let mut values = pixel.iter().zip(on).map(|(p, r)| self.at_ring(*p, *r));
-                match per_pixel {
-                    1 => values.next().unwrap_or(f64::NAN),
-                    _ => values.fold(0.0, |sum, v| sum + v) / per_pixel as f64,
-                }
+                let values = pixel.iter().zip(on).map(|(p, r)| self.at_ring(*p, *r));
+                pixel_mean(values, per_pixel)
             })
             .collect()
+    }
+}
+
+/// A pixel's value from its `n` reads: the one read, or their mean where the pixel
+/// averages its footprint (NaN where any read is).
+fn pixel_mean(mut reads: impl Iterator<Item = f64>, n: usize) -> f64 {
+    match n {
+        1 => reads.next().unwrap_or(f64::NAN),
+        _ => reads.fold(0.0, |sum, v| sum + v) / n as f64,
     }
 }
 

@@ -534,8 +534,11 @@ fn register_near(
                 .into_iter()
                 .take(search.refine)
                 .map(|k| {
-                    let on_all = |shift: DVec2| objective(m, shift);
-                    refine_shift(m, sim, terms.power, &on_all, grid_shift(k), 0.25 * width)
+                    let on_all = |shift: DVec2, simulated: &[f64]| {
+                        kept(judge(m, simulated, shift), m)
+                    };
+                    let start = grid_shift(k);
+                    refine_shift(m, sim, (terms.power, mirrored), &on_all, start, 0.25 * width)
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0))
         }
@@ -982,23 +985,22 @@ impl LinearTerms {
 
 /// Gauss–Newton on a map's axis position from `start`: the model's slopes along X and
 /// Y (central differences over `h`) are fitted with piston and tilt as one linear
-/// step; a step is kept only while it lowers `objective`, else it is halved once.
+/// step; a step is kept only while it lowers `objective` (of a shift and the model
+/// sampled there, which the next step starts from), else it is halved once.
 fn refine_shift(
     m: &Measurement,
     sim: &SimulatedSurface,
-    power: bool,
-    objective: &dyn Fn(DVec2) -> f64,
+    (power, mirrored): (bool, bool),
+    objective: &dyn Fn(DVec2, &[f64]) -> f64,
     start: DVec2,
     h: f64,
 ) -> (f64, DVec2) {
-    let (mut at, mut best) = (start, objective(start));
+    let sample = |at: DVec2| sim.sample(m, Frame::at(at).mirrored(mirrored));
+    let mut model = sample(start);
+    let (mut at, mut best) = (start, objective(start, &model));
     for _ in 0..8 {
-        let model = sim.sample(m, Frame::at(at));
         let slope = |d: DVec2| -> Vec<f64> {
-            let (ahead, behind) = (
-                sim.sample(m, Frame::at(at + d)),
-                sim.sample(m, Frame::at(at - d)),
-            );
+            let (ahead, behind) = (sample(at + d), sample(at - d));
             ahead
                 .iter()
                 .zip(&behind)
@@ -1009,14 +1011,17 @@ fn refine_shift(
         let terms = LinearTerms::new(m, &model, at, power);
         let c = terms.solve(m, &model, &columns);
         let step = DVec2::new(c[terms.width], c[terms.width + 1]);
-        let Some((value, next)) = [step, 0.5 * step]
+        let Some((value, next, there)) = [step, 0.5 * step]
             .into_iter()
-            .map(|s| (objective(at + s), at + s))
-            .find(|(value, _)| *value < best)
+            .map(|s| {
+                let there = sample(at + s);
+                (objective(at + s, &there), at + s, there)
+            })
+            .find(|(value, ..)| *value < best)
         else {
             break;
         };
-        (at, best) = (next, value);
+        (at, best, model) = (next, value, there);
         if step.length() < 1e-6 {
             break;
         }

@@ -20,6 +20,11 @@ use std::f64::consts::TAU;
 const MAX_RATES: usize = 20_000;
 /// Local maxima of the grid refined by golden section.
 const REFINED: usize = 6;
+/// Fewest cycles a vibration makes across the data to be tried: a slower one is a form
+/// term to this data (a drift's ramp, a decentre's cone), which the candidates that
+/// are form terms fit; tried as a vibration it came back as a runner-up at 0.007/rev
+/// on 3 mm profiles and its pairs took half of a diagnosis's time (suite case 012).
+const MIN_CYCLES: f64 = 2.0;
 
 /// One measured point as the screen sees it.
 #[derive(Debug, Clone, Copy)]
@@ -102,8 +107,8 @@ pub fn screen_rate(
 }
 
 /// Rates to try: whole orders for a tilt (up to 60); for a vibration steps of a quarter
-/// cycle over the revolutions the data spans, from one such step up to 1 cycle per
-/// revolution on a line or to the job files' bound on a map; on a map below `nyquist`
+/// cycle over the revolutions the data spans, from [`MIN_CYCLES`] across the data up to
+/// 1 cycle per revolution on a line or to the job files' bound on a map; on a map below `nyquist`
 /// (see [`screen_rate`]). A line through the axis
 /// sees the clock at two spindle angles half a turn apart only, t = 2πm or 2πm + π, so
 /// rates k + 2 and 2 − k (with the phase mirrored) leave the same trace as k, and a
@@ -119,7 +124,10 @@ fn rate_grid(candidate: Candidate, revolutions: f64, line: bool, nyquist: f64) -
     }
     let step = (0.25 / revolutions).max(top / MAX_RATES as f64);
     let count = (top / step).floor() as usize;
-    (1..=count).map(|i| i as f64 * step).collect()
+    (1..=count)
+        .map(|i| i as f64 * step)
+        .filter(|k| k * revolutions >= MIN_CYCLES)
+        .collect()
 }
 
 /// Indices of the grid's local maxima, highest first.
@@ -298,6 +306,36 @@ mod tests {
         assert!((a.hypot(b) - 3e-6).abs() < 0.1e-6, "A = {}", a.hypot(b));
         assert!(((-b).atan2(a) - 0.5).abs() < 0.05, "φ = {}", (-b).atan2(a));
         assert!(share > 0.5);
+    }
+
+    #[test]
+    fn a_vibration_slower_than_two_cycles_across_the_data_is_not_tried() {
+        // One cycle across the data's ~100 revolutions (0.01/rev): a form term.
+        let data = points(|t, _| 3e-6 * (0.01 * t + 0.5).cos());
+        let span = data
+            .iter()
+            .map(|p| p.clock_rad)
+            .fold(f64::NEG_INFINITY, f64::max)
+            - data
+                .iter()
+                .map(|p| p.clock_rad)
+                .fold(f64::INFINITY, f64::min);
+        let revolutions = span / TAU;
+        let candidate = Candidate::Vibration {
+            cycles: 0.0,
+            depth: true,
+        };
+        let (k, _, _) = screen_rate(candidate, &data, true, f64::INFINITY).unwrap();
+        assert!(
+            k * revolutions >= MIN_CYCLES - 1e-9,
+            "k = {k} over {revolutions} revolutions"
+        );
+        // Three cycles across the same data: tried, and found.
+        let k3 = 3.0 / revolutions;
+        let data = points(|t, _| 3e-6 * (k3 * t + 0.5).cos());
+        let (k, _, share) = screen_rate(candidate, &data, true, f64::INFINITY).unwrap();
+        assert!((k - k3).abs() < 0.02 * k3, "k = {k}, made at {k3}");
+        assert!(share > 0.9, "share {share}");
     }
 
     /// A diameter over an R8 convex sphere at 1 µm steps (edge angles 0 to −10.8°):

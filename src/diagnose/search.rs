@@ -289,7 +289,9 @@ fn fit_singles(
 /// members are fits, the partner removes a tenth of what the runner-up leaves, and the
 /// pair predicts the data it was not fitted on. A pair that passes the same tests but
 /// only ties the accepted set (within [`TIE_EVIDENCE`] of it, short of the threshold)
-/// is kept in `found.alternative`: the data cannot tell the two explanations apart.
+/// is kept in `found.alternative`: the data cannot tell the two explanations apart —
+/// unless the pair holds every effect of the accepted set and more: then the extras
+/// are unearned and the accepted set stands (nested families are judged by parsimony).
 fn rival_pair<'a>(
     problem: &mut Problem<'a, '_>,
     found: &mut Search,
@@ -356,6 +358,13 @@ fn rival_pair<'a>(
         ));
         return Ok(None);
     }
+    if ties && holds_every_effect_of(&pair, current) {
+        log(&format!(
+            "{label} holds {} and more, yet only ties it (ΔBIC {gain:.1}): the data does not ask for the rest, the simpler set stands",
+            labels(&current.set)
+        ));
+        return Ok(None);
+    }
     let members = pair.effect_members();
     if let Some(why) = members
         .iter()
@@ -394,6 +403,18 @@ fn rival_pair<'a>(
         return Ok(None);
     }
     Ok(Some(pair))
+}
+
+/// Whether `larger` holds every effect of `smaller` (by kind, as many of each): a
+/// set nested in another's family, so a tie between them is no tie but the larger
+/// one's extra effects unearned (a waviness alone, made so, tied "axial drift +
+/// waviness" at another order within 0.3 on the ΔBIC scale).
+fn holds_every_effect_of(larger: &Fit, smaller: &Fit) -> bool {
+    let count = |f: &Fit, kind: &str| f.effects().iter().filter(|c| c.kind() == kind).count();
+    smaller
+        .effects()
+        .iter()
+        .all(|c| count(larger, c.kind()) >= count(smaller, c.kind()))
 }
 
 /// An accepted edge waviness beside set-up effects may be two waviness orders whose
