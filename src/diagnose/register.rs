@@ -534,11 +534,17 @@ fn register_near(
                 .into_iter()
                 .take(search.refine)
                 .map(|k| {
-                    let on_all = |shift: DVec2, simulated: &[f64]| {
-                        kept(judge(m, simulated, shift), m)
-                    };
+                    let on_all =
+                        |shift: DVec2, simulated: &[f64]| kept(judge(m, simulated, shift), m);
                     let start = grid_shift(k);
-                    refine_shift(m, sim, (terms.power, mirrored), &on_all, start, 0.25 * width)
+                    refine_shift(
+                        m,
+                        sim,
+                        (terms.power, mirrored),
+                        &on_all,
+                        start,
+                        0.25 * width,
+                    )
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0))
         }

@@ -358,7 +358,7 @@ fn rival_pair<'a>(
         ));
         return Ok(None);
     }
-    if ties && holds_every_effect_of(&pair, current) {
+    if ties && holds_every_effect_of(&pair.set, &current.set) {
         log(&format!(
             "{label} holds {} and more, yet only ties it (ΔBIC {gain:.1}): the data does not ask for the rest, the simpler set stands",
             labels(&current.set)
@@ -405,15 +405,19 @@ fn rival_pair<'a>(
     Ok(Some(pair))
 }
 
-/// Whether `larger` holds every effect of `smaller` (by kind, as many of each): a
-/// set nested in another's family, so a tie between them is no tie but the larger
-/// one's extra effects unearned (a waviness alone, made so, tied "axial drift +
-/// waviness" at another order within 0.3 on the ΔBIC scale).
-fn holds_every_effect_of(larger: &Fit, smaller: &Fit) -> bool {
-    let count = |f: &Fit, kind: &str| f.effects().iter().filter(|c| c.kind() == kind).count();
+/// Whether set `larger` holds every effect of set `smaller` (by kind, as many of each;
+/// registration members aside): a set nested in another's family, so a tie between
+/// them is no tie but the larger one's extra effects unearned (a waviness alone, made
+/// so, tied "axial drift + waviness" at another order within 0.3 on the ΔBIC scale).
+fn holds_every_effect_of(larger: &[Candidate], smaller: &[Candidate]) -> bool {
+    let count = |set: &[Candidate], kind: &str| {
+        set.iter()
+            .filter(|c| !c.is_registration() && c.kind() == kind)
+            .count()
+    };
     smaller
-        .effects()
         .iter()
+        .filter(|c| !c.is_registration())
         .all(|c| count(larger, c.kind()) >= count(smaller, c.kind()))
 }
 
@@ -1725,4 +1729,29 @@ fn waviness_orders(job: &Job, m: &Measurement) -> Vec<f64> {
     let step = (0.5 * std::f64::consts::PI / span).max((k_max - k_min) / 20.0);
     let count = ((k_max - k_min) / step).floor() as usize + 1;
     (0..count).map(|i| k_min + i as f64 * step).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_set_holds_another_only_with_every_effect_as_many_times() {
+        let waviness = Candidate::EdgeWaviness { order: 19.2 };
+        let other_order = Candidate::EdgeWaviness { order: 24.3 };
+        let (drift, decentre) = (Candidate::AxialDrift, Candidate::XDecentre);
+        let placed = [Candidate::LateralScale, waviness];
+        // Registration members aside; an order is the same effect at another value.
+        assert!(holds_every_effect_of(&[drift, other_order], &placed));
+        assert!(!holds_every_effect_of(&[drift, decentre], &placed));
+        // Two orders are not held by one.
+        assert!(!holds_every_effect_of(
+            &[drift, waviness],
+            &[waviness, other_order]
+        ));
+        assert!(holds_every_effect_of(
+            &[waviness, drift, other_order],
+            &[other_order, waviness]
+        ));
+    }
 }
