@@ -966,7 +966,9 @@ impl LinearTerms {
     /// measured − simulated (zeros when singular).
     pub fn solve(&self, m: &Measurement, simulated: &[f64], extra: &[Vec<f64>]) -> Vec<f64> {
         let width = self.width + extra.len();
-        let mut normal = vec![vec![0.0; width]; width];
+        // The upper triangle, flat (a product is the same both ways round: the lower
+        // half is its mirror to the bit).
+        let mut upper = vec![0.0; width * width];
         let mut rhs = vec![0.0; width];
         let mut row = vec![0.0; width];
         for &i in &self.used {
@@ -980,11 +982,18 @@ impl LinearTerms {
             let target = m.height_mm[i] - simulated[i];
             for a in 0..width {
                 rhs[a] += row[a] * target;
-                for b in 0..width {
-                    normal[a][b] += row[a] * row[b];
+                for b in a..width {
+                    upper[a * width + b] += row[a] * row[b];
                 }
             }
         }
+        let normal: Vec<Vec<f64>> = (0..width)
+            .map(|a| {
+                (0..width)
+                    .map(|b| upper[a.min(b) * width + a.max(b)])
+                    .collect()
+            })
+            .collect();
         solve_linear(&normal, &rhs).unwrap_or_else(|| vec![0.0; width])
     }
 }
