@@ -8,60 +8,39 @@
 use crate::engine::RemovalEngine;
 use crate::engine::cpu::CpuEngine;
 use crate::engine::gpu::GpuEngine;
-use crate::model::Job;
+use crate::geometry::Form;
+use crate::model::{GeneratingSpec, Job, JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec};
 use crate::pipeline::{prepare_scenes, remove_all, simulate};
 use std::path::Path;
 use std::time::Instant;
 
 /// A flat facing job of the given aperture radius (mm) used for scaling and tiling.
 pub fn facing_job(radius_mm: f64, feed_mm: f64, pitch_um: f64, azimuths: u32) -> Job {
-    let text = format!(
-        r#"version = 1
-name = "bench facing r{radius_mm}"
-[surface]
-kind = "plane"
-aperture_diameter_mm = {diameter}
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = {feed_mm}
-[grid]
-pitch_um = {pitch_um}
-azimuths = {azimuths}
-"#,
-        diameter = 2.0 * radius_mm
-    );
-    Job::from_toml_str(&text, "bench").expect("the bench job is valid")
+    JobFile::new(
+        SurfaceSpec::plane(2.0 * radius_mm),
+        ToolSpec::arc_nose(0.5, 120.0),
+        ProcessSpec::Turning(TurningSpec::xz(feed_mm)),
+    )
+    .named(&format!("bench facing r{radius_mm}"))
+    .grid(pitch_um, azimuths)
+    .check()
+    .expect("the bench job is valid")
 }
 
 /// The generating benchmark: a toothed wheel, where every sample solves its passes.
 fn generating_teeth_job() -> Job {
-    let text = r#"version = 1
-name = "bench generating teeth"
-[surface]
-kind = "sphere"
-form = "concave"
-radius_mm = 53.5
-aperture_diameter_mm = 6.0
-[tool]
-kind = "cup_wheel"
-cutting_radius_mm = 3.5
-edge_radius_mm = 0.5
-teeth = 6
-[process]
-kind = "generating"
-tool_rpm = 1000.0
-workpiece_rpm = 10.0
-spark_out_revolutions = 1.5
-[grid]
-pitch_um = 5.0
-azimuths = 4096
-"#;
-    Job::from_toml_str(text, "bench").expect("the bench job is valid")
+    JobFile::new(
+        SurfaceSpec::sphere(Form::Concave, 53.5, 6.0),
+        ToolSpec::cup_wheel(3.5, 0.5, 6),
+        ProcessSpec::Generating(GeneratingSpec {
+            spark_out_revolutions: Some(1.5),
+            ..GeneratingSpec::at_speeds(1000.0, 10.0)
+        }),
+    )
+    .named("bench generating teeth")
+    .grid(5.0, 4096)
+    .check()
+    .expect("the bench job is valid")
 }
 
 /// The milling benchmark, every tool: a ball on a spiral (the early stop of the pass

@@ -53,7 +53,7 @@ fn build_job(
 }
 
 fn toml_job(text: &str) -> PyResult<JobFile> {
-    toml::from_str(text).map_err(|e| job_error("job", e))
+    JobFile::from_toml_str(text).map_err(from_lib)
 }
 
 fn open_engine(name: &str, _job: &Job) -> PyResult<Box<dyn RemovalEngine>> {

@@ -159,7 +159,9 @@ fn write_correction(
     )?;
     let mut compensated = job.resolved.clone();
     compensated.name = Some(format!("{} (compensated)", job.name));
-    compensated.process.compensation = Some(PathBuf::from("correction.csv"));
+    let compensated = compensated
+        .with_compensation(PathBuf::from("correction.csv"))
+        .map_err(|e| Failure::Runtime(e.to_string()))?;
     let toml = toml::to_string_pretty(&compensated).map_err(|e| Failure::Runtime(e.to_string()))?;
     write_file(
         out,

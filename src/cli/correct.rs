@@ -103,8 +103,9 @@ fn corrected_toml(
 ) -> Result<String, Failure> {
     let mut file: JobFile = job.resolved.clone();
     file.name = Some(format!("{} (corrected)", job.name));
-    file.process.inclination_deg = Some(inclination_deg);
-    file.process.cutter_offset_mm = Some(offset_mm);
+    let file = file
+        .with_generator_setting(inclination_deg, offset_mm)
+        .map_err(|e| Failure::Runtime(e.to_string()))?;
     let text = toml::to_string_pretty(&file).map_err(|e| Failure::Runtime(e.to_string()))?;
     Ok(format!("# {} — {why}\n{text}", job.name))
 }

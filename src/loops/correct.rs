@@ -212,12 +212,11 @@ pub fn central_pv_nm(grid: &PolarGrid, field: &DexelField, zone_radius_mm: f64) 
 /// the job as resolved and checked again (nothing edits a checked job), so a setting
 /// out of the machine's range is refused by name.
 fn with_settings(job: &Job, inclination_rad: f64, offset_mm: f64) -> Result<Job, EngineError> {
-    let mut file = job.resolved.clone();
     let name = format!("{} (corrected)", job.name);
+    let mut file = job.resolved.clone();
     file.name = Some(name.clone());
-    file.process.inclination_deg = Some(inclination_rad.to_degrees());
-    file.process.cutter_offset_mm = Some(offset_mm);
-    Job::from_file(file, &name, Path::new("."))
+    file.with_generator_setting(inclination_rad.to_degrees(), offset_mm)
+        .and_then(|file| Job::from_file(file, &name, Path::new(".")))
         .map_err(|e| EngineError(format!("the corrected set-up is not a valid job: {e}")))
 }
 

@@ -95,7 +95,7 @@
 //!                            #   tooth j's at φ + 360°·j/teeth, right-handed about the axis
 //! ```
 
-use super::{JobError, ProcessKind, ToolSpec};
+use super::{ArcNoseSpec, JobError, ProcessKind};
 use crate::formats::measured::read_edge_csv;
 use crate::geometry::ArcNoseTool;
 use crate::geometry::milling_tool::MillingTool;
@@ -875,7 +875,7 @@ const EDGE_PROFILE_SAMPLES: usize = 2001;
 /// of the measured arc (taken as the tip).
 pub fn apply_edge_profile(
     effects: &mut TurningEffects,
-    spec: &ToolSpec,
+    spec: &ArcNoseSpec,
     profile: &Path,
     tool: &ArcNoseTool,
     mode: TurningMode,

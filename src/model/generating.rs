@@ -4,8 +4,8 @@
 use super::effects::generating_effects;
 use super::surface;
 use super::{
-    Aperture, JobError, JobFile, ProcessSpec, SurfaceKind, ToolKind, check, error, reject_unused,
-    required,
+    Aperture, CupWheelSpec, GeneratingSpec, JobError, JobFile, ProcessSpec, SurfaceKind, ToolSpec,
+    check, error, required,
 };
 use crate::geometry::cup_wheel::{CupWheel, inclination_for};
 use crate::geometry::{Form, SurfaceOfRevolution};
@@ -16,13 +16,12 @@ pub const MIN_SPEED_RATIO: f64 = 10.0;
 
 pub fn validate_generating(
     file: &JobFile,
+    spec: &GeneratingSpec,
     resolved: &mut JobFile,
     warnings: &mut Vec<String>,
 ) -> Result<(SurfaceOfRevolution, Aperture, Process), JobError> {
-    let spec = &file.process;
-    reject_other_processes(spec)?;
     let wheel = validate_wheel(file)?;
-    if file.surface.kind != SurfaceKind::Sphere {
+    if file.surface.kind() != SurfaceKind::Sphere {
         return Err(error(
             "surface.kind",
             "a generator makes spheres; allowed with process.kind = \"generating\": \"sphere\"",
@@ -119,15 +118,21 @@ pub fn validate_generating(
     }
     let effects = generating_effects(&file.effects, &setup)?;
 
-    resolved.tool.teeth = Some(wheel.teeth);
-    resolved.process.inclination_deg = Some(inclination_rad.to_degrees());
-    resolved.process.plunge_axis = Some(plunge_axis);
-    resolved.process.tool_rpm = Some(tool_rpm);
-    resolved.process.workpiece_rpm = Some(workpiece_rpm);
-    resolved.process.spark_out_revolutions = Some(spark_out_revolutions);
-    resolved.process.tooth_phase_deg = Some(tooth_phase_deg);
-    resolved.process.stock_allowance_mm = Some(stock_allowance_mm);
-    resolved.process.cutter_offset_mm = Some(cutter_offset_mm);
+    resolved.tool = ToolSpec::CupWheel(CupWheelSpec {
+        cutting_radius_mm: Some(wheel.cutting_radius_mm),
+        edge_radius_mm: Some(wheel.edge_radius_mm),
+        teeth: Some(wheel.teeth),
+    });
+    resolved.process = ProcessSpec::Generating(GeneratingSpec {
+        inclination_deg: Some(inclination_rad.to_degrees()),
+        plunge_axis: Some(plunge_axis),
+        tool_rpm: Some(tool_rpm),
+        workpiece_rpm: Some(workpiece_rpm),
+        spark_out_revolutions: Some(spark_out_revolutions),
+        tooth_phase_deg: Some(tooth_phase_deg),
+        stock_allowance_mm: Some(stock_allowance_mm),
+        cutter_offset_mm: Some(cutter_offset_mm),
+    });
     Ok((
         surface,
         aperture,
@@ -135,43 +140,9 @@ pub fn validate_generating(
     ))
 }
 
-/// The turning and milling keys a generating job must not carry.
-fn reject_other_processes(spec: &ProcessSpec) -> Result<(), JobError> {
-    reject_unused(
-        "process",
-        "generating",
-        &[
-            ("mode", spec.mode.is_some()),
-            ("feed_per_rev_mm", spec.feed_per_rev_mm.is_some()),
-            ("spindle_rpm", spec.spindle_rpm.is_some()),
-            ("feed_mm_per_min", spec.feed_mm_per_min.is_some()),
-            ("feed_along", spec.feed_along.is_some()),
-            ("depth_of_cut_mm", spec.depth_of_cut_mm.is_some()),
-            ("start_radius_mm", spec.start_radius_mm.is_some()),
-            ("end_radius_mm", spec.end_radius_mm.is_some()),
-            ("nc_program", spec.nc_program.is_some()),
-            ("nc_reference", spec.nc_reference.is_some()),
-            ("nc_feed_mode", spec.nc_feed_mode.is_some()),
-            ("nc_units", spec.nc_units.is_some()),
-            ("compensation", spec.compensation.is_some()),
-            ("path", spec.path.is_some()),
-            ("axes", spec.axes.is_some()),
-            ("stepover_mm", spec.stepover_mm.is_some()),
-            ("scallop_mm", spec.scallop_mm.is_some()),
-            ("raster_angle_deg", spec.raster_angle_deg.is_some()),
-            ("lead_deg", spec.lead_deg.is_some()),
-            ("tilt_deg", spec.tilt_deg.is_some()),
-            ("lead_end_deg", spec.lead_end_deg.is_some()),
-            ("tilt_end_deg", spec.tilt_end_deg.is_some()),
-            ("turn_deg", spec.turn_deg.is_some()),
-            ("feed_per_tooth_mm", spec.feed_per_tooth_mm.is_some()),
-        ],
-    )
-}
-
 /// The wheel's and the workpiece's speeds (rpm): the wheel must pass each point many
 /// times per workpiece turn.
-fn validate_speeds(spec: &ProcessSpec) -> Result<(f64, f64), JobError> {
+fn validate_speeds(spec: &GeneratingSpec) -> Result<(f64, f64), JobError> {
     let workpiece_rpm = check(
         "process.workpiece_rpm",
         spec.workpiece_rpm.unwrap_or(10.0),
@@ -196,43 +167,12 @@ fn validate_speeds(spec: &ProcessSpec) -> Result<(f64, f64), JobError> {
 }
 
 fn validate_wheel(file: &JobFile) -> Result<CupWheel, JobError> {
-    let spec = &file.tool;
-    if spec.kind != ToolKind::CupWheel {
+    let ToolSpec::CupWheel(spec) = &file.tool else {
         return Err(error(
             "tool.kind",
             "a generating job needs kind = \"cup_wheel\" (an arc-nosed tool is for process.kind = \"turning\")",
         ));
-    }
-    reject_unused(
-        "tool",
-        "cup_wheel",
-        &[
-            ("nose_radius_mm", spec.nose_radius_mm.is_some()),
-            ("included_angle_deg", spec.included_angle_deg.is_some()),
-            ("clearance_angle_deg", spec.clearance_angle_deg.is_some()),
-            ("edge_profile", spec.edge_profile.is_some()),
-            (
-                "edge_profile_smoothing_points",
-                spec.edge_profile_smoothing_points.is_some(),
-            ),
-            ("edge_profile_mirror", spec.edge_profile_mirror.is_some()),
-            ("diameter_mm", spec.diameter_mm.is_some()),
-            ("corner_radius_mm", spec.corner_radius_mm.is_some()),
-            ("insert_length_mm", spec.insert_length_mm.is_some()),
-            ("side_rake_deg", spec.side_rake_deg.is_some()),
-            ("lead_angle_deg", spec.lead_angle_deg.is_some()),
-            ("flutes", spec.flutes.is_some()),
-            ("helix_deg", spec.helix_deg.is_some()),
-            (
-                "tooth_radial_runout_mm",
-                spec.tooth_radial_runout_mm.is_some(),
-            ),
-            (
-                "tooth_axial_runout_mm",
-                spec.tooth_axial_runout_mm.is_some(),
-            ),
-        ],
-    )?;
+    };
     let cutting = required(
         "tool.cutting_radius_mm",
         spec.cutting_radius_mm,

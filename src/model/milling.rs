@@ -4,8 +4,8 @@
 use super::effects::milling_effects;
 use super::surface::{self, usable_at};
 use super::{
-    Aperture, FluteModel, JobError, JobFile, ProcessSpec, ToolKind, ToolSpec, check, error,
-    reject_unused, required,
+    Aperture, FluteModel, JobError, JobFile, MillToolSpec, MillingSpec, ProcessSpec, ToolKind,
+    ToolSpec, check, error, reject_unused, required,
 };
 use crate::geometry::SurfaceOfRevolution;
 use crate::geometry::cutter::Cutter;
@@ -20,19 +20,18 @@ const MAX_NODES: f64 = 2.0e7;
 
 pub fn validate_milling(
     file: &JobFile,
+    spec: &MillingSpec,
     resolved: &mut JobFile,
     warnings: &mut Vec<String>,
 ) -> Result<(SurfaceOfRevolution, Aperture, Process), JobError> {
-    let spec = &file.process;
-    reject_other_processes(spec)?;
-    let (tool, teeth) = validate_tool(&file.tool)?;
+    let (tool, teeth, tool_spec) = validate_tool(&file.tool)?;
     let (surface, aperture) = surface::validate(&file.surface)?;
     let path = required(
         "process.path",
         spec.path,
         "\"raster\", \"spiral\" or \"constant_scallop\"",
     )?;
-    let cylinder = file.surface.kind == super::SurfaceKind::Cylinder;
+    let cylinder = file.surface.kind() == super::SurfaceKind::Cylinder;
     if cylinder {
         check_cylinder_path(spec, path)?;
     }
@@ -75,7 +74,7 @@ pub fn validate_milling(
         tilt_rad: lean.tilt,
         turn_rad: lean.turn,
         feed_per_tooth_mm: feed_per_tooth,
-        flutes: validate_flutes(&file.tool, &tool, teeth, feed_per_tooth)?,
+        flutes: validate_flutes(tool_spec, &tool, teeth, feed_per_tooth)?,
         spindle_rpm,
         stock_allowance_mm: stock,
         depth_of_cut_mm: depth,
@@ -93,7 +92,10 @@ pub fn validate_milling(
     (setup.stepover_mm, setup.scallop_mm) = plan_stepover(spec, path, &surface, &tool, profile)?;
     setup.contact_radius_mm = contact_radius_mm(&surface, &aperture, &tool, setup.stepover_mm);
     if cylinder {
-        setup.part_length_mm = file.surface.length_mm;
+        setup.part_length_mm = match &file.surface {
+            super::SurfaceSpec::Cylinder(cylinder) => cylinder.length_mm,
+            _ => None,
+        };
     }
     if path == MillingPathKind::ConstantScallop {
         setup.stepover_mm = tightest_spacing_mm(&setup, &surface);
@@ -118,39 +120,8 @@ pub fn validate_milling(
     ))
 }
 
-/// The turning and generating keys a milling job must not carry.
-fn reject_other_processes(spec: &ProcessSpec) -> Result<(), JobError> {
-    reject_unused(
-        "process",
-        "milling",
-        &[
-            ("mode", spec.mode.is_some()),
-            ("feed_per_rev_mm", spec.feed_per_rev_mm.is_some()),
-            ("feed_mm_per_min", spec.feed_mm_per_min.is_some()),
-            ("feed_along", spec.feed_along.is_some()),
-            ("start_radius_mm", spec.start_radius_mm.is_some()),
-            ("end_radius_mm", spec.end_radius_mm.is_some()),
-            ("nc_program", spec.nc_program.is_some()),
-            ("nc_reference", spec.nc_reference.is_some()),
-            ("nc_feed_mode", spec.nc_feed_mode.is_some()),
-            ("nc_units", spec.nc_units.is_some()),
-            ("compensation", spec.compensation.is_some()),
-            ("inclination_deg", spec.inclination_deg.is_some()),
-            ("plunge_axis", spec.plunge_axis.is_some()),
-            ("tool_rpm", spec.tool_rpm.is_some()),
-            ("workpiece_rpm", spec.workpiece_rpm.is_some()),
-            (
-                "spark_out_revolutions",
-                spec.spark_out_revolutions.is_some(),
-            ),
-            ("tooth_phase_deg", spec.tooth_phase_deg.is_some()),
-            ("cutter_offset_mm", spec.cutter_offset_mm.is_some()),
-        ],
-    )
-}
-
 /// A cylinder is milled in raster passes along its axis.
-fn check_cylinder_path(spec: &ProcessSpec, path: MillingPathKind) -> Result<(), JobError> {
+fn check_cylinder_path(spec: &MillingSpec, path: MillingPathKind) -> Result<(), JobError> {
     if path != MillingPathKind::Raster {
         return Err(error(
             "process.path",
@@ -177,7 +148,7 @@ struct Lean {
 }
 
 impl Lean {
-    fn validate(spec: &ProcessSpec, tool: &MillingTool) -> Result<Lean, JobError> {
+    fn validate(spec: &MillingSpec, tool: &MillingTool) -> Result<Lean, JobError> {
         let angle =
             |field: &str, value: Option<f64>, low: f64, high: f64| -> Result<f64, JobError> {
                 let degrees = value.unwrap_or(0.0);
@@ -264,7 +235,7 @@ impl Lean {
 /// step-over): given, or from the scallop at the centre's curvature (the
 /// constant-scallop spiral re-plans it at every radius); below the tool's cutting width.
 fn plan_stepover(
-    spec: &ProcessSpec,
+    spec: &MillingSpec,
     path: MillingPathKind,
     surface: &SurfaceOfRevolution,
     tool: &MillingTool,
@@ -375,61 +346,60 @@ fn check_path_size(setup: &MillingSetup, surface: &SurfaceOfRevolution) -> Resul
 }
 
 /// The defaults a milling job filled in, written back to the resolved job.
-fn record_resolved(resolved: &mut JobFile, spec: &ProcessSpec, setup: &MillingSetup, lean: &Lean) {
+fn record_resolved(resolved: &mut JobFile, spec: &MillingSpec, setup: &MillingSetup, lean: &Lean) {
     let [lead, lead_end] = lean.lead;
     let [tilt, tilt_end] = lean.tilt;
-    resolved.tool.teeth = Some(setup.teeth);
-    resolved.process.axes = Some(if setup.five_axis { 5 } else { 3 });
-    resolved.process.stepover_mm = (spec.scallop_mm.is_none()).then_some(setup.stepover_mm);
-    resolved.process.raster_angle_deg = Some(lean.raster_angle.to_degrees());
-    resolved.process.lead_deg = Some(lead.to_degrees());
-    resolved.process.tilt_deg = Some(tilt.to_degrees());
-    resolved.process.lead_end_deg = Some(lead_end.to_degrees());
-    resolved.process.tilt_end_deg = Some(tilt_end.to_degrees());
-    resolved.process.feed_per_tooth_mm = Some(setup.feed_per_tooth_mm);
-    if setup.feed_per_tooth_mm > 0.0 {
-        resolved.tool.flutes = Some(if setup.flutes.edges {
-            FluteModel::Edges
+    if let Some(tool) = resolved.tool.milling_mut() {
+        tool.teeth = Some(setup.teeth);
+        if setup.feed_per_tooth_mm > 0.0 {
+            tool.flutes = Some(if setup.flutes.edges {
+                FluteModel::Edges
+            } else {
+                FluteModel::Body
+            });
+        }
+    }
+    let disc = matches!(setup.tool, MillingTool::Disc(_));
+    resolved.process = ProcessSpec::Milling(MillingSpec {
+        axes: Some(if setup.five_axis { 5 } else { 3 }),
+        stepover_mm: (spec.scallop_mm.is_none()).then_some(setup.stepover_mm),
+        raster_angle_deg: Some(lean.raster_angle.to_degrees()),
+        lead_deg: Some(lead.to_degrees()),
+        tilt_deg: Some(tilt.to_degrees()),
+        lead_end_deg: Some(lead_end.to_degrees()),
+        tilt_end_deg: Some(tilt_end.to_degrees()),
+        feed_per_tooth_mm: Some(setup.feed_per_tooth_mm),
+        stock_allowance_mm: Some(setup.stock_allowance_mm),
+        depth_of_cut_mm: Some(setup.depth_of_cut_mm),
+        turn_deg: if disc {
+            Some(lean.turn.to_degrees())
         } else {
-            FluteModel::Body
-        });
-    }
-    resolved.process.stock_allowance_mm = Some(setup.stock_allowance_mm);
-    resolved.process.depth_of_cut_mm = Some(setup.depth_of_cut_mm);
-    if matches!(setup.tool, MillingTool::Disc(_)) {
-        resolved.process.turn_deg = Some(lean.turn.to_degrees());
-    }
+            spec.turn_deg
+        },
+        ..spec.clone()
+    });
 }
 
-fn validate_tool(spec: &ToolSpec) -> Result<(MillingTool, u32), JobError> {
-    let kind = spec.kind;
+fn validate_tool(spec: &ToolSpec) -> Result<(MillingTool, u32, &MillToolSpec), JobError> {
+    let kind = spec.kind();
+    let Some(spec) = spec.milling() else {
+        return Err(error(
+            "tool.kind",
+            "a milling job needs kind = \"ball_end\", \"bull_nose\", \"flat_end\" or \"disc\"",
+        ));
+    };
     let name = match kind {
         ToolKind::BallEnd => "ball_end",
         ToolKind::BullNose => "bull_nose",
         ToolKind::FlatEnd => "flat_end",
-        ToolKind::Disc => "disc",
-        _ => {
-            return Err(error(
-                "tool.kind",
-                "a milling job needs kind = \"ball_end\", \"bull_nose\", \"flat_end\" or \"disc\"",
-            ));
-        }
+        _ => "disc",
     };
+    // The milling tools share one table; a corner radius is a bull-nose's, the
+    // inserts' fields a disc's.
     reject_unused(
         "tool",
         name,
         &[
-            ("nose_radius_mm", spec.nose_radius_mm.is_some()),
-            ("included_angle_deg", spec.included_angle_deg.is_some()),
-            ("clearance_angle_deg", spec.clearance_angle_deg.is_some()),
-            ("edge_profile", spec.edge_profile.is_some()),
-            (
-                "edge_profile_smoothing_points",
-                spec.edge_profile_smoothing_points.is_some(),
-            ),
-            ("edge_profile_mirror", spec.edge_profile_mirror.is_some()),
-            ("cutting_radius_mm", spec.cutting_radius_mm.is_some()),
-            ("edge_radius_mm", spec.edge_radius_mm.is_some()),
             (
                 "corner_radius_mm",
                 spec.corner_radius_mm.is_some() && kind != ToolKind::BullNose,
@@ -511,14 +481,14 @@ fn validate_tool(spec: &ToolSpec) -> Result<(MillingTool, u32), JobError> {
             })
         }
     };
-    Ok((tool, teeth))
+    Ok((tool, teeth, spec))
 }
 
 /// How the teeth cut: `flutes` (edges by default), and for an end mill's edges the helix
 /// and per-tooth runout — all of which act only at each tooth's cut, so they need a feed
 /// per tooth.
 fn validate_flutes(
-    spec: &ToolSpec,
+    spec: &MillToolSpec,
     tool: &MillingTool,
     teeth: u32,
     feed_per_tooth: f64,

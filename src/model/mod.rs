@@ -7,6 +7,7 @@
 //! Lengths are in mm unless the name says otherwise; files named in a job are read
 //! relative to the job file's folder.
 
+mod builder;
 mod effects;
 mod generating;
 mod milling;
@@ -49,6 +50,49 @@ pub struct JobFile {
     pub effects: Vec<EffectSpec>,
 }
 
+impl JobFile {
+    /// A job file's text as its types (no validation yet). A wrong value inside the
+    /// `[surface]`, `[tool]` or `[process]` table is reported against its key: serde
+    /// reads a kind-tagged table whole, and its own message names only the table.
+    pub fn from_toml_str(text: &str) -> Result<JobFile, JobError> {
+        toml::from_str(text).map_err(|err| {
+            let field = tagged_field_error(text);
+            error(field.as_deref().unwrap_or("job"), err.to_string())
+        })
+    }
+
+    /// The same file with the generator set to an inclination and a cutter offset (what
+    /// `toolmark correct` writes); an error for another process.
+    pub fn with_generator_setting(
+        mut self,
+        inclination_deg: f64,
+        cutter_offset_mm: f64,
+    ) -> Result<JobFile, JobError> {
+        let ProcessSpec::Generating(spec) = &mut self.process else {
+            return Err(error(
+                "process.kind",
+                "a generator's setting applies to process.kind = \"generating\" only",
+            ));
+        };
+        spec.inclination_deg = Some(inclination_deg);
+        spec.cutter_offset_mm = Some(cutter_offset_mm);
+        Ok(self)
+    }
+
+    /// The same file with a turning job's normal correction table (what
+    /// `toolmark compensate` writes); an error for another process.
+    pub fn with_compensation(mut self, table: PathBuf) -> Result<JobFile, JobError> {
+        let ProcessSpec::Turning(spec) = &mut self.process else {
+            return Err(error(
+                "process.kind",
+                "a normal correction applies to process.kind = \"turning\" only",
+            ));
+        };
+        spec.compensation = Some(table);
+        Ok(self)
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SurfaceKind {
@@ -62,23 +106,109 @@ pub enum SurfaceKind {
     FromPath,
 }
 
+/// The `[surface]` table, one kind of surface per variant: a key another kind uses is
+/// refused as an unknown field of this one.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum SurfaceSpec {
+    Plane(PlaneSpec),
+    Sphere(SphereSpec),
+    Asphere(AsphereSpec),
+    /// A circular cylinder with its axis along Y (milling): `aperture_diameter_mm` the
+    /// width across the axis, `length_mm` along it.
+    Cylinder(CylinderSpec),
+    /// The surface an ideal tool cuts along the job's NC program (when no design is known).
+    FromPath(PlaneSpec),
+}
+
+impl SurfaceSpec {
+    pub fn kind(&self) -> SurfaceKind {
+        match self {
+            SurfaceSpec::Plane(_) => SurfaceKind::Plane,
+            SurfaceSpec::Sphere(_) => SurfaceKind::Sphere,
+            SurfaceSpec::Asphere(_) => SurfaceKind::Asphere,
+            SurfaceSpec::Cylinder(_) => SurfaceKind::Cylinder,
+            SurfaceSpec::FromPath(_) => SurfaceKind::FromPath,
+        }
+    }
+
+    /// The aperture's outer and inner diameters as given (a cylinder has no inner one).
+    pub fn aperture_diameters_mm(&self) -> (Option<f64>, f64) {
+        match self {
+            SurfaceSpec::Plane(p) | SurfaceSpec::FromPath(p) => {
+                (p.aperture_diameter_mm, p.inner_diameter_mm)
+            }
+            SurfaceSpec::Sphere(s) => (s.aperture_diameter_mm, s.inner_diameter_mm),
+            SurfaceSpec::Asphere(a) => (a.aperture_diameter_mm, a.inner_diameter_mm),
+            SurfaceSpec::Cylinder(c) => (c.aperture_diameter_mm, 0.0),
+        }
+    }
+
+    /// The same surface with another aperture (what a derived grid or a path's finished
+    /// part resolves to).
+    pub fn with_aperture(mut self, outer_diameter_mm: f64, inner_diameter_mm: f64) -> SurfaceSpec {
+        let (outer, inner) = match &mut self {
+            SurfaceSpec::Plane(p) | SurfaceSpec::FromPath(p) => {
+                (&mut p.aperture_diameter_mm, Some(&mut p.inner_diameter_mm))
+            }
+            SurfaceSpec::Sphere(s) => (&mut s.aperture_diameter_mm, Some(&mut s.inner_diameter_mm)),
+            SurfaceSpec::Asphere(a) => {
+                (&mut a.aperture_diameter_mm, Some(&mut a.inner_diameter_mm))
+            }
+            SurfaceSpec::Cylinder(c) => (&mut c.aperture_diameter_mm, None),
+        };
+        *outer = Some(outer_diameter_mm);
+        if let Some(inner) = inner {
+            *inner = inner_diameter_mm;
+        }
+        self
+    }
+}
+
+/// `[surface] kind = "plane"` (or `"from_path"`): the aperture only.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct SurfaceSpec {
-    pub kind: SurfaceKind,
-    /// Sphere and asphere: which side faces the tool.
+pub struct PlaneSpec {
+    /// Required, except for `from_path` (default: the part the path finishes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aperture_diameter_mm: Option<f64>,
+    /// A central hole not simulated (default 0).
+    #[serde(default)]
+    pub inner_diameter_mm: f64,
+}
+
+/// `[surface] kind = "sphere"`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereSpec {
+    /// Which side faces the tool.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub form: Option<Form>,
     /// Sphere radius.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radius_mm: Option<f64>,
-    /// Asphere base (paraxial) radius R0 = 1/c.
+    /// Required, except for `from_path` (default: the part the path finishes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aperture_diameter_mm: Option<f64>,
+    /// A central hole not simulated (default 0).
+    #[serde(default)]
+    pub inner_diameter_mm: f64,
+}
+
+/// `[surface] kind = "asphere"`: an even asphere.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AsphereSpec {
+    /// Which side faces the tool.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub form: Option<Form>,
+    /// Base (paraxial) radius R0 = 1/c.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base_radius_mm: Option<f64>,
-    /// Asphere conic constant k.
+    /// Conic constant k (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub conic: Option<f64>,
-    /// Even asphere coefficients: sag += a4·r⁴ + a6·r⁶ + … + a20·r²⁰ (r in mm).
+    /// Even coefficients: sag += a4·r⁴ + a6·r⁶ + … + a20·r²⁰ (r in mm).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub a4: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -100,14 +230,12 @@ pub struct SurfaceSpec {
     /// Required, except for `from_path` (default: the part the path finishes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub aperture_diameter_mm: Option<f64>,
+    /// A central hole not simulated (default 0).
     #[serde(default)]
     pub inner_diameter_mm: f64,
-    /// Cylinder: its length along Y.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub length_mm: Option<f64>,
 }
 
-impl SurfaceSpec {
+impl AsphereSpec {
     fn even_coefficients(&self) -> [(&'static str, Option<f64>); EVEN_TERMS] {
         [
             ("a4", self.a4),
@@ -121,6 +249,24 @@ impl SurfaceSpec {
             ("a20", self.a20),
         ]
     }
+}
+
+/// `[surface] kind = "cylinder"`: its axis along Y.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CylinderSpec {
+    /// Which side faces the tool.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub form: Option<Form>,
+    /// Radius.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius_mm: Option<f64>,
+    /// The width across the axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aperture_diameter_mm: Option<f64>,
+    /// The length along the axis (Y).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length_mm: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -141,13 +287,72 @@ pub enum ToolKind {
     Disc,
 }
 
-/// The `[tool]` table. Arc-nose fields: nose_radius_mm, included_angle_deg,
-/// clearance_angle_deg, edge_profile*; cup-wheel fields: cutting_radius_mm,
-/// edge_radius_mm, teeth.
+/// The `[tool]` table, one kind of tool per variant: a key another kind uses is refused
+/// as an unknown field of this one.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ToolSpec {
+    /// A single-point turning tool with a circular-arc nose.
+    ArcNose(ArcNoseSpec),
+    /// A lens generator's cup (ring) wheel.
+    CupWheel(CupWheelSpec),
+    /// Milling: a ball-end mill (diameter_mm).
+    BallEnd(MillToolSpec),
+    /// Milling: a bull-nose (toroidal) end mill (diameter_mm, corner_radius_mm).
+    BullNose(MillToolSpec),
+    /// Milling: a flat-end mill (diameter_mm).
+    FlatEnd(MillToolSpec),
+    /// Milling: a disc cutter with straight-edged inserts (diameter_mm at the inserts,
+    /// insert_length_mm, side_rake_deg, lead_angle_deg).
+    Disc(MillToolSpec),
+}
+
+impl ToolSpec {
+    pub fn kind(&self) -> ToolKind {
+        match self {
+            ToolSpec::ArcNose(_) => ToolKind::ArcNose,
+            ToolSpec::CupWheel(_) => ToolKind::CupWheel,
+            ToolSpec::BallEnd(_) => ToolKind::BallEnd,
+            ToolSpec::BullNose(_) => ToolKind::BullNose,
+            ToolSpec::FlatEnd(_) => ToolKind::FlatEnd,
+            ToolSpec::Disc(_) => ToolKind::Disc,
+        }
+    }
+
+    /// A milling tool's fields (None for a turning tool or a cup wheel).
+    pub fn milling(&self) -> Option<&MillToolSpec> {
+        match self {
+            ToolSpec::BallEnd(m)
+            | ToolSpec::BullNose(m)
+            | ToolSpec::FlatEnd(m)
+            | ToolSpec::Disc(m) => Some(m),
+            ToolSpec::ArcNose(_) | ToolSpec::CupWheel(_) => None,
+        }
+    }
+
+    /// A turning tool's measured edge, if it has one.
+    pub fn edge_profile(&self) -> Option<&Path> {
+        match self {
+            ToolSpec::ArcNose(a) => a.edge_profile.as_deref(),
+            _ => None,
+        }
+    }
+
+    fn milling_mut(&mut self) -> Option<&mut MillToolSpec> {
+        match self {
+            ToolSpec::BallEnd(m)
+            | ToolSpec::BullNose(m)
+            | ToolSpec::FlatEnd(m)
+            | ToolSpec::Disc(m) => Some(m),
+            ToolSpec::ArcNose(_) | ToolSpec::CupWheel(_) => None,
+        }
+    }
+}
+
+/// `[tool] kind = "arc_nose"`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ToolSpec {
-    pub kind: ToolKind,
+pub struct ArcNoseSpec {
     /// The nose radius the path assumes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub nose_radius_mm: Option<f64>,
@@ -168,19 +373,34 @@ pub struct ToolSpec {
     /// axis (true) or its rim (false, default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub edge_profile_mirror: Option<bool>,
-    /// Cup wheel: radius of the cutting circle (R_t).
+}
+
+/// `[tool] kind = "cup_wheel"`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CupWheelSpec {
+    /// Radius of the cutting circle (R_t).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cutting_radius_mm: Option<f64>,
-    /// Cup wheel: radius of the edge's profile about the cutting circle (r).
+    /// Radius of the edge's profile about the cutting circle (r).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub edge_radius_mm: Option<f64>,
-    /// Cup wheel: number of discrete cutting edges; 0 (default) = a continuous edge.
-    /// Milling: cutting edges (default 2).
+    /// Discrete cutting edges; 0 (default) = a continuous edge.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub teeth: Option<u32>,
-    /// Milling: the tool's diameter (end mills: outer; disc: at the inserts' middles).
+}
+
+/// `[tool] kind = "ball_end" | "bull_nose" | "flat_end" | "disc"`: a corner radius only on a
+/// bull-nose, the inserts' fields only on a disc (refused by name on the others).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MillToolSpec {
+    /// The tool's diameter (end mills: outer; disc: at the inserts' middles).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub diameter_mm: Option<f64>,
+    /// Cutting edges (default 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub teeth: Option<u32>,
     /// Bull-nose: the corner radius, (0, diameter/2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub corner_radius_mm: Option<f64>,
@@ -198,14 +418,14 @@ pub struct ToolSpec {
     /// tooth's position (faster).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub flutes: Option<FluteModel>,
-    /// Milling, end mill, edges: the flutes' helix angle, constant lead, [0, 60) (default 0).
+    /// The flutes' helix angle, constant lead, [0, 60) (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub helix_deg: Option<f64>,
-    /// Milling, end mill, edges: how far each tooth's edge stands beyond the nominal
+    /// How far each tooth's edge stands beyond the nominal
     /// radius (mm, one per tooth, [0, diameter/10]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tooth_radial_runout_mm: Option<Vec<f64>>,
-    /// Milling, end mill, edges: how far each tooth's tip lies below the nominal tip along
+    /// How far each tooth's tip lies below the nominal tip along
     /// the axis (mm, one per tooth, [−diameter/10, diameter/10]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tooth_axial_runout_mm: Option<Vec<f64>>,
@@ -245,20 +465,47 @@ impl NcUnits {
     }
 }
 
-/// The `[process]` table. Turning fields: mode, feeds, spindle_rpm, depth_of_cut_mm,
-/// start/end_radius_mm, nc_program, nc_reference, compensation; generating fields:
-/// inclination_deg, plunge_axis, tool_rpm, workpiece_rpm, spark_out_revolutions,
-/// tooth_phase_deg, cutter_offset_mm; both: stock_allowance_mm.
+/// The `[process]` table, one kind of process per variant (`kind = "turning" | "generating"
+/// | "milling"`): a key another kind uses is refused as an unknown field of this one.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ProcessSpec {
+    Turning(TurningSpec),
+    Generating(GeneratingSpec),
+    Milling(MillingSpec),
+}
+
+impl ProcessSpec {
+    pub fn kind(&self) -> ProcessKind {
+        match self {
+            ProcessSpec::Turning(_) => ProcessKind::Turning,
+            ProcessSpec::Generating(_) => ProcessKind::Generating,
+            ProcessSpec::Milling(_) => ProcessKind::Milling,
+        }
+    }
+
+    /// The stock allowance and the depth of cut, where the kind has them.
+    fn stock_and_depth(&self) -> (Option<f64>, Option<f64>) {
+        match self {
+            ProcessSpec::Turning(t) => (t.stock_allowance_mm, t.depth_of_cut_mm),
+            ProcessSpec::Generating(g) => (g.stock_allowance_mm, None),
+            ProcessSpec::Milling(m) => (m.stock_allowance_mm, m.depth_of_cut_mm),
+        }
+    }
+}
+
+/// `[process] kind = "turning"`: a generated spiral (XZ or XZB) or an NC program.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ProcessSpec {
-    pub kind: ProcessKind,
-    /// Turning: "xz" or "xzb".
+pub struct TurningSpec {
+    /// "xz" or "xzb".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mode: Option<TurningMode>,
     /// Feed per spindle revolution; or give spindle_rpm and feed_mm_per_min.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub feed_per_rev_mm: Option<f64>,
+    /// Spindle speed (rev/min): with feed_mm_per_min instead of feed_per_rev_mm;
+    /// vibrations given in Hz need it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spindle_rpm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -266,7 +513,8 @@ pub struct ProcessSpec {
     /// What the feed is measured along: "radial" (X, default) or "arc_length".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub feed_along: Option<FeedAlong>,
-    /// Material above the nominal surface before the pass (default: turning 0.002 mm, generating 0.1 mm).
+    /// Material above the nominal surface before the pass (default 0.002 mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stock_allowance_mm: Option<f64>,
     /// Depth the pass cuts into the stock (default: the stock allowance).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -294,64 +542,88 @@ pub struct ProcessSpec {
     /// writes): the path cuts that much deeper along the surface normal.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub compensation: Option<PathBuf>,
-    /// Generating: wheel axis to workpiece axis, (0, 90) (default: the angle that
+}
+
+/// `[process] kind = "generating"`: a cup wheel generating a sphere.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeneratingSpec {
+    /// The wheel axis to workpiece axis, (0, 90) (default: the angle that
     /// generates the surface's radius).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inclination_deg: Option<f64>,
-    /// Generating: the infeed direction, "z" (default) or "tool_axis".
+    /// The infeed direction, "z" (default) or "tool_axis".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub plunge_axis: Option<PlungeAxis>,
-    /// Generating: wheel speed (rev/min; negative turns it the other way), default 3000.
+    /// Wheel speed (rev/min; negative turns it the other way), default 3000.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tool_rpm: Option<f64>,
-    /// Generating: workpiece speed (rev/min), default 10.
+    /// Workpiece speed (rev/min), default 10.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub workpiece_rpm: Option<f64>,
-    /// Generating: workpiece revolutions at the final depth, [1, 100], default 2.
+    /// Workpiece revolutions at the final depth, [1, 100], default 2.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spark_out_revolutions: Option<f64>,
-    /// Generating: angle of tooth 0 past the circle's vertex point when the spark-out
+    /// Angle of tooth 0 past the circle's vertex point when the spark-out
     /// starts (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tooth_phase_deg: Option<f64>,
-    /// Generating: a deliberate X offset of the wheel from the position that puts its
+    /// A deliberate X offset of the wheel from the position that puts its
     /// circle through the axis (+ = away from the axis), default 0; `toolmark correct`
     /// writes it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cutter_offset_mm: Option<f64>,
-    /// Milling: 3 (the tool axis stays vertical, default) or 5 (it follows the surface
+    /// Material above the nominal surface before the pass (default 0.1 mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stock_allowance_mm: Option<f64>,
+}
+
+/// `[process] kind = "milling"`: a planned path of an end mill or a disc cutter.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MillingSpec {
+    /// Spindle speed (rev/min): the cutting speed at the effective diameter.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spindle_rpm: Option<f64>,
+    /// Material above the nominal surface before the pass (default 0.01 mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stock_allowance_mm: Option<f64>,
+    /// Depth the pass cuts into the stock (default: the stock allowance).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_of_cut_mm: Option<f64>,
+    /// "raster", "spiral" or "constant_scallop".
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<crate::process::MillingPathKind>,
+    /// 3 (the tool axis stays vertical, default) or 5 (it follows the surface
     /// normal, leaned by lead_deg and tilt_deg).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub axes: Option<u8>,
-    /// Milling: "raster", "spiral" or "constant_scallop".
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub path: Option<crate::process::MillingPathKind>,
-    /// Milling: step between passes in XY (raster, spiral); or give scallop_mm.
+    /// Step between passes in XY (raster, spiral); or give scallop_mm.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stepover_mm: Option<f64>,
-    /// Milling: the allowed scallop height (sets the step-over; constant_scallop keeps it).
+    /// The allowed scallop height (sets the step-over; constant_scallop keeps it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scallop_mm: Option<f64>,
-    /// Milling: raster pass direction from +X (default 0).
+    /// Raster pass direction from +X (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub raster_angle_deg: Option<f64>,
-    /// Milling: lead λ of the tool axis from the normal toward the feed, [0, 90) (default 0).
+    /// Lead λ of the tool axis from the normal toward the feed, [0, 90) (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lead_deg: Option<f64>,
-    /// Milling: tilt ω turning the lean about the normal, [−90, 90] (default 0; 90 = a
+    /// Tilt ω turning the lean about the normal, [−90, 90] (default 0; 90 = a
     /// lean across the feed).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tilt_deg: Option<f64>,
-    /// Milling: lead at the path's end (varies linearly; default: lead_deg).
+    /// Lead at the path's end (varies linearly; default: lead_deg).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lead_end_deg: Option<f64>,
-    /// Milling: tilt at the path's end (default: tilt_deg).
+    /// Tilt at the path's end (default: tilt_deg).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tilt_end_deg: Option<f64>,
-    /// Milling, disc cutter: turn ξ of its axis about the normal from square to the feed.
+    /// Disc cutter: the turn ξ of its axis about the normal from square to the feed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub turn_deg: Option<f64>,
-    /// Milling: advance per tooth (0 = a continuous sweep, no feed marks).
+    /// Advance per tooth (0 = a continuous sweep, no feed marks).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub feed_per_tooth_mm: Option<f64>,
 }
@@ -502,7 +774,7 @@ impl Job {
 
     /// Parses a job whose relative file names resolve against `base_dir`.
     pub fn from_toml_in(text: &str, default_name: &str, base_dir: &Path) -> Result<Job, JobError> {
-        let file: JobFile = toml::from_str(text).map_err(|err| error("job", err.to_string()))?;
+        let file = JobFile::from_toml_str(text)?;
         Job::from_file(file, default_name, base_dir)
     }
 
@@ -527,8 +799,7 @@ impl Job {
                 Path::new("."),
             ),
         };
-        let mut file: JobFile = toml::from_str(&text)
-            .map_err(|err| FragmentError::Job(error("job", err.to_string())))?;
+        let mut file = JobFile::from_toml_str(&text).map_err(FragmentError::Job)?;
         let own = file.effects.len();
         file.effects.extend(fragment.effects.iter().cloned());
         Job::from_file(file, &name, base_dir).map_err(|err| {
@@ -567,22 +838,23 @@ impl Job {
         resolved.name = Some(name.clone());
         let mut warnings = Vec::new();
 
-        let (surface, aperture, process) = match file.process.kind {
-            ProcessKind::Turning => {
-                process::validate_turning(&file, base_dir, &mut resolved, &mut warnings)?
+        let (surface, aperture, process) = match &file.process {
+            ProcessSpec::Turning(spec) => {
+                process::validate_turning(&file, spec, base_dir, &mut resolved, &mut warnings)?
             }
-            ProcessKind::Generating => {
-                generating::validate_generating(&file, &mut resolved, &mut warnings)?
+            ProcessSpec::Generating(spec) => {
+                generating::validate_generating(&file, spec, &mut resolved, &mut warnings)?
             }
-            ProcessKind::Milling => milling::validate_milling(&file, &mut resolved, &mut warnings)?,
+            ProcessSpec::Milling(spec) => {
+                milling::validate_milling(&file, spec, &mut resolved, &mut warnings)?
+            }
         };
-        settle_feed(&mut resolved.process);
         warn_deep_cut(&resolved.process, &mut warnings);
-        let layout = match file.surface.kind {
-            SurfaceKind::Cylinder => {
+        let layout = match &file.surface {
+            SurfaceSpec::Cylinder(cylinder) => {
                 let length = required(
                     "surface.length_mm",
-                    file.surface.length_mm,
+                    cylinder.length_mm,
                     "a finite number in (0, 10000]",
                 )?;
                 crate::field::Layout::Extruded {
@@ -680,8 +952,7 @@ impl Job {
             pitch_um: Some(pitch_um),
             azimuths: Some(azimuths),
         };
-        job.resolved.surface.aperture_diameter_mm = Some(2.0 * outer);
-        job.resolved.surface.inner_diameter_mm = 2.0 * inner;
+        job.resolved.surface = job.resolved.surface.with_aperture(2.0 * outer, 2.0 * inner);
         Ok(job)
     }
 
@@ -793,22 +1064,10 @@ fn check_name(name: &str) -> Result<(), JobError> {
     Ok(())
 }
 
-/// A resolved turning job carries the feed per revolution it derived; a job that gave
-/// `spindle_rpm + feed_mm_per_min` keeps the spindle speed and the derived feed only, so
-/// `job.resolved.toml` passes `check` again (the two forms are exclusive).
-fn settle_feed(resolved: &mut ProcessSpec) {
-    if resolved.kind == ProcessKind::Turning
-        && resolved.feed_per_rev_mm.is_some()
-        && resolved.feed_mm_per_min.is_some()
-    {
-        resolved.feed_mm_per_min = None;
-    }
-}
-
 /// A depth of cut well beyond the stock allowance cuts below the nominal surface: allowed
 /// (a deliberate undersize), but said.
 fn warn_deep_cut(resolved: &ProcessSpec, warnings: &mut Vec<String>) {
-    if let (Some(stock), Some(depth)) = (resolved.stock_allowance_mm, resolved.depth_of_cut_mm)
+    if let (Some(stock), Some(depth)) = resolved.stock_and_depth()
         && depth > 2.0 * stock
         && depth - stock > 1e-4
     {
@@ -831,6 +1090,48 @@ fn read_job_file(path: &Path) -> Result<(String, String, &Path), JobError> {
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     Ok((text, stem.unwrap_or_else(|| "job".into()), base_dir))
+}
+
+/// Which key of a kind-tagged table (`surface.radius_mm`) holds a value its kind's
+/// fields refuse: the table is read again alone, as its kind's own struct.
+fn tagged_field_error(text: &str) -> Option<String> {
+    let table: toml::Table = toml::from_str(text).ok()?;
+    ["surface", "tool", "process"].into_iter().find_map(|name| {
+        let mut section = table.get(name)?.as_table()?.clone();
+        let kind = section.remove("kind")?.as_str()?.to_string();
+        let alone = toml::to_string(&section).ok()?;
+        let err = kind_fields_error(name, &kind, &alone)?;
+        // An unknown key is named in the message; a wrong value by the line it is on.
+        let key = match err.message().strip_prefix("unknown field `") {
+            Some(rest) => rest.split('`').next()?,
+            None => {
+                let start = err.span()?.start;
+                let line = alone[..start].rsplit('\n').next().unwrap_or_default();
+                line.split('=').next()?.trim()
+            }
+        };
+        (!key.is_empty() && !key.starts_with('[')).then(|| format!("{name}.{key}"))
+    })
+}
+
+/// The error of reading `text` as the fields of `table`'s `kind`.
+fn kind_fields_error(table: &str, kind: &str, text: &str) -> Option<toml::de::Error> {
+    fn read<T: serde::de::DeserializeOwned>(text: &str) -> Option<toml::de::Error> {
+        toml::from_str::<T>(text).err()
+    }
+    match (table, kind) {
+        ("surface", "plane" | "from_path") => read::<PlaneSpec>(text),
+        ("surface", "sphere") => read::<SphereSpec>(text),
+        ("surface", "asphere") => read::<AsphereSpec>(text),
+        ("surface", "cylinder") => read::<CylinderSpec>(text),
+        ("tool", "arc_nose") => read::<ArcNoseSpec>(text),
+        ("tool", "cup_wheel") => read::<CupWheelSpec>(text),
+        ("tool", _) => read::<MillToolSpec>(text),
+        ("process", "turning") => read::<TurningSpec>(text),
+        ("process", "generating") => read::<GeneratingSpec>(text),
+        ("process", "milling") => read::<MillingSpec>(text),
+        _ => None,
+    }
 }
 
 /// Rejects fields given in a table that the chosen kind does not use.

@@ -4,8 +4,8 @@
 use super::effects::{EffectKind, apply_edge_profile, turning_effects};
 use super::surface::{self, MAX_SLOPE_DEG, usable_at, usable_over};
 use super::{
-    Aperture, JobError, JobFile, NcUnits, ProcessSpec, SurfaceKind, SurfaceSpec, ToolKind,
-    ToolSpec, check, error, reject_unused, required, resolve_file,
+    Aperture, ArcNoseSpec, JobError, JobFile, NcUnits, ProcessSpec, SurfaceKind, SurfaceSpec,
+    ToolSpec, TurningSpec, check, error, required, resolve_file,
 };
 use crate::formats::nc::{NcDeclared, parse_nc_declared};
 use crate::geometry::{ArcNoseTool, MeridianArcLength, SurfaceOfRevolution};
@@ -21,60 +21,35 @@ use std::path::Path;
 /// and normal correction; returns the surface and aperture it is judged against.
 pub fn validate_turning(
     file: &JobFile,
+    spec: &TurningSpec,
     base_dir: &Path,
     resolved: &mut JobFile,
     warnings: &mut Vec<String>,
 ) -> Result<(SurfaceOfRevolution, Aperture, Process), JobError> {
-    let spec = &file.process;
-    reject_unused(
-        "process",
-        "turning",
-        &[
-            ("inclination_deg", spec.inclination_deg.is_some()),
-            ("plunge_axis", spec.plunge_axis.is_some()),
-            ("tool_rpm", spec.tool_rpm.is_some()),
-            ("workpiece_rpm", spec.workpiece_rpm.is_some()),
-            (
-                "spark_out_revolutions",
-                spec.spark_out_revolutions.is_some(),
-            ),
-            ("tooth_phase_deg", spec.tooth_phase_deg.is_some()),
-            ("cutter_offset_mm", spec.cutter_offset_mm.is_some()),
-            ("path", spec.path.is_some()),
-            ("axes", spec.axes.is_some()),
-            ("stepover_mm", spec.stepover_mm.is_some()),
-            ("scallop_mm", spec.scallop_mm.is_some()),
-            ("raster_angle_deg", spec.raster_angle_deg.is_some()),
-            ("lead_deg", spec.lead_deg.is_some()),
-            ("tilt_deg", spec.tilt_deg.is_some()),
-            ("lead_end_deg", spec.lead_end_deg.is_some()),
-            ("tilt_end_deg", spec.tilt_end_deg.is_some()),
-            ("turn_deg", spec.turn_deg.is_some()),
-            ("feed_per_tooth_mm", spec.feed_per_tooth_mm.is_some()),
-        ],
-    )?;
-    if file.surface.kind == SurfaceKind::Cylinder {
+    let mut out = spec.clone();
+    if file.surface.kind() == SurfaceKind::Cylinder {
         return Err(error(
             "surface.kind",
             "a cylinder (axis along Y) is milled, not turned; allowed with process.kind = \"turning\": \"plane\", \"sphere\", \"asphere\" or \"from_path\"",
         ));
     }
-    let tool = validate_tool(&file.tool)?;
+    let (tool, tool_spec) = validate_tool(&file.tool)?;
+    let mut tool_out = tool_spec.clone();
     let (surface, aperture, path, spindle_rpm) = match &spec.nc_program {
         None => {
             let mode = required("process.mode", spec.mode, "\"xz\" or \"xzb\"")?;
             let (surface, aperture) = surface::validate(&file.surface)?;
             let (spiral, rpm) = validate_spiral(spec, mode, &surface, &aperture, &tool, warnings)?;
-            resolve_spiral(&mut resolved.process, &spiral);
+            resolve_spiral(&mut out, &spiral);
             (surface, aperture, TurningPath::Spiral(spiral), rpm)
         }
         Some(program) => {
             let program = resolve_file("process.nc_program", base_dir, program)?;
             let nc = validate_nc(spec, &file.surface, &program, &tool, warnings)?;
-            resolved.process.mode = Some(TurningMode::Xz);
-            resolved.process.nc_program = Some(program);
-            resolved.process.nc_reference = Some(nc.path.reference);
-            resolved.process.stock_allowance_mm = Some(nc.path.stock_allowance_mm);
+            out.mode = Some(TurningMode::Xz);
+            out.nc_program = Some(program);
+            out.nc_reference = Some(nc.path.reference);
+            out.stock_allowance_mm = Some(nc.path.stock_allowance_mm);
             (
                 nc.surface,
                 nc.aperture,
@@ -83,8 +58,12 @@ pub fn validate_turning(
             )
         }
     };
-    if file.surface.kind == SurfaceKind::FromPath {
-        resolved.surface.aperture_diameter_mm = Some(2.0 * aperture.outer_radius_mm);
+    if file.surface.kind() == SurfaceKind::FromPath {
+        let inner = resolved.surface.aperture_diameters_mm().1;
+        resolved.surface = resolved
+            .surface
+            .clone()
+            .with_aperture(2.0 * aperture.outer_radius_mm, inner);
     }
     check_tool_against_surface(&surface, &path, &tool)?;
 
@@ -106,19 +85,20 @@ pub fn validate_turning(
             ),
         ));
     }
-    if let Some(profile) = &file.tool.edge_profile {
+    if let Some(profile) = &tool_spec.edge_profile {
         let profile = resolve_file("tool.edge_profile", base_dir, profile)?;
         apply_edge_profile(
             &mut effects,
-            &file.tool,
+            tool_spec,
             &profile,
             &tool,
             path.mode(),
             warnings,
         )?;
-        resolved.tool.edge_profile = Some(profile);
+        tool_out.edge_profile = Some(profile);
     }
-    resolved.tool.clearance_angle_deg = Some(tool.clearance_angle_deg);
+    tool_out.clearance_angle_deg = Some(tool.clearance_angle_deg);
+    resolved.tool = ToolSpec::ArcNose(tool_out);
     let correction = match &spec.compensation {
         None => NormalCorrection::default(),
         Some(file_name) => {
@@ -137,10 +117,17 @@ pub fn validate_turning(
                     correction.max_abs_mm()
                 )));
             }
-            resolved.process.compensation = Some(table);
+            out.compensation = Some(table);
             correction
         }
     };
+    // The resolved job carries the feed per revolution it derived; one that gave
+    // `spindle_rpm + feed_mm_per_min` keeps the spindle speed and the derived feed only,
+    // so `job.resolved.toml` passes `check` again (the two forms are exclusive).
+    if out.feed_per_rev_mm.is_some() {
+        out.feed_mm_per_min = None;
+    }
+    resolved.process = ProcessSpec::Turning(out);
     Ok((
         surface,
         aperture,
@@ -155,37 +142,13 @@ pub fn validate_turning(
     ))
 }
 
-fn validate_tool(spec: &ToolSpec) -> Result<ArcNoseTool, JobError> {
-    if spec.kind != ToolKind::ArcNose {
+fn validate_tool(spec: &ToolSpec) -> Result<(ArcNoseTool, &ArcNoseSpec), JobError> {
+    let ToolSpec::ArcNose(spec) = spec else {
         return Err(error(
             "tool.kind",
             "a turning job needs kind = \"arc_nose\" (a cup wheel is for process.kind = \"generating\")",
         ));
-    }
-    reject_unused(
-        "tool",
-        "arc_nose",
-        &[
-            ("cutting_radius_mm", spec.cutting_radius_mm.is_some()),
-            ("edge_radius_mm", spec.edge_radius_mm.is_some()),
-            ("teeth", spec.teeth.is_some()),
-            ("diameter_mm", spec.diameter_mm.is_some()),
-            ("corner_radius_mm", spec.corner_radius_mm.is_some()),
-            ("insert_length_mm", spec.insert_length_mm.is_some()),
-            ("side_rake_deg", spec.side_rake_deg.is_some()),
-            ("lead_angle_deg", spec.lead_angle_deg.is_some()),
-            ("flutes", spec.flutes.is_some()),
-            ("helix_deg", spec.helix_deg.is_some()),
-            (
-                "tooth_radial_runout_mm",
-                spec.tooth_radial_runout_mm.is_some(),
-            ),
-            (
-                "tooth_axial_runout_mm",
-                spec.tooth_axial_runout_mm.is_some(),
-            ),
-        ],
-    )?;
+    };
     let nose = required(
         "tool.nose_radius_mm",
         spec.nose_radius_mm,
@@ -196,7 +159,7 @@ fn validate_tool(spec: &ToolSpec) -> Result<ArcNoseTool, JobError> {
         spec.included_angle_deg,
         "a finite number in (0, 180]",
     )?;
-    Ok(ArcNoseTool {
+    let tool = ArcNoseTool {
         nose_radius_mm: check("tool.nose_radius_mm", nose, 0.0, 100.0, false)?,
         included_angle_deg: check("tool.included_angle_deg", included, 0.0, 180.0, false)?,
         clearance_angle_deg: check(
@@ -206,12 +169,13 @@ fn validate_tool(spec: &ToolSpec) -> Result<ArcNoseTool, JobError> {
             45.0,
             false,
         )?,
-    })
+    };
+    Ok((tool, spec))
 }
 
 /// The feed per revolution, from `feed_per_rev_mm` or `feed_mm_per_min / spindle_rpm`,
 /// and the spindle speed if given.
-fn feed_and_speed(spec: &ProcessSpec) -> Result<(f64, Option<f64>), JobError> {
+fn feed_and_speed(spec: &TurningSpec) -> Result<(f64, Option<f64>), JobError> {
     let spindle_rpm = spec
         .spindle_rpm
         .map(|rpm| check("process.spindle_rpm", rpm, 0.0, 1e6, false))
@@ -245,7 +209,7 @@ fn feed_and_speed(spec: &ProcessSpec) -> Result<(f64, Option<f64>), JobError> {
     Ok((feed, spindle_rpm))
 }
 
-fn stock_allowance(spec: &ProcessSpec) -> Result<f64, JobError> {
+fn stock_allowance(spec: &TurningSpec) -> Result<f64, JobError> {
     check(
         "process.stock_allowance_mm",
         spec.stock_allowance_mm.unwrap_or(0.002),
@@ -256,7 +220,7 @@ fn stock_allowance(spec: &ProcessSpec) -> Result<f64, JobError> {
 }
 
 fn validate_spiral(
-    spec: &ProcessSpec,
+    spec: &TurningSpec,
     mode: TurningMode,
     surface: &SurfaceOfRevolution,
     aperture: &Aperture,
@@ -354,7 +318,7 @@ fn validate_spiral(
 }
 
 /// Records the spiral's resolved values in the written job.
-fn resolve_spiral(resolved: &mut ProcessSpec, spiral: &TurningSpiral) {
+fn resolve_spiral(resolved: &mut TurningSpec, spiral: &TurningSpiral) {
     resolved.feed_per_rev_mm = Some(spiral.feed_per_rev_mm);
     resolved.feed_along = Some(spiral.feed_along);
     resolved.stock_allowance_mm = Some(spiral.stock_allowance_mm);
@@ -372,7 +336,7 @@ struct NcJob {
 }
 
 fn validate_nc(
-    spec: &ProcessSpec,
+    spec: &TurningSpec,
     surface_spec: &SurfaceSpec,
     program: &Path,
     tool: &ArcNoseTool,
@@ -425,7 +389,7 @@ fn validate_nc(
         .collect::<Result<Vec<_>, _>>()
         .map_err(in_program)?;
 
-    let (surface, aperture) = if surface_spec.kind == SurfaceKind::FromPath {
+    let (surface, aperture) = if surface_spec.kind() == SurfaceKind::FromPath {
         let envelope = path_envelope(&tables, tool.nose_radius_mm).map_err(in_program)?;
         for pose in tables.iter_mut().flat_map(|t| t.poses.iter_mut()) {
             pose.z_mm -= envelope.vertex_z_mm;

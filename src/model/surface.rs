@@ -1,15 +1,16 @@
 //! The `[surface]` table: the nominal surface and the aperture that is simulated.
 
-use super::{Aperture, JobError, SurfaceKind, SurfaceSpec, check, error};
-use crate::geometry::SurfaceOfRevolution;
+use super::{Aperture, CylinderSpec, JobError, SphereSpec, SurfaceSpec, check, error};
 use crate::geometry::surface::EVEN_TERMS;
+use crate::geometry::{Form, SurfaceOfRevolution};
 
 /// Steepest surface slope accepted (deg): beyond it a normal-dexel grid stops making sense.
 pub const MAX_SLOPE_DEG: f64 = 89.0;
 
 /// The aperture: inner and outer radius, the outer one given or `default_outer_mm`.
 pub fn aperture(spec: &SurfaceSpec, default_outer_mm: Option<f64>) -> Result<Aperture, JobError> {
-    let outer = match (spec.aperture_diameter_mm, default_outer_mm) {
+    let (given_outer, given_inner) = spec.aperture_diameters_mm();
+    let outer = match (given_outer, default_outer_mm) {
         (Some(diameter), _) => {
             check("surface.aperture_diameter_mm", diameter, 0.0, 1e4, false)? / 2.0
         }
@@ -21,13 +22,7 @@ pub fn aperture(spec: &SurfaceSpec, default_outer_mm: Option<f64>) -> Result<Ape
             ));
         }
     };
-    let inner = check(
-        "surface.inner_diameter_mm",
-        spec.inner_diameter_mm,
-        0.0,
-        1e4,
-        true,
-    )?;
+    let inner = check("surface.inner_diameter_mm", given_inner, 0.0, 1e4, true)?;
     if inner >= 2.0 * outer {
         return Err(error(
             "surface.inner_diameter_mm",
@@ -43,67 +38,30 @@ pub fn aperture(spec: &SurfaceSpec, default_outer_mm: Option<f64>) -> Result<Ape
     })
 }
 
-/// A designed surface (plane, sphere, asphere) and its aperture.
+/// A designed surface (plane, sphere, asphere, cylinder) and its aperture.
 pub fn validate(spec: &SurfaceSpec) -> Result<(SurfaceOfRevolution, Aperture), JobError> {
-    let kind_name = match spec.kind {
-        SurfaceKind::Plane => "plane",
-        SurfaceKind::Sphere => "sphere",
-        SurfaceKind::Asphere => "asphere",
-        SurfaceKind::Cylinder => "cylinder",
-        SurfaceKind::FromPath => {
-            return Err(error(
-                "surface.kind",
-                "\"from_path\" needs process.nc_program: the path defines the surface",
-            ));
-        }
-    };
+    if let SurfaceSpec::FromPath(_) = spec {
+        return Err(error(
+            "surface.kind",
+            "\"from_path\" needs process.nc_program: the path defines the surface",
+        ));
+    }
     let aperture = aperture(spec, None)?;
-    let unused = |field: &str, present: bool| -> Result<(), JobError> {
-        if present {
-            Err(error(
-                &format!("surface.{field}"),
-                format!("is not used by kind = \"{kind_name}\"; remove it"),
-            ))
-        } else {
-            Ok(())
-        }
-    };
-    let form = |spec: &SurfaceSpec| {
-        spec.form.ok_or_else(|| {
-            error(
-                "surface.form",
-                "missing; allowed: \"convex\" or \"concave\"",
-            )
+    let surface = match spec {
+        SurfaceSpec::Plane(_) | SurfaceSpec::FromPath(_) => SurfaceOfRevolution::plane(),
+        SurfaceSpec::Sphere(SphereSpec {
+            form, radius_mm, ..
         })
-    };
-    let has_polynomial = spec.even_coefficients().iter().any(|(_, v)| v.is_some());
-    let surface = match spec.kind {
-        SurfaceKind::Plane => {
-            unused("form", spec.form.is_some())?;
-            unused("radius_mm", spec.radius_mm.is_some())?;
-            unused("base_radius_mm", spec.base_radius_mm.is_some())?;
-            unused("conic", spec.conic.is_some())?;
-            unused("a4..a20", has_polynomial)?;
-            SurfaceOfRevolution::plane()
-        }
-        SurfaceKind::Sphere | SurfaceKind::Cylinder => {
-            if spec.kind == SurfaceKind::Cylinder && spec.inner_diameter_mm != 0.0 {
-                return Err(error(
-                    "surface.inner_diameter_mm",
-                    "is not used by kind = \"cylinder\" (its aperture_diameter_mm is the width across its axis); remove it",
-                ));
-            }
-            unused("base_radius_mm", spec.base_radius_mm.is_some())?;
-            unused("conic", spec.conic.is_some())?;
-            unused("a4..a20", has_polynomial)?;
-            let radius = spec.radius_mm.ok_or_else(|| {
+        | SurfaceSpec::Cylinder(CylinderSpec {
+            form, radius_mm, ..
+        }) => {
+            let radius = radius_mm.ok_or_else(|| {
                 error("surface.radius_mm", "missing; allowed: a finite number > 0")
             })?;
             let radius = check("surface.radius_mm", radius, 0.0, 1e7, false)?;
-            SurfaceOfRevolution::sphere(radius, form(spec)?)
+            SurfaceOfRevolution::sphere(radius, required_form(*form)?)
         }
-        _ => {
-            unused("radius_mm", spec.radius_mm.is_some())?;
+        SurfaceSpec::Asphere(spec) => {
             let base = spec.base_radius_mm.ok_or_else(|| {
                 error(
                     "surface.base_radius_mm",
@@ -118,14 +76,20 @@ pub fn validate(spec: &SurfaceSpec) -> Result<(SurfaceOfRevolution, Aperture), J
                     *slot = check(&format!("surface.{name}"), value, -1e6, 1e6, true)?;
                 }
             }
-            SurfaceOfRevolution::asphere(base, conic, coefficients, form(spec)?)
+            SurfaceOfRevolution::asphere(base, conic, coefficients, required_form(spec.form)?)
         }
     };
-    if spec.kind != SurfaceKind::Cylinder {
-        unused("length_mm", spec.length_mm.is_some())?;
-    }
     check_defined(&surface, &aperture)?;
     Ok((surface, aperture))
+}
+
+fn required_form(form: Option<Form>) -> Result<Form, JobError> {
+    form.ok_or_else(|| {
+        error(
+            "surface.form",
+            "missing; allowed: \"convex\" or \"concave\"",
+        )
+    })
 }
 
 /// The sag must exist and the slope stay below MAX_SLOPE_DEG over the aperture.

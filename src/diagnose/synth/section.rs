@@ -577,7 +577,7 @@ fn deviation_of(job: &Job, table: &AngleTable) -> Deviation {
         .map(|h| [h.order, h.amplitude_mm, h.phase_deg.to_radians()])
         .collect();
     let exact = Deviation::Harmonics(harmonics);
-    let matches = job.resolved.tool.edge_profile.is_none()
+    let matches = job.resolved.tool.edge_profile().is_none()
         && table.values_mm.iter().enumerate().all(|(i, v)| {
             let psi = table.start_rad + table.step_rad * i as f64;
             (exact.at(psi) - v).abs() < 1e-12

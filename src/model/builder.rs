@@ -1,0 +1,276 @@
+//! Jobs built in Rust: the same file types a TOML job becomes, started from the fields
+//! each kind needs and finished by the same validation (`JobFile::check`). Optional
+//! fields are set on the specs themselves (`TurningSpec { spindle_rpm: Some(…),
+//! ..TurningSpec::xz(0.005) }`).
+//!
+//! ```text
+//! use toolmark::geometry::Form;
+//! use toolmark::model::{JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec};
+//! let job = JobFile::new(
+//!     SurfaceSpec::sphere(Form::Convex, 8.0, 3.0),
+//!     ToolSpec::arc_nose(0.5, 140.0),
+//!     ProcessSpec::Turning(TurningSpec::xz(0.01)),
+//! )
+//! .named("turned sphere")
+//! .grid(0.5, 8)
+//! .check()
+//! .expect("a valid job");
+//! assert_eq!(job.azimuths, 8);
+//! ```
+
+use super::{
+    ArcNoseSpec, AsphereSpec, CupWheelSpec, EffectSpec, GeneratingSpec, GridSpec, JOB_VERSION, Job,
+    JobError, JobFile, MillToolSpec, MillingSpec, OutputSpec, PlaneSpec, ProcessSpec, SphereSpec,
+    SurfaceSpec, ToolSpec, TurningSpec,
+};
+use crate::geometry::Form;
+use crate::process::{MillingPathKind, TurningMode};
+use std::path::Path;
+
+impl JobFile {
+    /// A job of a surface, a tool and a process; no name, the default grid and outputs,
+    /// no effects.
+    pub fn new(surface: SurfaceSpec, tool: ToolSpec, process: ProcessSpec) -> JobFile {
+        JobFile {
+            version: JOB_VERSION,
+            name: None,
+            surface,
+            tool,
+            process,
+            grid: GridSpec::default(),
+            output: OutputSpec::default(),
+            effects: Vec::new(),
+        }
+    }
+
+    pub fn named(mut self, name: &str) -> JobFile {
+        self.name = Some(name.to_string());
+        self
+    }
+
+    /// The grid: ring pitch along the meridian (µm) and azimuth rows.
+    pub fn grid(mut self, pitch_um: f64, azimuths: u32) -> JobFile {
+        self.grid = GridSpec {
+            pitch_um: Some(pitch_um),
+            azimuths: Some(azimuths),
+        };
+        self
+    }
+
+    /// One more `[[effects]]` table.
+    pub fn effect(mut self, effect: EffectSpec) -> JobFile {
+        self.effects.push(effect);
+        self
+    }
+
+    /// The checked job, as `toolmark check` would give it for this file (file names
+    /// resolve against the current folder; the name defaults to "job").
+    pub fn check(self) -> Result<Job, JobError> {
+        Job::from_file(self, "job", Path::new("."))
+    }
+
+    /// The file as TOML (what `toolmark run` reads).
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("a job file serialises")
+    }
+}
+
+impl SurfaceSpec {
+    pub fn plane(aperture_diameter_mm: f64) -> SurfaceSpec {
+        SurfaceSpec::Plane(PlaneSpec {
+            aperture_diameter_mm: Some(aperture_diameter_mm),
+            inner_diameter_mm: 0.0,
+        })
+    }
+
+    pub fn sphere(form: Form, radius_mm: f64, aperture_diameter_mm: f64) -> SurfaceSpec {
+        SurfaceSpec::Sphere(SphereSpec {
+            form: Some(form),
+            radius_mm: Some(radius_mm),
+            aperture_diameter_mm: Some(aperture_diameter_mm),
+            inner_diameter_mm: 0.0,
+        })
+    }
+
+    /// An even asphere's base: radius R0 and conic k (coefficients: set `a4`… on an
+    /// `AsphereSpec`).
+    pub fn asphere(
+        form: Form,
+        base_radius_mm: f64,
+        conic: f64,
+        aperture_diameter_mm: f64,
+    ) -> SurfaceSpec {
+        SurfaceSpec::Asphere(AsphereSpec {
+            form: Some(form),
+            base_radius_mm: Some(base_radius_mm),
+            conic: Some(conic),
+            aperture_diameter_mm: Some(aperture_diameter_mm),
+            ..AsphereSpec::default()
+        })
+    }
+}
+
+impl ToolSpec {
+    pub fn arc_nose(nose_radius_mm: f64, included_angle_deg: f64) -> ToolSpec {
+        ToolSpec::ArcNose(ArcNoseSpec {
+            nose_radius_mm: Some(nose_radius_mm),
+            included_angle_deg: Some(included_angle_deg),
+            ..ArcNoseSpec::default()
+        })
+    }
+
+    /// A cup wheel of `teeth` edges (0: a continuous edge).
+    pub fn cup_wheel(cutting_radius_mm: f64, edge_radius_mm: f64, teeth: u32) -> ToolSpec {
+        ToolSpec::CupWheel(CupWheelSpec {
+            cutting_radius_mm: Some(cutting_radius_mm),
+            edge_radius_mm: Some(edge_radius_mm),
+            teeth: Some(teeth),
+        })
+    }
+
+    pub fn ball_end(diameter_mm: f64) -> ToolSpec {
+        ToolSpec::BallEnd(MillToolSpec::of_diameter(diameter_mm))
+    }
+
+    pub fn bull_nose(diameter_mm: f64, corner_radius_mm: f64) -> ToolSpec {
+        ToolSpec::BullNose(MillToolSpec {
+            corner_radius_mm: Some(corner_radius_mm),
+            ..MillToolSpec::of_diameter(diameter_mm)
+        })
+    }
+
+    pub fn flat_end(diameter_mm: f64) -> ToolSpec {
+        ToolSpec::FlatEnd(MillToolSpec::of_diameter(diameter_mm))
+    }
+}
+
+impl MillToolSpec {
+    fn of_diameter(diameter_mm: f64) -> MillToolSpec {
+        MillToolSpec {
+            diameter_mm: Some(diameter_mm),
+            ..MillToolSpec::default()
+        }
+    }
+}
+
+impl TurningSpec {
+    /// An XZ spiral at a feed per revolution.
+    pub fn xz(feed_per_rev_mm: f64) -> TurningSpec {
+        TurningSpec {
+            mode: Some(TurningMode::Xz),
+            feed_per_rev_mm: Some(feed_per_rev_mm),
+            ..TurningSpec::default()
+        }
+    }
+
+    /// An XZB spiral (the tool turned to the normal) at a feed per revolution.
+    pub fn xzb(feed_per_rev_mm: f64) -> TurningSpec {
+        TurningSpec {
+            mode: Some(TurningMode::Xzb),
+            ..TurningSpec::xz(feed_per_rev_mm)
+        }
+    }
+}
+
+impl GeneratingSpec {
+    /// Generating at the wheel and workpiece speeds (rpm), the rest by default.
+    pub fn at_speeds(tool_rpm: f64, workpiece_rpm: f64) -> GeneratingSpec {
+        GeneratingSpec {
+            tool_rpm: Some(tool_rpm),
+            workpiece_rpm: Some(workpiece_rpm),
+            ..GeneratingSpec::default()
+        }
+    }
+}
+
+impl MillingSpec {
+    /// A path of passes a step-over apart (raster or spiral).
+    pub fn stepped(path: MillingPathKind, stepover_mm: f64) -> MillingSpec {
+        MillingSpec {
+            path: Some(path),
+            stepover_mm: Some(stepover_mm),
+            ..MillingSpec::default()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TURNED_SPHERE: &str = r#"version = 1
+name = "turned sphere"
+[surface]
+kind = "sphere"
+form = "convex"
+radius_mm = 8.0
+aperture_diameter_mm = 3.0
+[tool]
+kind = "arc_nose"
+nose_radius_mm = 0.5
+included_angle_deg = 140.0
+[process]
+kind = "turning"
+mode = "xz"
+feed_per_rev_mm = 0.01
+[grid]
+pitch_um = 0.5
+azimuths = 8
+"#;
+
+    fn turned_sphere() -> JobFile {
+        JobFile::new(
+            SurfaceSpec::sphere(Form::Convex, 8.0, 3.0),
+            ToolSpec::arc_nose(0.5, 140.0),
+            ProcessSpec::Turning(TurningSpec::xz(0.01)),
+        )
+        .named("turned sphere")
+        .grid(0.5, 8)
+    }
+
+    #[test]
+    fn a_job_built_in_rust_is_the_job_its_toml_gives() {
+        let built = turned_sphere().check().expect("valid");
+        let read = Job::from_toml_str(TURNED_SPHERE, "job").expect("valid");
+        assert_eq!(built.resolved, read.resolved);
+        assert_eq!(built.sample_count(), read.sample_count());
+        assert_eq!(
+            (built.pitch_mm, built.azimuths),
+            (read.pitch_mm, read.azimuths)
+        );
+        // The resolved file filled in the defaults: the 2 µm stock allowance.
+        let ProcessSpec::Turning(spec) = &built.resolved.process else {
+            panic!("a turning job")
+        };
+        assert_eq!(spec.stock_allowance_mm, Some(0.002));
+    }
+
+    #[test]
+    fn a_built_job_written_as_toml_reads_back_as_the_same_job() {
+        let file = JobFile::new(
+            SurfaceSpec::plane(4.0),
+            ToolSpec::bull_nose(3.0, 0.5),
+            ProcessSpec::Milling(MillingSpec::stepped(MillingPathKind::Raster, 0.1)),
+        )
+        .grid(2.0, 8);
+        let text = file.to_toml();
+        assert!(text.contains("kind = \"bull_nose\""), "{text}");
+        let read = Job::from_toml_str(&text, "job").expect("valid");
+        assert_eq!(read.resolved, file.check().expect("valid").resolved);
+    }
+
+    #[test]
+    fn a_key_of_another_kind_is_refused_by_name() {
+        let text = TURNED_SPHERE.replace("feed_per_rev_mm = 0.01", "stepover_mm = 0.01");
+        let message = Job::from_toml_str(&text, "job")
+            .expect_err("a milling key in a turning job")
+            .to_string();
+        assert!(message.contains("unknown field `stepover_mm`"), "{message}");
+        assert!(message.contains("feed_per_rev_mm"), "{message}");
+        let text = TURNED_SPHERE.replace("nose_radius_mm = 0.5", "diameter_mm = 0.5");
+        let message = Job::from_toml_str(&text, "job")
+            .expect_err("a milling tool's key on an arc-nosed tool")
+            .to_string();
+        assert!(message.contains("unknown field `diameter_mm`"), "{message}");
+    }
+}
