@@ -29,33 +29,8 @@ fn no_files() -> Vec<(&'static str, String)> {
 pub const TURNING_SPHERE: Base = Base {
     name: "turned convex sphere R8, Ø3 mm, 10 µm/rev, 0.5 mm nose",
     process: "turning",
-    job: r#"version = 1
-name = "turned sphere"
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 8.0
-aperture_diameter_mm = 3.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 140.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-stock_allowance_mm = 0.003
-[grid]
-pitch_um = 0.5
-azimuths = 8
-"#,
-    measurement: r#"kind = "profile"
-spacing_um = 1.0
-stylus_tip_um = 2.0
-white_noise_nm = 1.5
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/turning_sphere/job.toml"),
+    measurement: include_str!("bases/turning_sphere/measurement.toml"),
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
@@ -66,34 +41,8 @@ dropout_fraction = 0.01
 pub const GENERATED_SPHERE: Base = Base {
     name: "generated concave sphere R53.5 (seed 000's wheel), Ø4 mm",
     process: "generating",
-    job: r#"version = 1
-name = "generated sphere"
-[surface]
-kind = "sphere"
-form = "concave"
-radius_mm = 53.5
-aperture_diameter_mm = 4.0
-[tool]
-kind = "cup_wheel"
-cutting_radius_mm = 10.0
-edge_radius_mm = 3.5
-[process]
-kind = "generating"
-plunge_axis = "z"
-tool_rpm = 3000.0
-workpiece_rpm = 10.0
-spark_out_revolutions = 2.0
-stock_allowance_mm = 0.01
-[grid]
-pitch_um = 2.0
-azimuths = 8
-"#,
-    measurement: r#"kind = "profile"
-spacing_um = 2.0
-white_noise_nm = 1.0
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/generated_sphere/job.toml"),
+    measurement: include_str!("bases/generated_sphere/measurement.toml"),
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
@@ -104,35 +53,8 @@ dropout_fraction = 0.01
 pub(super) const BALL_MILLED_SPHERE: Base = Base {
     name: "ball-end raster (Ø1 mm, 20 µm step) over a convex sphere R3, Ø2 mm, profile across the passes",
     process: "milling",
-    job: r#"version = 1
-name = "milled sphere"
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 3.0
-aperture_diameter_mm = 2.0
-[tool]
-kind = "ball_end"
-diameter_mm = 1.0
-teeth = 2
-[process]
-kind = "milling"
-path = "raster"
-stepover_mm = 0.02
-spindle_rpm = 20000.0
-stock_allowance_mm = 0.005
-[grid]
-pitch_um = 1.0
-azimuths = 8
-"#,
-    measurement: r#"kind = "profile"
-azimuth_deg = 90.0
-spacing_um = 1.0
-stylus_tip_um = 2.0
-white_noise_nm = 1.5
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/ball_milled_sphere/job.toml"),
+    measurement: include_str!("bases/ball_milled_sphere/measurement.toml"),
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
@@ -143,33 +65,8 @@ dropout_fraction = 0.01
 pub(super) const BALL_SPIRAL_FLAT: Base = Base {
     name: "ball-end spiral (Ø1 mm, 20 µm step) over a flat, Ø2 mm, profile through the centre",
     process: "milling",
-    job: r#"version = 1
-name = "spiral-milled flat"
-[surface]
-kind = "plane"
-aperture_diameter_mm = 2.0
-[tool]
-kind = "ball_end"
-diameter_mm = 1.0
-teeth = 2
-[process]
-kind = "milling"
-path = "spiral"
-stepover_mm = 0.02
-spindle_rpm = 20000.0
-stock_allowance_mm = 0.005
-[grid]
-pitch_um = 1.0
-azimuths = 8
-"#,
-    measurement: r#"kind = "profile"
-azimuth_deg = 90.0
-spacing_um = 1.0
-stylus_tip_um = 2.0
-white_noise_nm = 1.5
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/ball_spiral_flat/job.toml"),
+    measurement: include_str!("bases/ball_spiral_flat/measurement.toml"),
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
@@ -180,34 +77,8 @@ dropout_fraction = 0.01
 pub const BALL_FEED_MARKS_FLAT: Base = Base {
     name: "two-flute ball-end (Ø2 mm, 20 µm per tooth) raster over a flat, Ø1 mm, profile along the feed",
     process: "milling",
-    job: r#"version = 1
-name = "feed marks on a flat"
-[surface]
-kind = "plane"
-aperture_diameter_mm = 1.0
-[tool]
-kind = "ball_end"
-diameter_mm = 2.0
-teeth = 2
-flutes = "body"
-[process]
-kind = "milling"
-path = "raster"
-stepover_mm = 0.1
-feed_per_tooth_mm = 0.02
-spindle_rpm = 20000.0
-stock_allowance_mm = 0.005
-[grid]
-pitch_um = 0.5
-azimuths = 8
-"#,
-    measurement: r#"kind = "profile"
-spacing_um = 0.5
-stylus_tip_um = 2.0
-white_noise_nm = 1.5
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/ball_feed_marks_flat/job.toml"),
+    measurement: include_str!("bases/ball_feed_marks_flat/measurement.toml"),
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
@@ -218,36 +89,8 @@ dropout_fraction = 0.01
 pub(super) const BALL_FEED_MARKS_SPHERE: Base = Base {
     name: "two-flute ball-end (Ø1 mm, 20 µm per tooth, 50 µm step) over a convex sphere R3, Ø1 mm, profile along the feed",
     process: "milling",
-    job: r#"version = 1
-name = "feed marks on a sphere"
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 3.0
-aperture_diameter_mm = 1.0
-[tool]
-kind = "ball_end"
-diameter_mm = 1.0
-teeth = 2
-flutes = "body"
-[process]
-kind = "milling"
-path = "raster"
-stepover_mm = 0.05
-feed_per_tooth_mm = 0.02
-spindle_rpm = 20000.0
-stock_allowance_mm = 0.005
-[grid]
-pitch_um = 0.5
-azimuths = 8
-"#,
-    measurement: r#"kind = "profile"
-spacing_um = 0.5
-stylus_tip_um = 2.0
-white_noise_nm = 1.5
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/ball_feed_marks_sphere/job.toml"),
+    measurement: include_str!("bases/ball_feed_marks_sphere/measurement.toml"),
     format: "csv",
     axis_along_um: CENTRED,
     azimuth_stated: true,
@@ -261,14 +104,7 @@ pub const TURNING_CENTRE_MAP: Base = Base {
     name: "turned convex sphere R8 (as above), white-light map of the centre, 81 × 81 px of 1 µm",
     process: "turning",
     job: TURNING_SPHERE.job,
-    measurement: r#"kind = "map"
-pixels = [81, 81]
-pixel_um = 1.0
-pixel_averaging = true
-white_noise_nm = 1.5
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    measurement: include_str!("bases/turning_centre_map/measurement.toml"),
     format: "x3p",
     axis_along_um: CENTRED,
     azimuth_stated: true,
@@ -282,14 +118,7 @@ pub(super) const TURNING_FORM_MAP: Base = Base {
     name: "turned convex sphere R8 (as above), interferometer map of the aperture, 61 × 61 px of 50 µm",
     process: "turning",
     job: TURNING_SPHERE.job,
-    measurement: r#"kind = "map"
-pixels = [61, 61]
-pixel_um = 50.0
-pixel_averaging = true
-white_noise_nm = 1.5
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    measurement: include_str!("bases/turning_form_map/measurement.toml"),
     format: "gsf",
     axis_along_um: CENTRED,
     azimuth_stated: true,
@@ -302,32 +131,8 @@ dropout_fraction = 0.01
 pub(super) const BULL_NOSE_FLAT_MAP: Base = Base {
     name: "bull-nose (Ø3 mm, 0.5 mm corner, 0.1 mm step) raster over a flat, Ø2 mm, map of 21 × 21 px of 25 µm",
     process: "milling",
-    job: r#"version = 1
-name = "bull-nose raster over a flat"
-[surface]
-kind = "plane"
-aperture_diameter_mm = 2.0
-[tool]
-kind = "bull_nose"
-diameter_mm = 3.0
-corner_radius_mm = 0.5
-[process]
-kind = "milling"
-path = "raster"
-stepover_mm = 0.1
-stock_allowance_mm = 0.01
-[grid]
-pitch_um = 2.0
-azimuths = 8
-"#,
-    measurement: r#"kind = "map"
-pixels = [21, 21]
-pixel_um = 25.0
-pixel_averaging = true
-white_noise_nm = 1.5
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/bull_nose_flat_map/job.toml"),
+    measurement: include_str!("bases/bull_nose_flat_map/measurement.toml"),
     format: "exr",
     axis_along_um: CENTRED,
     azimuth_stated: true,
@@ -361,33 +166,8 @@ fn varying_feed_program() -> Vec<(&'static str, String)> {
 pub const SPIRAL_VARYING_FEED: Base = Base {
     name: "turned part from a bare C X Z program (0.191 mm nose, feed 14–26 µm/rev over Ø2 mm), white-light line from the file's zero, axis 0.35–0.65 mm along it",
     process: "turning",
-    job: r#"version = 1
-name = "bare C X Z program, feed 14-26 um/rev"
-[surface]
-kind = "from_path"
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.191
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-nc_program = "program.nc"
-nc_feed_mode = "inverse_time"
-nc_units = "mm"
-stock_allowance_mm = 0.003
-[grid]
-pitch_um = 0.5
-azimuths = 8
-"#,
-    measurement: r#"kind = "profile"
-from_mm = 0.0
-to_mm = 1.3
-spacing_um = 0.871
-white_noise_nm = 2.0
-pink_noise_nm = 2.0
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/spiral_varying_feed/job.toml"),
+    measurement: include_str!("bases/spiral_varying_feed/measurement.toml"),
     format: "csv",
     axis_along_um: [350.0, 650.0],
     azimuth_stated: false,
@@ -401,35 +181,8 @@ dropout_fraction = 0.01
 pub const FINE_FEED_SPHERE: Base = Base {
     name: "turned convex sphere R5, Ø1 mm, 2 µm/rev, 0.2 mm nose, stylus diameter (2 µm tip) with the axis up to 40 µm from its zero",
     process: "turning",
-    job: r#"version = 1
-name = "fine-feed sphere"
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 5.0
-aperture_diameter_mm = 1.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.2
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.002
-stock_allowance_mm = 0.003
-[grid]
-pitch_um = 0.25
-azimuths = 8
-"#,
-    measurement: r#"kind = "profile"
-from_mm = -0.45
-to_mm = 0.45
-spacing_um = 0.5
-stylus_tip_um = 2.0
-white_noise_nm = 1.0
-pink_noise_nm = 1.0
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/fine_feed_sphere/job.toml"),
+    measurement: include_str!("bases/fine_feed_sphere/measurement.toml"),
     format: "csv",
     axis_along_um: [-40.0, 40.0],
     azimuth_stated: true,
@@ -444,34 +197,8 @@ dropout_fraction = 0.01
 pub const WHITE_LIGHT_SPHERE: Base = Base {
     name: "turned convex sphere R20, Ø2 mm, 8 µm/rev, 0.5 mm nose, white-light diameter of 0.5 µm pixels, the axis 0–100 µm from its zero, azimuth not told",
     process: "turning",
-    job: r#"version = 1
-name = "white-light sphere"
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 20.0
-aperture_diameter_mm = 2.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.008
-stock_allowance_mm = 0.003
-[grid]
-pitch_um = 0.5
-azimuths = 8
-"#,
-    measurement: r#"kind = "profile"
-from_mm = -0.85
-to_mm = 0.95
-spacing_um = 0.5
-white_noise_nm = 1.5
-pink_noise_nm = 1.5
-dropout_fraction = 0.01
-"#,
+    job: include_str!("bases/white_light_sphere/job.toml"),
+    measurement: include_str!("bases/white_light_sphere/measurement.toml"),
     format: "csv",
     axis_along_um: [0.0, 100.0],
     azimuth_stated: false,
@@ -479,18 +206,18 @@ dropout_fraction = 0.01
     files: no_files,
 };
 
-/// Every base, for the suite's README.
-pub(super) const BASES: [&Base; 12] = [
-    &TURNING_SPHERE,
-    &GENERATED_SPHERE,
-    &BALL_MILLED_SPHERE,
-    &BALL_SPIRAL_FLAT,
-    &BALL_FEED_MARKS_FLAT,
-    &BALL_FEED_MARKS_SPHERE,
-    &TURNING_CENTRE_MAP,
-    &TURNING_FORM_MAP,
-    &BULL_NOSE_FLAT_MAP,
-    &SPIRAL_VARYING_FEED,
-    &FINE_FEED_SPHERE,
-    &WHITE_LIGHT_SPHERE,
+/// Every base by the name the suite's cases give it (its folder under `bases/`).
+pub(super) const BASES: [(&str, &Base); 12] = [
+    ("turning_sphere", &TURNING_SPHERE),
+    ("generated_sphere", &GENERATED_SPHERE),
+    ("ball_milled_sphere", &BALL_MILLED_SPHERE),
+    ("ball_spiral_flat", &BALL_SPIRAL_FLAT),
+    ("ball_feed_marks_flat", &BALL_FEED_MARKS_FLAT),
+    ("ball_feed_marks_sphere", &BALL_FEED_MARKS_SPHERE),
+    ("turning_centre_map", &TURNING_CENTRE_MAP),
+    ("turning_form_map", &TURNING_FORM_MAP),
+    ("bull_nose_flat_map", &BULL_NOSE_FLAT_MAP),
+    ("spiral_varying_feed", &SPIRAL_VARYING_FEED),
+    ("fine_feed_sphere", &FINE_FEED_SPHERE),
+    ("white_light_sphere", &WHITE_LIGHT_SPHERE),
 ];

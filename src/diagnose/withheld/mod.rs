@@ -76,36 +76,71 @@ pub struct TruthEffect {
 struct Spec {
     base: &'static Base,
     effects: Vec<(Candidate, Vec<f64>)>,
-    measurement: &'static str,
+    measurement: String,
 }
 
-fn single(base: &'static Base, c: Candidate, values: &[f64]) -> Spec {
-    with_effects(base, vec![(c, values.to_vec())])
+/// The cases as `suite.toml` lists them.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SuiteFile {
+    case: Vec<CaseEntry>,
 }
 
-fn pair(base: &'static Base, a: (Candidate, &[f64]), b: (Candidate, &[f64])) -> Spec {
-    with_effects(base, vec![(a.0, a.1.to_vec()), (b.0, b.1.to_vec())])
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CaseEntry {
+    base: String,
+    #[serde(default)]
+    effects: Vec<EffectEntry>,
+    #[serde(default)]
+    measurement: String,
 }
 
-fn with_effects(base: &'static Base, effects: Vec<(Candidate, Vec<f64>)>) -> Spec {
-    Spec {
-        base,
-        effects,
-        measurement: "",
-    }
+/// An effect put into a case's job: a candidate's kind, its values (the diagnosis's
+/// parameters and units), and the order, cycles or direction that name some kinds.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EffectEntry {
+    kind: String,
+    values: Vec<f64>,
+    order: Option<f64>,
+    cycles: Option<f64>,
+    direction: Option<String>,
 }
 
-fn control(base: &'static Base) -> Spec {
-    with_effects(base, Vec::new())
-}
-
-/// A case whose measurement adds `measurement` (an instrument error, an unmodelled
-/// effect) to an effect-free part.
-fn measured_with(base: &'static Base, measurement: &'static str) -> Spec {
-    Spec {
-        base,
-        effects: Vec::new(),
-        measurement,
+impl EffectEntry {
+    fn candidate(&self) -> Result<Candidate, String> {
+        let needs = |what: Option<f64>, name: &str| {
+            what.ok_or_else(|| format!("effect {:?} needs `{name}`", self.kind))
+        };
+        Ok(match self.kind.as_str() {
+            "centre_height" => Candidate::CentreHeight,
+            "x_decentre" => Candidate::XDecentre,
+            "nose_radius_error" => Candidate::NoseRadiusError,
+            "axial_drift" => Candidate::AxialDrift,
+            "edge_waviness" => Candidate::EdgeWaviness {
+                order: needs(self.order, "order")?,
+            },
+            "cutter_displacement" => Candidate::CutterDisplacement,
+            "inclination_error" => Candidate::InclinationError,
+            "tool_radius_error" => Candidate::ToolRadiusError,
+            "spindle_tram" => Candidate::SpindleTram,
+            "radial_runout" => Candidate::RadialRunout,
+            "vibration" => Candidate::Vibration {
+                cycles: needs(self.cycles, "cycles")?,
+                depth: match self.direction.as_deref() {
+                    Some("depth") => true,
+                    Some("feed") => false,
+                    _ => return Err("a vibration needs direction = \"depth\" or \"feed\"".into()),
+                },
+            },
+            "tilt_error_motion" => Candidate::TiltErrorMotion {
+                order: needs(self.order, "order")?,
+            },
+            "tool_wear" => Candidate::ToolWear,
+            "spring_back" => Candidate::SpringBack,
+            other => return Err(format!("no effect {other:?} in the suite's candidates")),
+        })
     }
 }
 
@@ -134,154 +169,33 @@ impl Spec {
     }
 }
 
-const CUSP_PILEUP: &str =
-    "[[unmodelled]]\nkind = \"cusp_pileup\"\nheight_nm = 6.0\nwidth_um = 1.5\n";
-const EDGE_CHIP: &str =
-    "[[unmodelled]]\nkind = \"edge_chip\"\ndepth_nm = 60.0\nat_deg = 8.0\nwidth_deg = 4.0\n";
-
-/// The suite: every effect alone at several magnitudes, pairs, controls; instrument
-/// errors; effects no candidate models.
-fn suite() -> Vec<Spec> {
-    use Candidate::*;
-    let t = &TURNING_SPHERE;
-    let g = &GENERATED_SPHERE;
-    let (ms, sp) = (&BALL_MILLED_SPHERE, &BALL_SPIRAL_FLAT);
-    let (fm, fs) = (&BALL_FEED_MARKS_FLAT, &BALL_FEED_MARKS_SPHERE);
-    let (cm, im, tm) = (&TURNING_CENTRE_MAP, &TURNING_FORM_MAP, &BULL_NOSE_FLAT_MAP);
-    let v = &SPIRAL_VARYING_FEED;
-    let (ff, wl) = (&FINE_FEED_SPHERE, &WHITE_LIGHT_SPHERE);
-    let wave = |order: f64| EdgeWaviness { order };
-    let shake = |cycles: f64| Vibration {
-        cycles,
-        depth: true,
-    };
-    let sway = |cycles: f64| Vibration {
-        cycles,
-        depth: false,
-    };
-    vec![
-        single(t, CentreHeight, &[3.0]),
-        single(t, CentreHeight, &[-2.0]),
-        single(t, CentreHeight, &[6.0]),
-        single(t, XDecentre, &[4.0]),
-        single(t, XDecentre, &[-3.0]),
-        single(t, XDecentre, &[1.5]),
-        single(t, NoseRadiusError, &[5.0]),
-        single(t, NoseRadiusError, &[-8.0]),
-        single(t, NoseRadiusError, &[15.0]),
-        single(t, AxialDrift, &[200.0]),
-        single(t, AxialDrift, &[-100.0]),
-        single(t, AxialDrift, &[500.0]),
-        single(t, wave(20.0), &[40.0, 0.0]),
-        single(t, wave(45.0), &[12.0, -21.0]),
-        pair(t, (CentreHeight, &[3.0]), (NoseRadiusError, &[5.0])),
-        pair(t, (XDecentre, &[3.0]), (AxialDrift, &[200.0])),
-        pair(t, (CentreHeight, &[-2.0]), (wave(30.0), &[30.0, 0.0])),
-        pair(t, (NoseRadiusError, &[-6.0]), (AxialDrift, &[-150.0])),
-        control(t),
-        control(t),
-        control(t),
-        measured_with(t, "lateral_scale = 1.006\n"),
-        measured_with(t, CUSP_PILEUP),
-        // Once an unmodelled chatter; a depth vibration is a candidate now: 8 nm at
-        // 3.37 per revolution, phase 20° (as cos/sin: 8·(cos 20°, −sin 20°)).
-        single(t, shake(3.37), &[7.518, -2.736]),
-        measured_with(t, EDGE_CHIP),
-        single(v, CentreHeight, &[2.0]),
-        single(v, CentreHeight, &[-3.0]),
-        single(v, NoseRadiusError, &[6.0]),
-        single(v, AxialDrift, &[150.0]),
-        single(v, XDecentre, &[2.0]),
-        pair(v, (CentreHeight, &[2.5]), (NoseRadiusError, &[-5.0])),
-        control(v),
-        control(v),
-        measured_with(v, "lateral_scale = 0.995\n"),
-        measured_with(v, CUSP_PILEUP),
-        single(v, shake(3.37), &[7.518, -2.736]),
-        single(g, CutterDisplacement, &[20.0]),
-        single(g, CutterDisplacement, &[-10.0]),
-        single(g, CutterDisplacement, &[50.0]),
-        single(g, InclinationError, &[0.01]),
-        single(g, InclinationError, &[-0.02]),
-        single(g, InclinationError, &[0.04]),
-        pair(
-            g,
-            (CutterDisplacement, &[20.0]),
-            (InclinationError, &[0.02]),
-        ),
-        pair(
-            g,
-            (CutterDisplacement, &[-30.0]),
-            (InclinationError, &[-0.01]),
-        ),
-        control(g),
-        control(g),
-        single(ms, ToolRadiusError, &[4.0]),
-        single(ms, ToolRadiusError, &[-2.0]),
-        single(ms, ToolRadiusError, &[10.0]),
-        single(ms, ToolRadiusError, &[-20.0]),
-        control(ms),
-        single(sp, AxialDrift, &[300.0]),
-        single(sp, AxialDrift, &[-150.0]),
-        single(sp, AxialDrift, &[80.0]),
-        single(sp, AxialDrift, &[1000.0]),
-        control(sp),
-        // Runout as (along, across) the feed in µm: ε (cos φ, sin φ).
-        single(fm, RadialRunout, &[2.0, 0.0]),
-        single(fm, RadialRunout, &[1.732, 1.0]),
-        single(fm, RadialRunout, &[-0.8, 0.6]),
-        single(fm, RadialRunout, &[4.0, -3.0]),
-        control(fm),
-        pair(fs, (RadialRunout, &[1.732, 1.0]), (ToolRadiusError, &[4.0])),
-        pair(fs, (RadialRunout, &[-1.5, 0.0]), (ToolRadiusError, &[-6.0])),
-        // Maps: the centre, the form, a tram both ways.
-        single(cm, CentreHeight, &[3.0]),
-        single(cm, CentreHeight, &[-2.0]),
-        single(cm, XDecentre, &[4.0]),
-        control(cm),
-        single(im, NoseRadiusError, &[8.0]),
-        single(im, AxialDrift, &[300.0]),
-        control(im),
-        single(tm, SpindleTram, &[0.02, 0.05]),
-        single(tm, SpindleTram, &[-0.05, 0.01]),
-        control(tm),
-        // The moving effects (issue 12), alone and beside the effect each resembles:
-        // wear (∝ cut length) and drift (∝ time); a depth vibration and edge waviness;
-        // on a map a synchronous vibration (= axial error motion) and tilt error motion.
-        single(t, shake(0.37), &[6.0, -3.0]),
-        single(t, sway(0.21), &[250.0, 150.0]),
-        single(t, ToolWear, &[150.0]),
-        single(t, ToolWear, &[-80.0]),
-        pair(t, (ToolWear, &[150.0]), (AxialDrift, &[200.0])),
-        pair(t, (shake(0.37), &[6.0, -3.0]), (wave(30.0), &[30.0, 0.0])),
-        single(v, ToolWear, &[120.0]),
-        single(im, shake(3.0), &[8.0, 0.0]),
-        single(im, TiltErrorMotion { order: 2.0 }, &[4.0, 2.0]),
-        single(im, ToolWear, &[200.0]),
-        pair(
-            im,
-            (shake(3.0), &[8.0, 0.0]),
-            (TiltErrorMotion { order: 2.0 }, &[4.0, 2.0]),
-        ),
-        // Spring-back (h_min nm, ρ): a band h_min·R/f = 2 µm wide beside each cusp left
-        // up to 36 nm high; alone and beside the nose-radius error it resembles.
-        single(t, SpringBack, &[40.0, 0.9]),
-        pair(t, (SpringBack, &[40.0, 0.9]), (NoseRadiusError, &[5.0])),
-        // Where the marks cannot place the trace (issue 13): a fine feed whose marks the
-        // tip barely resolves, and even marks read by a white-light line; each with the
-        // centre's feature that alone fixes the axis, a form effect and a control; and
-        // an edge waviness of two orders (the two singles 012 and 013 at once).
-        single(ff, CentreHeight, &[-5.0]),
-        single(ff, CentreHeight, &[3.0]),
-        single(ff, XDecentre, &[2.0]),
-        control(ff),
-        single(wl, CentreHeight, &[5.0]),
-        single(wl, CentreHeight, &[-3.0]),
-        single(wl, NoseRadiusError, &[10.0]),
-        single(wl, AxialDrift, &[150.0]),
-        pair(t, (wave(20.0), &[40.0, 0.0]), (wave(45.0), &[12.0, -21.0])),
-        control(wl),
-    ]
+/// The suite (`suite.toml`): every effect alone at several magnitudes, pairs,
+/// controls; instrument errors; effects no candidate models.
+fn suite() -> Result<Vec<Spec>, String> {
+    let file: SuiteFile =
+        toml::from_str(include_str!("suite.toml")).map_err(|e| format!("suite.toml: {e}"))?;
+    file.case
+        .into_iter()
+        .enumerate()
+        .map(|(index, case)| {
+            let in_case = |err: String| format!("suite.toml, case {index}: {err}");
+            let base = BASES
+                .iter()
+                .find(|(name, _)| *name == case.base)
+                .ok_or_else(|| in_case(format!("no base {:?}", case.base)))?
+                .1;
+            let effects = case
+                .effects
+                .iter()
+                .map(|e| Ok((e.candidate().map_err(in_case)?, e.values.clone())))
+                .collect::<Result<_, String>>()?;
+            Ok(Spec {
+                base,
+                effects,
+                measurement: case.measurement,
+            })
+        })
+        .collect()
 }
 
 /// Writes the suite into `dir` (cases/ and sealed/); returns the case ids.
@@ -296,7 +210,7 @@ pub fn generate(
         std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
     }
     let mut ids = Vec::new();
-    for (index, spec) in suite().into_iter().enumerate() {
+    for (index, spec) in suite()?.into_iter().enumerate() {
         let id = format!("{index:03}-{}-{}", spec.base.process, spec.label());
         log(&format!("generating {id}"));
         let truth = write_case(&spec, index as u64, &id, &cases.join(&id), engine)?;
@@ -312,7 +226,7 @@ pub fn generate(
             "# toolmark withheld diagnosis suite\n\n`cases/` holds what a diagnosis may see: per case the job without its effects, the files it reads, the measured file and the instrument. `sealed/` holds the truth; `toolmark bench-diagnose diagnose` never reads it, `toolmark bench-diagnose score` does.\n\nBases:\n{}",
             BASES
                 .iter()
-                .map(|b| format!("- {} ({})\n", b.name, b.process))
+                .map(|(_, b)| format!("- {} ({})\n", b.name, b.process))
                 .collect::<String>()
         ),
     )?;
