@@ -8,10 +8,14 @@ use common::*;
 use toolmark::analysis::ProtrusionShape;
 use toolmark::analysis::sphere_fit::fit_machined_sphere;
 use toolmark::engine::cpu::CpuEngine;
+use toolmark::geometry::Form;
 use toolmark::geometry::cup_wheel::{CupWheel, generated_sphere};
 use toolmark::loops::correct::{central_pv_nm, correction_loop};
-use toolmark::model::Job;
+use toolmark::model::{
+    EffectKind, EffectSpec, GeneratingSpec, Job, JobFile, ProcessSpec, SurfaceSpec, ToolSpec,
+};
 use toolmark::pipeline::RunResult;
+use toolmark::process::PlungeAxis;
 
 struct Setup {
     radius_mm: f64,
@@ -33,31 +37,27 @@ impl Setup {
         if self.concave { 1.0 } else { -1.0 }
     }
 
-    fn job(&self, aperture_mm: f64, pitch_um: f64, process: &str, effects: &str) -> Job {
-        job(&format!(
-            r#"version = 1
-[surface]
-kind = "sphere"
-form = "{form}"
-radius_mm = {radius}
-aperture_diameter_mm = {aperture_mm}
-[tool]
-kind = "cup_wheel"
-cutting_radius_mm = {rt}
-edge_radius_mm = {r}
-[process]
-kind = "generating"
-{process}
-[grid]
-pitch_um = {pitch_um}
-azimuths = 4
-{effects}
-"#,
-            form = if self.concave { "concave" } else { "convex" },
-            radius = self.radius_mm,
-            rt = self.cutting_radius_mm,
-            r = self.edge_radius_mm,
-        ))
+    fn job(
+        &self,
+        aperture_mm: f64,
+        pitch_um: f64,
+        process: GeneratingSpec,
+        effects: &[EffectSpec],
+    ) -> Job {
+        let form = if self.concave {
+            Form::Concave
+        } else {
+            Form::Convex
+        };
+        let file = JobFile::new(
+            SurfaceSpec::sphere(form, self.radius_mm, aperture_mm),
+            ToolSpec::cup_wheel(self.cutting_radius_mm, self.edge_radius_mm, 0),
+            ProcessSpec::Generating(process),
+        )
+        .grid(pitch_um, 4);
+        let file = effects.iter().cloned().fold(file, JobFile::effect);
+        file.check()
+            .unwrap_or_else(|err| panic!("test job invalid: {err}"))
     }
 
     /// The inclination the job resolves to.
@@ -66,8 +66,11 @@ azimuths = 4
     }
 }
 
-fn displaced(offset_mm: f64) -> String {
-    format!("[[effects]]\nkind = \"cutter_displacement\"\noffset_mm = {offset_mm}")
+fn displaced(offset_mm: f64) -> EffectSpec {
+    EffectSpec {
+        offset_mm: Some(offset_mm),
+        ..EffectSpec::of(EffectKind::CutterDisplacement)
+    }
 }
 
 const SEED: Setup = Setup {
@@ -98,12 +101,15 @@ fn the_generated_sphere_radius_is_rt_over_sin_alpha_plus_or_minus_r() {
             cutting_radius_mm: rt,
             edge_radius_mm: r,
         };
-        let process = inclination.map_or(String::new(), |a| format!("inclination_deg = {a}"));
-        let probe = setup.job(1.0, 10.0, &process, "");
+        let process = GeneratingSpec {
+            inclination_deg: inclination,
+            ..GeneratingSpec::default()
+        };
+        let probe = setup.job(1.0, 10.0, process.clone(), &[]);
         let alpha = Setup::inclination(&probe);
         let reach = probe.process.generating().unwrap().setup.reach_radius_mm();
         let aperture = (1.6 * reach).min(0.9 * radius);
-        let job = setup.job(aperture, aperture * 1e3 / 1000.0, &process, "");
+        let job = setup.job(aperture, aperture * 1e3 / 1000.0, process, &[]);
         let result = run_cpu(job);
         let fit = fit_machined_sphere(result.grid(), &result.field, 0.0).unwrap();
         let closed = rt / alpha.sin() + setup.s() * r;
@@ -140,9 +146,9 @@ fn a_displaced_circle_leaves_a_pip_of_radius_e_on_either_side_of_the_axis() {
             [0.015, 0.03, 0.06, -0.015, -0.03, -0.06],
         ),
     ] {
-        let alpha = Setup::inclination(&setup.job(2.0, pitch_um, "", ""));
+        let alpha = Setup::inclination(&setup.job(2.0, pitch_um, GeneratingSpec::default(), &[]));
         for e in offsets {
-            let job = setup.job(2.0, pitch_um, "", &displaced(e));
+            let job = setup.job(2.0, pitch_um, GeneratingSpec::default(), &[displaced(e)]);
             let (radius_um, height_nm, fitted_radius, shape) = pip_and_radius(&run_cpu(job));
             let closed = generated_sphere(
                 &setup.wheel(),
@@ -185,13 +191,16 @@ fn overshooting_the_axis_gives_the_part_of_the_opposite_miss_at_another_inclinat
     // form cannot tell the side. Check both parts agree everywhere, and that they
     // differ from the short part at the original inclination by its radius change.
     let e = 0.02;
-    let short = run_cpu(SEED.job(6.0, 2.0, "", &displaced(e)));
+    let short = run_cpu(SEED.job(6.0, 2.0, GeneratingSpec::default(), &[displaced(e)]));
     let alpha = Setup::inclination(&short.job);
     let nominal = generated_sphere(&SEED.wheel(), alpha, true, e, 0.5);
     let k = (nominal.radius_mm - 0.5).powi(2) - e * e;
     let shift = 2.0 * e.atan2(k.sqrt());
-    let past_process = format!("inclination_deg = {}", (alpha - shift).to_degrees());
-    let past = run_cpu(SEED.job(6.0, 2.0, &past_process, &displaced(-e)));
+    let past_process = GeneratingSpec {
+        inclination_deg: Some((alpha - shift).to_degrees()),
+        ..GeneratingSpec::default()
+    };
+    let past = run_cpu(SEED.job(6.0, 2.0, past_process, &[displaced(-e)]));
     let largest = short
         .field
         .depth_mm
@@ -199,7 +208,7 @@ fn overshooting_the_axis_gives_the_part_of_the_opposite_miss_at_another_inclinat
         .zip(&past.field.depth_mm)
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f64::max);
-    let same_inclination = run_cpu(SEED.job(6.0, 2.0, "", &displaced(-e)));
+    let same_inclination = run_cpu(SEED.job(6.0, 2.0, GeneratingSpec::default(), &[displaced(-e)]));
     let rim = short.grid().ring_count() - 1;
     println!(
         "e = ±{} µm: parts differ by at most {:.2e} nm with the inclination moved by {:.6}°; at the same inclination the rim differs by {:.1} nm",
@@ -226,8 +235,15 @@ fn overshooting_the_axis_gives_the_part_of_the_opposite_miss_at_another_inclinat
 #[test]
 fn plunge_errors_give_a_piston_along_z_and_a_pip_along_the_tool_axis() {
     let dp = 0.05;
-    let effect = format!("[[effects]]\nkind = \"plunge_error\"\nerror_mm = {dp}");
-    let along_z = run_cpu(SEED.job(2.0, 1.0, "plunge_axis = \"z\"", &effect));
+    let effect = [EffectSpec {
+        error_mm: Some(dp),
+        ..EffectSpec::of(EffectKind::PlungeError)
+    }];
+    let plunge = |axis: PlungeAxis| GeneratingSpec {
+        plunge_axis: Some(axis),
+        ..GeneratingSpec::default()
+    };
+    let along_z = run_cpu(SEED.job(2.0, 1.0, plunge(PlungeAxis::Z), &effect));
     // The sphere lifted by Δp: along the normal (n_z = cos θ) the ray meets it at
     // d = Δp cos θ + R − √(R² − Δp² sin²θ).
     let rings = &along_z.grid().rings;
@@ -252,7 +268,7 @@ fn plunge_errors_give_a_piston_along_z_and_a_pip_along_the_tool_axis() {
     assert!(largest < 1e-12, "the sphere lifted by Δp (within 1e-6 nm)");
     assert_eq!(along_z.protrusion.shape, ProtrusionShape::None);
 
-    let along_axis = run_cpu(SEED.job(2.0, 1.0, "plunge_axis = \"tool_axis\"", &effect));
+    let along_axis = run_cpu(SEED.job(2.0, 1.0, plunge(PlungeAxis::ToolAxis), &effect));
     let alpha = Setup::inclination(&along_axis.job);
     // Stopped short along the axis into a concave part, the circle moves back along
     // −a: X by −Δp sin α (past the axis), Z by +Δp cos α.
@@ -291,23 +307,23 @@ fn correction_removes_the_pip_and_the_radius_error_at_least_twenty_fold() {
         cutting_radius_mm: 10.0,
         edge_radius_mm: 3.5,
     };
-    let tilt = |deg: f64| format!("[[effects]]\nkind = \"inclination_error\"\nerror_deg = {deg}");
+    let tilt = |deg: f64| EffectSpec {
+        error_deg: Some(deg),
+        ..EffectSpec::of(EffectKind::InclinationError)
+    };
     let cases = [
-        (&SEED, 6.0, format!("{}\n{}", displaced(0.02), tilt(0.01))),
-        (
-            &SEED,
-            6.0,
-            format!("{}\n{}", displaced(-0.015), tilt(-0.02)),
-        ),
-        (&convex, 8.0, format!("{}\n{}", displaced(0.03), tilt(0.05))),
-        (
-            &seed_edge,
-            20.0,
-            format!("{}\n{}", displaced(-0.1), tilt(0.02)),
-        ),
+        (&SEED, 6.0, [displaced(0.02), tilt(0.01)]),
+        (&SEED, 6.0, [displaced(-0.015), tilt(-0.02)]),
+        (&convex, 8.0, [displaced(0.03), tilt(0.05)]),
+        (&seed_edge, 20.0, [displaced(-0.1), tilt(0.02)]),
     ];
     for (setup, aperture, effects) in cases {
-        let job = setup.job(aperture, aperture / 3.0, "", &effects);
+        let job = setup.job(
+            aperture,
+            aperture / 3.0,
+            GeneratingSpec::default(),
+            &effects,
+        );
         let zone = 0.1 * aperture / 2.0;
         let run = correction_loop(&job, &mut CpuEngine, zone).expect("correction runs");
         let before = run.cuts[0].central_pv_nm;
@@ -439,7 +455,7 @@ fn seed_000_hypocycloid_against_the_three_d_kinematics_of_the_same_set_up() {
         cutting_radius_mm: 10.0,
         edge_radius_mm: small,
     };
-    let job = wheel.job(30.0, 5.0, "", "");
+    let job = wheel.job(30.0, 5.0, GeneratingSpec::default(), &[]);
     let circle = job
         .process
         .generating()

@@ -4,10 +4,13 @@
 
 mod common;
 use common::*;
+use toolmark::geometry::Form;
 use toolmark::geometry::formulas::{
     flat_scallop_height, sphere_angle_step_for_radial_feed, sphere_scallop_height,
 };
+use toolmark::model::{JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec};
 use toolmark::pipeline::RunResult;
+use toolmark::process::FeedAlong;
 
 /// Worst relative error of the interior cusps against `expected(cusp arc length)`,
 /// skipping the first and last `margin_mm` of the meridian (lead-in and centre dwell).
@@ -49,13 +52,14 @@ fn flat_facing_scallop_equals_r_minus_root_within_one_percent() {
     for (radius, feed) in pairs {
         let expected = flat_scallop_height(radius, feed);
         let aperture = 60.0 * feed;
-        let job = turning_job(
-            &format!("kind = \"plane\"\naperture_diameter_mm = {aperture}"),
-            radius,
-            feed,
-            "mode = \"xz\"",
-            &format!("pitch_um = {}\nazimuths = 6", feed * 1e3 / 40.0),
-        );
+        let job = JobFile::new(
+            SurfaceSpec::plane(aperture),
+            ToolSpec::arc_nose(radius, 160.0),
+            ProcessSpec::Turning(TurningSpec::xz(feed)),
+        )
+        .grid(feed * 1e3 / 40.0, 6)
+        .check()
+        .expect("a valid job");
         for (engine, result) in [("cpu", run_cpu(job.clone())), ("gpu", run_gpu(job))] {
             let (worst, count) = worst_relative_error(&result, 3.0 * feed, |_| expected);
             let stats = result.scallops.stats.expect("scallops resolved");
@@ -86,15 +90,25 @@ fn sphere_scallops_follow_the_curvature_corrected_closed_form_within_two_percent
     ];
     for (form, part_radius, tool_radius, feed, along, aperture) in cases {
         let convex = form == "convex";
-        let job = turning_job(
-            &format!(
-                "kind = \"sphere\"\nform = \"{form}\"\nradius_mm = {part_radius}\naperture_diameter_mm = {aperture}"
-            ),
-            tool_radius,
-            feed,
-            &format!("mode = \"xzb\"\nfeed_along = \"{along}\""),
-            &format!("pitch_um = {}\nazimuths = 4", feed * 1e3 / 30.0),
+        let (form_kind, feed_along) = (
+            if convex { Form::Convex } else { Form::Concave },
+            if along == "arc_length" {
+                FeedAlong::ArcLength
+            } else {
+                FeedAlong::Radial
+            },
         );
+        let job = JobFile::new(
+            SurfaceSpec::sphere(form_kind, part_radius, aperture),
+            ToolSpec::arc_nose(tool_radius, 160.0),
+            ProcessSpec::Turning(TurningSpec {
+                feed_along: Some(feed_along),
+                ..TurningSpec::xzb(feed)
+            }),
+        )
+        .grid(feed * 1e3 / 30.0, 4)
+        .check()
+        .expect("a valid job");
         let flat = flat_scallop_height(tool_radius, feed) * 1e6;
         let expected = |s: f64| {
             let step = if along == "arc_length" {

@@ -19,9 +19,9 @@
 //! ```
 
 use super::{
-    ArcNoseSpec, AsphereSpec, CupWheelSpec, EffectSpec, GeneratingSpec, GridSpec, JOB_VERSION, Job,
-    JobError, JobFile, MillToolSpec, MillingSpec, OutputSpec, PlaneSpec, ProcessSpec, SphereSpec,
-    SurfaceSpec, ToolSpec, TurningSpec,
+    ArcNoseSpec, AsphereSpec, CupWheelSpec, EffectKind, EffectSpec, GeneratingSpec, GridSpec,
+    JOB_VERSION, Job, JobError, JobFile, MillToolSpec, MillingSpec, OutputSpec, PlaneSpec,
+    ProcessSpec, SphereSpec, SurfaceSpec, ToolSpec, TurningSpec,
 };
 use crate::geometry::Form;
 use crate::process::{MillingPathKind, TurningMode};
@@ -141,6 +141,33 @@ impl ToolSpec {
 
     pub fn flat_end(diameter_mm: f64) -> ToolSpec {
         ToolSpec::FlatEnd(MillToolSpec::of_diameter(diameter_mm))
+    }
+}
+
+impl EffectSpec {
+    /// A table of `kind` with no parameter given yet (set them on the result:
+    /// `EffectSpec { offset_mm: Some(0.02), ..EffectSpec::of(EffectKind::CutterDisplacement) }`).
+    pub fn of(kind: EffectKind) -> EffectSpec {
+        EffectSpec {
+            kind,
+            height_mm: None,
+            offset_mm: None,
+            error_mm: None,
+            harmonics: None,
+            error_deg: None,
+            drift_mm: None,
+            tilt_x_deg: None,
+            tilt_y_deg: None,
+            phase_deg: None,
+            amplitude_mm: None,
+            direction: None,
+            per_revolution: None,
+            frequency_hz: None,
+            tilt_harmonics: None,
+            recession_mm: None,
+            min_chip_mm: None,
+            recovery: None,
+        }
     }
 }
 

@@ -35,32 +35,6 @@ pub fn run_gpu(job: Job) -> RunResult {
     simulate(job, &mut gpu_engine(), &|_, _| {}).expect("GPU engine run")
 }
 
-/// A turning job on a given surface table, with the common tool/process/grid keys.
-pub fn turning_job(
-    surface: &str,
-    tool_radius_mm: f64,
-    feed_mm: f64,
-    extra_process: &str,
-    grid: &str,
-) -> Job {
-    job(&format!(
-        r#"version = 1
-[surface]
-{surface}
-[tool]
-kind = "arc_nose"
-nose_radius_mm = {tool_radius_mm}
-included_angle_deg = 160.0
-[process]
-kind = "turning"
-feed_per_rev_mm = {feed_mm}
-{extra_process}
-[grid]
-{grid}
-"#
-    ))
-}
-
 /// Runs `job` on both engines and asserts the GPU's field matches the CPU's sample by
 /// sample: max |Δ depth| ≤ max(0.5 nm, 0.1 % of the CPU map's PV) (DESIGN §5, issue
 /// 14), and at most 0.1 % of the samples cut by one engine only (an entry within f32
