@@ -476,14 +476,6 @@ pub enum ProcessSpec {
 }
 
 impl ProcessSpec {
-    pub fn kind(&self) -> ProcessKind {
-        match self {
-            ProcessSpec::Turning(_) => ProcessKind::Turning,
-            ProcessSpec::Generating(_) => ProcessKind::Generating,
-            ProcessSpec::Milling(_) => ProcessKind::Milling,
-        }
-    }
-
     /// The stock allowance and the depth of cut, where the kind has them.
     fn stock_and_depth(&self) -> (Option<f64>, Option<f64>) {
         match self {

@@ -109,24 +109,37 @@ struct EffectEntry {
 }
 
 impl EffectEntry {
+    /// The candidate of this kind (`Candidate::kind` names them), with the order,
+    /// cycles or direction the kind needs.
     fn candidate(&self) -> Result<Candidate, String> {
+        use Candidate::*;
         let needs = |what: Option<f64>, name: &str| {
             what.ok_or_else(|| format!("effect {:?} needs `{name}`", self.kind))
         };
+        let plain = [
+            CentreHeight,
+            XDecentre,
+            NoseRadiusError,
+            AxialDrift,
+            CutterDisplacement,
+            InclinationError,
+            ToolRadiusError,
+            SpindleTram,
+            RadialRunout,
+            ToolWear,
+            SpringBack,
+        ];
+        if let Some(candidate) = plain.into_iter().find(|c| c.kind() == self.kind) {
+            return Ok(candidate);
+        }
         Ok(match self.kind.as_str() {
-            "centre_height" => Candidate::CentreHeight,
-            "x_decentre" => Candidate::XDecentre,
-            "nose_radius_error" => Candidate::NoseRadiusError,
-            "axial_drift" => Candidate::AxialDrift,
-            "edge_waviness" => Candidate::EdgeWaviness {
+            "edge_waviness" => EdgeWaviness {
                 order: needs(self.order, "order")?,
             },
-            "cutter_displacement" => Candidate::CutterDisplacement,
-            "inclination_error" => Candidate::InclinationError,
-            "tool_radius_error" => Candidate::ToolRadiusError,
-            "spindle_tram" => Candidate::SpindleTram,
-            "radial_runout" => Candidate::RadialRunout,
-            "vibration" => Candidate::Vibration {
+            "tilt_error_motion" => TiltErrorMotion {
+                order: needs(self.order, "order")?,
+            },
+            "vibration" => Vibration {
                 cycles: needs(self.cycles, "cycles")?,
                 depth: match self.direction.as_deref() {
                     Some("depth") => true,
@@ -134,11 +147,6 @@ impl EffectEntry {
                     _ => return Err("a vibration needs direction = \"depth\" or \"feed\"".into()),
                 },
             },
-            "tilt_error_motion" => Candidate::TiltErrorMotion {
-                order: needs(self.order, "order")?,
-            },
-            "tool_wear" => Candidate::ToolWear,
-            "spring_back" => Candidate::SpringBack,
             other => return Err(format!("no effect {other:?} in the suite's candidates")),
         })
     }
