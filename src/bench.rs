@@ -9,7 +9,10 @@ use crate::engine::RemovalEngine;
 use crate::engine::cpu::CpuEngine;
 use crate::engine::gpu::GpuEngine;
 use crate::geometry::Form;
-use crate::model::{GeneratingSpec, Job, JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec};
+use crate::model::{
+    EffectSpec, FluteModel, GeneratingSpec, Job, JobError, JobFile, ProcessSpec, SurfaceSpec,
+    ToolSpec, TurningSpec,
+};
 use crate::pipeline::{prepare_scenes, remove_all, simulate};
 use std::path::Path;
 use std::time::Instant;
@@ -47,33 +50,39 @@ fn generating_teeth_job() -> Job {
 /// ranking), a five-axis bull-nose and flat end (every candidate pass searched, kinked
 /// entries), a disc, and a two-flute ball's feed marks with its teeth as edges and as
 /// bodies.
-fn milling_cases() -> Vec<(&'static str, String)> {
-    let feed_marks = include_str!("../examples/milling_ball_feed_marks.toml");
+fn milling_cases() -> Vec<(&'static str, JobFile)> {
+    let example = |text: &str| JobFile::from_toml_str(text).expect("the example reads");
+    let feed_marks = example(include_str!("../examples/milling_ball_feed_marks.toml"));
+    let mut bodies = feed_marks.clone();
+    if let ToolSpec::BallEnd(tool) = &mut bodies.tool {
+        tool.flutes = Some(FluteModel::Body);
+    }
     vec![
         (
             "Ø1 ball, constant-scallop spiral on the seed-002 asphere",
-            include_str!("../examples/milling_asphere_constant_scallop.toml").into(),
+            example(include_str!(
+                "../examples/milling_asphere_constant_scallop.toml"
+            )),
         ),
         (
             "Ø8 bull-nose, 5-axis raster in a concave sphere",
-            include_str!("../examples/milling_bull_nose_concave_5axis.toml").into(),
+            example(include_str!(
+                "../examples/milling_bull_nose_concave_5axis.toml"
+            )),
         ),
         (
             "Ø6 flat end, 5-axis raster on a convex sphere",
-            include_str!("../examples/milling_flat_end_5axis.toml").into(),
+            example(include_str!("../examples/milling_flat_end_5axis.toml")),
         ),
         (
             "Ø30 disc, oblique raster on a convex sphere",
-            include_str!("../examples/milling_disc_oblique.toml").into(),
+            example(include_str!("../examples/milling_disc_oblique.toml")),
         ),
         (
             "Ø2 ball, 2 teeth at 0.05 mm as edges (feed-marks example)",
-            feed_marks.into(),
+            feed_marks,
         ),
-        (
-            "same, teeth as bodies",
-            feed_marks.replace("teeth = 2", "teeth = 2\nflutes = \"body\""),
-        ),
+        ("same, teeth as bodies", bodies),
     ]
 }
 
@@ -231,28 +240,20 @@ fn bench_scaling(engines: &mut [Box<dyn RemovalEngine>]) -> Result<(), String> {
 
 /// An R9 sphere turned at 2 µm/rev under a 0.3 mm nose whose edge is wavy (order 20,
 /// 50 nm): the diagnosis's edge-waviness trials.
-const WAVY_EDGE_JOB: &str = r#"version = 1
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 9.0
-aperture_diameter_mm = 2.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.3
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.002
-stock_allowance_mm = 0.002
-[grid]
-pitch_um = 0.25
-azimuths = 16
-[[effects]]
-kind = "edge_waviness"
-harmonics = [{ order = 20, amplitude_mm = 0.00005, phase_deg = 10.0 }]
-"#;
+fn wavy_edge_job() -> Result<Job, JobError> {
+    JobFile::new(
+        SurfaceSpec::sphere(Form::Convex, 9.0, 2.0),
+        ToolSpec::arc_nose(0.3, 120.0),
+        ProcessSpec::Turning(TurningSpec {
+            stock_allowance_mm: Some(0.002),
+            ..TurningSpec::xz(0.002)
+        }),
+    )
+    .named("wavy edge")
+    .grid(0.25, 16)
+    .effect(EffectSpec::edge_waviness(20.0, 0.00005, 10.0))
+    .check()
+}
 
 /// An edge off its circle: the engine (its passes' bounds in lanes, the full entries
 /// with their arctangents only where a bound reaches below the lowest entry) against
@@ -265,7 +266,7 @@ fn bench_wavy_edge() -> Result<(), String> {
     println!("\n## wavy edge (R9 sphere, 2 µm/rev, 0.3 mm nose, order-20 waviness of 50 nm), CPU");
     println!("| path | samples | pairs | removal s | pairs/s | ratio |");
     println!("| --- | --- | --- | --- | --- | --- |");
-    let job = Job::from_toml_str(WAVY_EDGE_JOB, "wavy edge").map_err(|e| e.to_string())?;
+    let job = wavy_edge_job().map_err(|e| e.to_string())?;
     let engine = median_removal(3, &job)?;
     let scenes = prepare_scenes(&job);
     let Some(Scene::Turning(scene)) = scenes.first() else {
@@ -341,8 +342,8 @@ fn bench_milling(engines: &mut [Box<dyn RemovalEngine>]) -> Result<(), String> {
         "| case | engine | samples | pairs | first run s | removal s | pairs/s | ns per pair | × CPU |"
     );
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
-    for (case, text) in milling_cases() {
-        let job = Job::from_toml_str(&text, "bench").map_err(|e| e.to_string())?;
+    for (case, file) in milling_cases() {
+        let job = Job::from_file(file, "bench", Path::new(".")).map_err(|e| e.to_string())?;
         let mut cpu_seconds = None;
         for engine in engines.iter_mut() {
             let first = time_removal(engine.as_mut(), &job)?;
@@ -528,11 +529,9 @@ pub fn compare_with_numpy(azimuths: u32, cpu_runs: usize) -> Result<NumpyCompari
     let reference = numpy_sweep(&python, &dir, azimuths);
     let _ = std::fs::remove_dir_all(&dir);
     let reference = reference?;
-    let job = Job::from_toml_str(
-        &FLAT_FACING.replace("azimuths = 32", &format!("azimuths = {azimuths}")),
-        "bench",
-    )
-    .map_err(|e| e.to_string())?;
+    let mut file = JobFile::from_toml_str(FLAT_FACING).map_err(|e| e.to_string())?;
+    file.grid.azimuths = Some(azimuths);
+    let job = Job::from_file(file, "bench", Path::new(".")).map_err(|e| e.to_string())?;
     let scenes = prepare_scenes(&job);
     let pairs: u64 = scenes.iter().map(|s| s.pair_count()).sum();
     let mut field = None;
@@ -610,14 +609,11 @@ pub fn numpy_comparison(azimuth_counts: &[u32]) -> Result<(), String> {
 /// 8192 azimuths is the full job (47 409 rings, 3.88e8 samples); fewer scale it down
 /// with the same rings and passes per sample.
 pub fn target_job(azimuths: u32) -> Result<Job, String> {
-    let text = crate::model::DEFAULT_JOB_TOML
-        .replace("pitch_um = 0.8", "pitch_um = 0.5")
-        .replace("azimuths = 32", &format!("azimuths = {azimuths}"))
-        .replace(
-            "name = \"seed-002 asphere, XZ\"",
-            &format!("name = \"seed-002 full aperture, 0.5 um x {azimuths}\""),
-        );
-    Job::from_toml_str(&text, "target").map_err(|e| e.to_string())
+    let file = JobFile::from_toml_str(crate::model::DEFAULT_JOB_TOML)
+        .map_err(|e| e.to_string())?
+        .named(&format!("seed-002 full aperture, 0.5 um x {azimuths}"))
+        .grid(0.5, azimuths);
+    Job::from_file(file, "target", Path::new(".")).map_err(|e| e.to_string())
 }
 
 /// Peak resident memory of this process so far (Linux `VmHWM`, bytes), if known.

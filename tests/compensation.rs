@@ -6,44 +6,40 @@
 mod common;
 use common::*;
 use toolmark::engine::cpu::CpuEngine;
+use toolmark::geometry::Form;
 use toolmark::loops::compensate::compensation_loop;
+use toolmark::model::{
+    AsphereSpec, EffectSpec, JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec,
+};
+use toolmark::process::FeedAlong;
 
-const ASPHERE_WITH_ERRORS: &str = r#"version = 1
-name = "seed-002 asphere, XZ, with setup and tool errors"
-[surface]
-kind = "asphere"
-form = "convex"
-base_radius_mm = 5.5
-conic = -0.7
-a4 = 0.000284
-aperture_diameter_mm = 20.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 180.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-feed_along = "arc_length"
-stock_allowance_mm = 0.003
-[grid]
-pitch_um = 2.0
-azimuths = 4
-[[effects]]
-kind = "x_decentre"
-offset_mm = 0.001
-[[effects]]
-kind = "nose_radius_error"
-error_mm = 0.0005
-[[effects]]
-kind = "edge_waviness"
-harmonics = [{ order = 9, amplitude_mm = 0.0001, phase_deg = 40.0 }]
-"#;
+fn asphere_with_errors() -> JobFile {
+    JobFile::new(
+        SurfaceSpec::Asphere(AsphereSpec {
+            form: Some(Form::Convex),
+            base_radius_mm: Some(5.5),
+            conic: Some(-0.7),
+            a4: Some(0.000284),
+            aperture_diameter_mm: Some(20.0),
+            ..AsphereSpec::default()
+        }),
+        ToolSpec::arc_nose(0.5, 180.0),
+        ProcessSpec::Turning(TurningSpec {
+            feed_along: Some(FeedAlong::ArcLength),
+            stock_allowance_mm: Some(0.003),
+            ..TurningSpec::xz(0.01)
+        }),
+    )
+    .named("seed-002 asphere, XZ, with setup and tool errors")
+    .grid(2.0, 4)
+    .effect(EffectSpec::x_decentre(0.001))
+    .effect(EffectSpec::nose_radius_error(0.0005))
+    .effect(EffectSpec::edge_waviness(9.0, 0.0001, 40.0))
+}
 
 #[test]
 fn three_compensations_cut_the_form_error_pv_at_least_five_fold() {
-    let job = job(ASPHERE_WITH_ERRORS);
+    let job = checked(asphere_with_errors());
     let run = compensation_loop(&job, &mut CpuEngine, 3, 0.2, &|r| {
         println!(
             "cycle {}: form PV {:.1} nm, RMS {:.1} nm (deviation PV {:.1} nm), correction up to {:.1} nm",

@@ -10,7 +10,8 @@ use common::*;
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::engine::cpu_turning_scalar::sample_dexel;
 use toolmark::engine::{RemovalEngine, Scene};
-use toolmark::model::Job;
+use toolmark::geometry::Form;
+use toolmark::model::{EffectSpec, Job, JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec};
 use toolmark::pipeline::prepare_scenes;
 
 /// Runs every scene of `job` through the engine and through the twin, sample by sample.
@@ -48,17 +49,29 @@ fn assert_same_bits(name: &str, job: Job) {
     assert!(pairs > 0);
 }
 
-/// An example with some of its TOML replaced (smaller grids keep the suite quick).
-fn example_with(name: &str, replacements: &[(&str, &str)], extra: &str) -> Job {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
-    let mut text = std::fs::read_to_string(dir.join(name)).expect("example");
-    for (from, to) in replacements {
-        assert!(text.contains(from), "{name} has no {from:?}");
-        text = text.replace(from, to);
-    }
-    text.push_str(extra);
-    let file = toml::from_str(&text).expect("example TOML");
-    Job::from_file(file, "test", &dir).expect("valid job")
+/// An example changed in Rust (smaller grids keep the suite quick), checked as if in
+/// `examples/`.
+fn example_with(name: &str, change: impl FnOnce(&mut JobFile)) -> Job {
+    let mut file = example_file(name);
+    change(&mut file);
+    in_examples(file)
+}
+
+/// Sets the surface's aperture diameter from `from` (which it must have) to `to`.
+fn aperture(file: &mut JobFile, from: f64, to: f64) {
+    let (outer, inner) = file.surface.aperture_diameters_mm();
+    assert_eq!(outer, Some(from), "the example's aperture");
+    file.surface = file.surface.clone().with_aperture(to, inner);
+}
+
+/// Sets the grid's azimuth rows from `from` (which it must have) to `to`.
+fn azimuths(file: &mut JobFile, from: u32, to: u32) {
+    assert_eq!(file.grid.azimuths, Some(from), "the example's azimuths");
+    file.grid.azimuths = Some(to);
+}
+
+fn spring_back() -> EffectSpec {
+    EffectSpec::spring_back(0.00001, 0.7)
 }
 
 #[test]
@@ -66,14 +79,10 @@ fn on_centre_xz_with_the_mirrored_branch_at_the_axis() {
     assert_same_bits("flat facing", example("flat_facing.toml"));
     assert_same_bits(
         "seed-002 asphere XZ, 5 mm",
-        example_with(
-            "asphere_xz.toml",
-            &[
-                ("aperture_diameter_mm = 20.0", "aperture_diameter_mm = 10.0"),
-                ("azimuths = 32", "azimuths = 12"),
-            ],
-            "",
-        ),
+        example_with("asphere_xz.toml", |file| {
+            aperture(file, 20.0, 10.0);
+            azimuths(file, 32, 12);
+        }),
     );
 }
 
@@ -81,11 +90,7 @@ fn on_centre_xz_with_the_mirrored_branch_at_the_axis() {
 fn xzb_where_the_tip_direction_moves_with_b() {
     assert_same_bits(
         "concave sphere XZB",
-        example_with(
-            "concave_sphere.toml",
-            &[("azimuths = 32", "azimuths = 8")],
-            "",
-        ),
+        example_with("concave_sphere.toml", |file| azimuths(file, 32, 8)),
     );
 }
 
@@ -94,74 +99,62 @@ fn off_centre_above_and_below_with_the_flank_branch() {
     assert_same_bits("5 µm above centre", example("sphere_centre_height.toml"));
     assert_same_bits(
         "4 µm below centre",
-        example_with(
-            "sphere_centre_height.toml",
-            &[("height_mm = 0.005", "height_mm = -0.004")],
-            "",
-        ),
+        example_with("sphere_centre_height.toml", |file| {
+            let [EffectSpec::CentreHeight(centre)] = file.effects.as_mut_slice() else {
+                panic!("the example has one effect, its centre height");
+            };
+            assert_eq!(centre.height_mm, Some(0.005), "the example's centre height");
+            centre.height_mm = Some(-0.004);
+        }),
     );
 }
 
 #[test]
 fn radius_error_decentre_drift_and_waviness() {
-    let effects = r#"
-[[effects]]
-kind = "x_decentre"
-offset_mm = -0.002
-[[effects]]
-kind = "nose_radius_error"
-error_mm = -0.0007
-[[effects]]
-kind = "axial_drift"
-drift_mm = 0.0003
-"#;
     assert_same_bits(
         "decentre, radius error, drift",
-        example_with(
-            "convex_sphere.toml",
-            &[("azimuths = 32", "azimuths = 8")],
-            effects,
-        ),
+        example_with("convex_sphere.toml", |file| {
+            azimuths(file, 32, 8);
+            file.effects.extend([
+                EffectSpec::x_decentre(-0.002),
+                EffectSpec::nose_radius_error(-0.0007),
+                EffectSpec::axial_drift(0.0003),
+            ]);
+        }),
     );
     // An edge off its circle on centre: its passes' bounds in lanes, the full entries
     // where the twin makes them.
     assert_same_bits(
         "waviness, decentre, radius error",
-        example_with(
-            "asphere_xz_with_errors.toml",
-            &[("aperture_diameter_mm = 20.0", "aperture_diameter_mm = 4.0")],
-            "",
-        ),
+        example_with("asphere_xz_with_errors.toml", |file| {
+            aperture(file, 20.0, 4.0)
+        }),
     );
 }
 
 #[test]
 fn spring_back_lane_by_lane_on_centre_off_centre_and_xzb() {
     // The sequential rule in the lanes: each lane's passes in the twin's order.
-    let spring_back =
-        "\n[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = 0.00001\nrecovery = 0.7\n";
     assert_same_bits(
         "flat facing with spring-back",
-        example_with(
-            "flat_facing.toml",
-            &[("azimuths = 32", "azimuths = 8")],
-            spring_back,
-        ),
+        example_with("flat_facing.toml", |file| {
+            azimuths(file, 32, 8);
+            file.effects.push(spring_back());
+        }),
     );
     assert_same_bits(
         "5 µm above centre with spring-back",
-        example_with("sphere_centre_height.toml", &[], spring_back),
+        example_with("sphere_centre_height.toml", |file| {
+            file.effects.push(spring_back())
+        }),
     );
     assert_same_bits(
         "seed-002 asphere XZB, 4 mm, with spring-back",
-        example_with(
-            "asphere_xzb.toml",
-            &[
-                ("aperture_diameter_mm = 20.0", "aperture_diameter_mm = 4.0"),
-                ("azimuths = 32", "azimuths = 8"),
-            ],
-            spring_back,
-        ),
+        example_with("asphere_xzb.toml", |file| {
+            aperture(file, 20.0, 4.0);
+            azimuths(file, 32, 8);
+            file.effects.push(spring_back());
+        }),
     );
 }
 
@@ -180,52 +173,43 @@ fn an_nc_program_with_its_own_node_spacing() {
 /// spring-back.
 #[test]
 fn a_wavy_edge_skips_only_passes_that_cannot_cut() {
-    let small = [("aperture_diameter_mm = 20.0", "aperture_diameter_mm = 3.0")];
-    let above = "\n[[effects]]\nkind = \"centre_height\"\nheight_mm = 0.003\n";
-    let spring_back =
-        "\n[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = 0.00001\nrecovery = 0.7\n";
+    let small = |file: &mut JobFile| aperture(file, 20.0, 3.0);
+    let above = EffectSpec::centre_height(0.003);
     // A fine feed under a small nose: some 30 passes reach each sample.
-    let fine = r#"version = 1
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 5.0
-aperture_diameter_mm = 0.2
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.2
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.002
-stock_allowance_mm = 0.003
-[grid]
-pitch_um = 0.5
-azimuths = 4
-[[effects]]
-kind = "edge_waviness"
-harmonics = [{ order = 20, amplitude_mm = 0.00005, phase_deg = 10.0 }]
-"#;
-    let on_centre = Job::from_toml_str(fine, "fine").expect("valid job");
+    let fine = JobFile::new(
+        SurfaceSpec::sphere(Form::Convex, 5.0, 0.2),
+        ToolSpec::arc_nose(0.2, 120.0),
+        ProcessSpec::Turning(TurningSpec {
+            stock_allowance_mm: Some(0.003),
+            ..TurningSpec::xz(0.002)
+        }),
+    )
+    .grid(0.5, 4)
+    .effect(EffectSpec::edge_waviness(20.0, 0.00005, 10.0));
+    let fine_job =
+        |file: JobFile| Job::from_file(file, "fine", std::path::Path::new(".")).expect("valid job");
+    let on_centre = fine_job(fine.clone());
     assert_same_bits("fine feed, wavy edge, on centre (lanes)", on_centre.clone());
     for (name, job) in [
         (
             "on centre",
-            example_with("asphere_xz_with_errors.toml", &small, ""),
+            example_with("asphere_xz_with_errors.toml", small),
         ),
         ("fine feed, on centre", on_centre),
         (
             "above centre",
-            example_with("asphere_xz_with_errors.toml", &small, above),
+            example_with("asphere_xz_with_errors.toml", |file| {
+                small(file);
+                file.effects.push(above.clone());
+            }),
         ),
         (
             "fine feed, above centre",
-            Job::from_toml_str(&format!("{fine}{above}"), "fine").expect("valid job"),
+            fine_job(fine.clone().effect(above.clone())),
         ),
         (
             "fine feed, above centre, spring-back",
-            Job::from_toml_str(&format!("{fine}{above}{spring_back}"), "fine").expect("valid job"),
+            fine_job(fine.clone().effect(above.clone()).effect(spring_back())),
         ),
     ] {
         let samples = assert_as_brute_force(name, &job);

@@ -11,14 +11,24 @@ use toolmark::diagnose::withheld;
 use toolmark::diagnose::{DiagnoseError, Options, Outcome, diagnose};
 use toolmark::engine::RemovalEngine;
 use toolmark::engine::cpu::CpuEngine;
-use toolmark::model::Job;
+use toolmark::geometry::Form;
+use toolmark::model::{
+    DirectionSpec, EffectSpec, EffectsFragment, Job, JobFile, RunoutSpec, SurfaceSpec,
+    VibrationSpec,
+};
+
+/// A suite base's job file.
+fn base(text: &str) -> JobFile {
+    JobFile::from_toml_str(text).expect("a suite base reads")
+}
 
 /// The suite's turned sphere (R8 convex, Ø3 mm, 10 µm/rev) on a 1 µm grid (the suite
 /// uses 0.5 µm; these cases need no finer).
-fn sphere() -> String {
-    let base = withheld::TURNING_SPHERE.job;
-    assert!(base.contains("pitch_um = 0.5"));
-    base.replace("pitch_um = 0.5", "pitch_um = 1.0")
+fn sphere() -> JobFile {
+    let mut file = base(withheld::TURNING_SPHERE.job);
+    assert_eq!(file.grid.pitch_um, Some(0.5));
+    file.grid.pitch_um = Some(1.0);
+    file
 }
 
 /// A stylus profile through the axis with a mount of known tilt, piston and offset.
@@ -40,8 +50,14 @@ fn model(text: &str) -> MeasurementModel {
 
 /// Synthesizes `truth_effects` on `base` as `measurement` describes, and returns the
 /// measured line as the diagnosis reads it (no truth).
-fn measure(base: &str, truth_effects: &str, measurement: &MeasurementModel) -> Measurement {
-    let truth = job(&format!("{base}\n{truth_effects}"));
+fn measure(
+    base: &JobFile,
+    truth_effects: &[EffectSpec],
+    measurement: &MeasurementModel,
+) -> Measurement {
+    let mut truth = base.clone();
+    truth.effects.extend_from_slice(truth_effects);
+    let truth = checked(truth);
     let data = synthesize(&truth, measurement, &mut CpuEngine).unwrap();
     Measurement::line(
         &data.positions_mm,
@@ -52,8 +68,13 @@ fn measure(base: &str, truth_effects: &str, measurement: &MeasurementModel) -> M
     )
 }
 
-fn run(base: &str, m: &Measurement, engine: &mut dyn RemovalEngine, options: &Options) -> Outcome {
-    diagnose(&job(base), m, engine, options, &|_| {})
+fn run(
+    base: &JobFile,
+    m: &Measurement,
+    engine: &mut dyn RemovalEngine,
+    options: &Options,
+) -> Outcome {
+    diagnose(&checked(base.clone()), m, engine, options, &|_| {})
         .unwrap_or_else(|e| panic!("diagnosis failed: {e}"))
 }
 
@@ -94,7 +115,7 @@ fn assert_residual_shrinks_fivefold(d: &toolmark::diagnose::report::Diagnosis, e
 
 #[test]
 fn registration_reports_the_mount_it_removed_and_a_clean_part_shows_no_effect() {
-    let m = measure(&sphere(), "", &model(PROFILE));
+    let m = measure(&sphere(), &[], &model(PROFILE));
     let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
     let d = &outcome.diagnosis;
     let reg = &d.registration.nominal;
@@ -133,27 +154,15 @@ fn registration_reports_the_mount_it_removed_and_a_clean_part_shows_no_effect() 
 #[test]
 fn single_turning_effects_are_ranked_first_sized_and_removed() {
     for (table, effect, truth) in [
+        (EffectSpec::centre_height(0.003), "centre_height", 3.0),
+        (EffectSpec::x_decentre(0.004), "x_decentre", 4.0),
         (
-            "kind = \"centre_height\"\nheight_mm = 0.003",
-            "centre_height",
-            3.0,
-        ),
-        (
-            "kind = \"x_decentre\"\noffset_mm = 0.004",
-            "x_decentre",
-            4.0,
-        ),
-        (
-            "kind = \"nose_radius_error\"\nerror_mm = 0.005",
+            EffectSpec::nose_radius_error(0.005),
             "nose_radius_error",
             5.0,
         ),
     ] {
-        let m = measure(
-            &sphere(),
-            &format!("[[effects]]\n{table}\n"),
-            &model(PROFILE),
-        );
+        let m = measure(&sphere(), &[table], &model(PROFILE));
         // On a sphere a nose-radius error Δρ moves the marks out as a lateral scale of
         // 1 + Δρ/R does and bends the form as a scale of 1 + Δρ/2R: with the scale
         // free the two leave only a 0.4 µm mark shift at the rim to tell them apart (see
@@ -189,7 +198,7 @@ fn a_nose_radius_error_with_the_lateral_scale_free_is_never_claimed_wrong() {
     // nothing — never another effect, and never a nose radius off by more than 10 %.
     let m = measure(
         &sphere(),
-        "[[effects]]\nkind = \"nose_radius_error\"\nerror_mm = 0.005\n",
+        &[EffectSpec::nose_radius_error(0.005)],
         &model(PROFILE),
     );
     let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
@@ -210,7 +219,9 @@ fn a_nose_radius_error_with_the_lateral_scale_free_is_never_claimed_wrong() {
 }
 
 /// The suite's generating base (seed 000's wheel on a concave R53.5).
-const GENERATED: &str = withheld::GENERATED_SPHERE.job;
+fn generated() -> JobFile {
+    base(withheld::GENERATED_SPHERE.job)
+}
 
 #[test]
 fn a_displaced_wheel_is_told_from_an_inclination_error_by_its_pip() {
@@ -219,11 +230,11 @@ fn a_displaced_wheel_is_told_from_an_inclination_error_by_its_pip() {
         "kind = \"profile\"\nspacing_um = 2.0\ntilt_urad = [20.0, 0.0]\ndecentre_um = [8.0, 0.0]\nwhite_noise_nm = 1.0\npink_noise_nm = 1.0\nseed = 5\n",
     );
     let m = measure(
-        GENERATED,
-        "[[effects]]\nkind = \"cutter_displacement\"\noffset_mm = 0.02\n",
+        &generated(),
+        &[EffectSpec::cutter_displacement(0.02)],
         &measurement,
     );
-    let outcome = run(GENERATED, &m, &mut CpuEngine, &Options::default());
+    let outcome = run(&generated(), &m, &mut CpuEngine, &Options::default());
     println!("{}", outcome.diagnosis.verdict.sentence);
     assert_eq!(
         outcome.diagnosis.candidates[0].effect,
@@ -234,7 +245,9 @@ fn a_displaced_wheel_is_told_from_an_inclination_error_by_its_pip() {
 }
 
 /// The suite's feed-mark base: a two-flute ball-end mill along X over a flat.
-const FEED_MARKS: &str = withheld::BALL_FEED_MARKS_FLAT.job;
+fn feed_marks() -> JobFile {
+    base(withheld::BALL_FEED_MARKS_FLAT.job)
+}
 
 #[test]
 fn runout_is_sized_along_the_feed_and_its_unseen_component_is_said_so() {
@@ -243,12 +256,12 @@ fn runout_is_sized_along_the_feed_and_its_unseen_component_is_said_so() {
     let measurement = model(
         "kind = \"profile\"\nspacing_um = 0.5\nstylus_tip_um = 2.0\ntilt_urad = [15.0, 0.0]\nwhite_noise_nm = 1.5\npink_noise_nm = 1.0\nseed = 9\n",
     );
-    let m = measure(
-        FEED_MARKS,
-        "[[effects]]\nkind = \"radial_runout\"\noffset_mm = 0.002\nphase_deg = 30.0\n",
-        &measurement,
-    );
-    let outcome = run(FEED_MARKS, &m, &mut CpuEngine, &Options::default());
+    let runout = EffectSpec::RadialRunout(RunoutSpec {
+        offset_mm: Some(0.002),
+        phase_deg: Some(30.0),
+    });
+    let m = measure(&feed_marks(), &[runout], &measurement);
+    let outcome = run(&feed_marks(), &m, &mut CpuEngine, &Options::default());
     let d = &outcome.diagnosis;
     println!("{}", d.verdict.sentence);
     let values = accepted(&outcome, "radial_runout");
@@ -290,8 +303,8 @@ fn refusal(result: Result<Outcome, DiagnoseError>) -> String {
 #[test]
 fn data_that_does_not_fit_the_job_is_refused_plainly() {
     let clean = model(PROFILE);
-    let m = measure(&sphere(), "", &clean);
-    let nominal = job(&sphere());
+    let m = measure(&sphere(), &[], &clean);
+    let nominal = checked(sphere());
     let try_it =
         |m: &Measurement| diagnose(&nominal, m, &mut CpuEngine, &Options::default(), &|_| {});
     let rescaled = |lateral: f64, height: f64| {
@@ -317,7 +330,12 @@ fn data_that_does_not_fit_the_job_is_refused_plainly() {
         "{reason}"
     );
     // Another part: the concave sphere of the same radius.
-    let other = measure(&sphere().replace("\"convex\"", "\"concave\""), "", &clean);
+    let mut concave = sphere();
+    let SurfaceSpec::Sphere(part) = &mut concave.surface else {
+        panic!("the suite's sphere")
+    };
+    part.form = Some(Form::Concave);
+    let other = measure(&concave, &[], &clean);
     let reason = refusal(try_it(&other));
     println!("another part: {reason}");
     // Empty: no valid point.
@@ -413,11 +431,8 @@ fn a_reported_fit_is_refined_on_finer_rings_and_its_sigma_carries_the_ring_pitch
         std::fs::write(dir.join(name), text).unwrap();
     }
     let truth_um = 2.0;
-    let effect = format!(
-        "[[effects]]\nkind = \"centre_height\"\nheight_mm = {}\n",
-        truth_um * 1e-3
-    );
-    let truth = Job::from_toml_in(&format!("{}\n{effect}", base.job), "truth", &dir).unwrap();
+    let truth = self::base(base.job).effect(EffectSpec::centre_height(truth_um * 1e-3));
+    let truth = Job::from_file(truth, "truth", &dir).unwrap();
     let measurement = model(VARYING_FEED_LINE);
     let data = synthesize(&truth, &measurement, &mut CpuEngine).unwrap();
     let m = Measurement::line(
@@ -460,11 +475,9 @@ seed = 5
 #[test]
 fn a_map_of_the_centre_finds_the_axis_and_sizes_the_centre_height() {
     // The suite's job (0.5 µm rings: the 3 µm protrusion needs them).
-    let base = withheld::TURNING_SPHERE.job;
+    let base = base(withheld::TURNING_SPHERE.job);
     let measurement = model(CENTRE_MAP);
-    let truth = job(&format!(
-        "{base}\n[[effects]]\nkind = \"centre_height\"\nheight_mm = 0.003\n"
-    ));
+    let truth = checked(base.clone().effect(EffectSpec::centre_height(0.003)));
     let data = synthesize(&truth, &measurement, &mut CpuEngine).unwrap();
     let m = Measurement::raster(
         (data.pixels[0], data.pixels[1]),
@@ -478,7 +491,7 @@ fn a_map_of_the_centre_finds_the_axis_and_sizes_the_centre_height() {
         only: vec!["centre_height".into(), "x_decentre".into()],
         ..Options::default()
     };
-    let outcome = run(base, &m, &mut CpuEngine, &options);
+    let outcome = run(&base, &m, &mut CpuEngine, &options);
     let d = &outcome.diagnosis;
     let axis = d.registration.fitted.axis_at_um;
     println!(
@@ -504,11 +517,7 @@ fn a_map_of_the_centre_finds_the_axis_and_sizes_the_centre_height() {
 
 #[test]
 fn gpu_diagnosis_agrees_with_the_cpu_one() {
-    let m = measure(
-        &sphere(),
-        "[[effects]]\nkind = \"x_decentre\"\noffset_mm = 0.004\n",
-        &model(PROFILE),
-    );
+    let m = measure(&sphere(), &[EffectSpec::x_decentre(0.004)], &model(PROFILE));
     let options = Options {
         only: vec!["x_decentre".into()],
         ..Options::default()
@@ -538,12 +547,18 @@ fn fitted_effects_change_the_job_as_the_fit_says() {
     // diagnosis calls those two ambiguous — and a nose-radius error's a lateral scale's.)
     let m = measure(
         &sphere(),
-        "[[effects]]\nkind = \"centre_height\"\nheight_mm = 0.003\n",
+        &[EffectSpec::centre_height(0.003)],
         &model(PROFILE),
     );
     let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
     let fragment = &outcome.effects_fragment;
-    let with: Job = job(&format!("{}\n{fragment}", sphere()));
+    let mut with = sphere();
+    with.effects.extend(
+        EffectsFragment::from_toml_str(fragment)
+            .expect("the fragment reads")
+            .effects,
+    );
+    let with = checked(with);
     let toolmark::process::Process::Turning(t) = &with.process else {
         panic!("a turning job")
     };
@@ -561,11 +576,14 @@ fn a_fractional_depth_vibration_is_found_at_its_rate_modulo_the_profiles_aliases
     // line through the axis reads the cut clock at two spindle angles half a turn
     // apart, so 0.37 and 0.63 (= 1 − 0.37, phase mirrored) leave the same trace; the
     // amplitude within 10 %, the rate within 0.01 of one of them.
-    let m = measure(
-        &sphere(),
-        "[[effects]]\nkind = \"vibration\"\namplitude_mm = 0.000008\ndirection = \"depth\"\nper_revolution = 0.37\nphase_deg = 20.0\n",
-        &model(PROFILE),
-    );
+    let vibration = EffectSpec::Vibration(VibrationSpec {
+        amplitude_mm: Some(0.000008),
+        direction: Some(DirectionSpec::Depth),
+        per_revolution: Some(0.37),
+        phase_deg: Some(20.0),
+        ..VibrationSpec::default()
+    });
+    let m = measure(&sphere(), &[vibration], &model(PROFILE));
     let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
     let d = &outcome.diagnosis;
     println!("{}", d.verdict.sentence);
@@ -592,7 +610,7 @@ fn wear_on_a_sphere_is_never_claimed_as_another_effect() {
     // 10 % — never a nose radius.
     let m = measure(
         &sphere(),
-        "[[effects]]\nkind = \"tool_wear\"\nrecession_mm = 0.00015\n",
+        &[EffectSpec::tool_wear(0.00015)],
         &model(PROFILE),
     );
     let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
@@ -621,7 +639,10 @@ fn wear_beside_a_drift_is_found_as_the_pair_or_called_ambiguous_never_one_wavine
     // drift from a decentre (beside the wear) — never claim a waviness or a decentre.
     let m = measure(
         &sphere(),
-        "[[effects]]\nkind = \"tool_wear\"\nrecession_mm = 0.00015\n\n[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 0.0002\n",
+        &[
+            EffectSpec::tool_wear(0.00015),
+            EffectSpec::axial_drift(0.0002),
+        ],
         &model(PROFILE),
     );
     let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
@@ -708,12 +729,10 @@ fn a_centre_height_is_found_where_the_marks_cannot_place_the_axis() {
         ),
         (withheld::FINE_FEED_SPHERE.job, FINE_FEED_LINE, -5.0, 27.0),
     ] {
-        let effect = format!(
-            "[[effects]]\nkind = \"centre_height\"\nheight_mm = {}\n",
-            truth_um * 1e-3
-        );
-        let m = measure(base, &effect, &model(measurement));
-        let outcome = run(base, &m, &mut CpuEngine, &options);
+        let base = self::base(base);
+        let effect = EffectSpec::centre_height(truth_um * 1e-3);
+        let m = measure(&base, &[effect], &model(measurement));
+        let outcome = run(&base, &m, &mut CpuEngine, &options);
         let d = &outcome.diagnosis;
         let (h, sigma) = accepted(&outcome, "centre_height")[0];
         let axis = d.registration.axis_x_mm * 1e3;
@@ -750,14 +769,14 @@ fn spring_back_threshold_is_fitted_where_its_share_trades_with_it() {
     // source: the threshold within 10 %. The share is printed, not asserted: here it
     // comes back 0.79 ± 0.04 for 0.9 (the README's open σ cases: the step of ρ·h_min
     // where the chip crosses h_min is placed only to a ring of the forward model).
-    let base = withheld::TURNING_SPHERE.job;
-    let truth = "[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = 4.0e-5\nrecovery = 0.9\n";
-    let m = measure(base, truth, &model(PROFILE));
+    let base = base(withheld::TURNING_SPHERE.job);
+    let truth = EffectSpec::spring_back(4.0e-5, 0.9);
+    let m = measure(&base, &[truth], &model(PROFILE));
     let options = Options {
         only: vec!["spring_back".into()],
         ..Options::default()
     };
-    let outcome = run(base, &m, &mut CpuEngine, &options);
+    let outcome = run(&base, &m, &mut CpuEngine, &options);
     let fit = outcome
         .diagnosis
         .candidates
@@ -809,13 +828,16 @@ seed = 94
 /// `unexplained_residual`, nothing claimed.)
 #[test]
 fn two_waviness_orders_are_never_claimed_as_a_decentre_beside_one() {
-    let base = withheld::TURNING_SPHERE.job;
+    let base = base(withheld::TURNING_SPHERE.job);
     let m = measure(
-        base,
-        "[[effects]]\nkind = \"edge_waviness\"\nharmonics = [{ order = 20.0, amplitude_mm = 4.0e-5, phase_deg = 0.0 }]\n\n[[effects]]\nkind = \"edge_waviness\"\nharmonics = [{ order = 45.0, amplitude_mm = 2.418677e-5, phase_deg = 60.255 }]\n",
+        &base,
+        &[
+            EffectSpec::edge_waviness(20.0, 4.0e-5, 0.0),
+            EffectSpec::edge_waviness(45.0, 2.418677e-5, 60.255),
+        ],
         &model(CASE_094_LINE),
     );
-    let outcome = run(base, &m, &mut CpuEngine, &Options::default());
+    let outcome = run(&base, &m, &mut CpuEngine, &Options::default());
     let d = &outcome.diagnosis;
     println!(
         "{}: {} {:?}",

@@ -7,12 +7,17 @@ use common::*;
 use glam::DVec3;
 use std::f64::consts::TAU;
 use toolmark::engine::Scene;
-use toolmark::model::Job;
+use toolmark::geometry::Form;
+use toolmark::model::{
+    EffectSpec, FluteModel, Job, JobFile, MillToolSpec, MillingSpec, ProcessSpec, RunoutSpec,
+    SurfaceSpec, ToolSpec, TramSpec, TurningSpec,
+};
 use toolmark::pipeline::{RunResult, prepare_scenes};
+use toolmark::process::{MillingPathKind, TurningMode};
 
-/// A job's text with `[[effects]]` tables appended.
-fn with_effects(base: &str, effects: &str) -> Job {
-    job(&format!("{base}\n{effects}\n"))
+/// A job with one more effect appended.
+fn with_effect(base: &JobFile, effect: EffectSpec) -> Job {
+    checked(base.clone().effect(effect))
 }
 
 /// Per band of `band` consecutive rings within [from, to] mm of radius: the mean radius
@@ -85,22 +90,18 @@ fn check_bands(name: &str, bands: &[(f64, f64, f64)], floor_mm: f64) {
 // ---------------------------------------------------------------------------------------
 // Turning: axial drift.
 
-const FACING: &str = r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 4.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 100.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-stock_allowance_mm = 0.002
-[grid]
-pitch_um = 1.25
-azimuths = 32"#;
+/// Facing a Ø4 plane, XZ at 0.01 mm per revolution.
+fn facing() -> JobFile {
+    JobFile::new(
+        SurfaceSpec::plane(4.0),
+        ToolSpec::arc_nose(0.5, 100.0),
+        ProcessSpec::Turning(TurningSpec {
+            stock_allowance_mm: Some(0.002),
+            ..TurningSpec::xz(0.01)
+        }),
+    )
+    .grid(1.25, 32)
+}
 
 /// Drift d over a spiral of N revolutions (the last a dwell at the end radius): the pass
 /// cutting radius r runs (R_s − r)/f revolutions after the start, so the tool stands
@@ -118,11 +119,8 @@ fn turning_drift_expected(drift: f64, start: f64, feed: f64, nose: f64, r: f64) 
 #[test]
 fn turning_drift_on_a_facing_spiral_follows_the_revolutions_turned() {
     let drift = 0.0005;
-    let nominal = run_cpu(job(FACING));
-    let drifted = run_cpu(with_effects(
-        FACING,
-        &format!("[[effects]]\nkind = \"axial_drift\"\ndrift_mm = {drift}"),
-    ));
+    let nominal = run_cpu(checked(facing()));
+    let drifted = run_cpu(with_effect(&facing(), EffectSpec::axial_drift(drift)));
     // The spiral starts two feeds outside the Ø4 rim, at 2.02 mm.
     let start = 2.02;
     let bands: Vec<(f64, f64, f64)> = band_means(&drifted, 8, 0.05, 1.95, |i, j| {
@@ -146,30 +144,18 @@ fn turning_drift_on_a_facing_spiral_follows_the_revolutions_turned() {
 fn turning_drift_on_a_sphere_is_the_z_shift_along_the_normal() {
     // Convex R 20, Ø10: a tool moved by t along Z moves the turned sphere's surface by
     // t·cos θ along the normal (less t² sin²θ/2R, 1e-13 mm here).
-    let base = r#"version = 1
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 20.0
-aperture_diameter_mm = 10.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-stock_allowance_mm = 0.002
-[grid]
-pitch_um = 1.25
-azimuths = 16"#;
+    let base = JobFile::new(
+        SurfaceSpec::sphere(Form::Convex, 20.0, 10.0),
+        ToolSpec::arc_nose(0.5, 120.0),
+        ProcessSpec::Turning(TurningSpec {
+            stock_allowance_mm: Some(0.002),
+            ..TurningSpec::xz(0.01)
+        }),
+    )
+    .grid(1.25, 16);
     let drift = -0.0005;
-    let nominal = run_cpu(job(base));
-    let drifted = run_cpu(with_effects(
-        base,
-        &format!("[[effects]]\nkind = \"axial_drift\"\ndrift_mm = {drift}"),
-    ));
+    let nominal = run_cpu(checked(base.clone()));
+    let drifted = run_cpu(with_effect(&base, EffectSpec::axial_drift(drift)));
     let start = 5.02;
     let bands: Vec<(f64, f64, f64)> = band_means(&drifted, 8, 0.05, 4.95, |i, j| {
         depth(&drifted, i, j) - depth(&nominal, i, j)
@@ -213,31 +199,20 @@ fn turning_drift_runs_over_an_nc_programs_passes_in_program_order() {
     let dir = std::env::temp_dir().join(format!("toolmark-drift-nc-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("two_passes.nc"), program).unwrap();
-    let base = format!(
-        r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 4.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = {nose}
-included_angle_deg = 100.0
-[process]
-kind = "turning"
-mode = "xz"
-nc_program = "{}"
-stock_allowance_mm = 0.003
-[grid]
-pitch_um = 1.25
-azimuths = 32"#,
-        dir.join("two_passes.nc").display()
-    );
+    let base = JobFile::new(
+        SurfaceSpec::plane(4.0),
+        ToolSpec::arc_nose(nose, 100.0),
+        ProcessSpec::Turning(TurningSpec {
+            mode: Some(TurningMode::Xz),
+            nc_program: Some(dir.join("two_passes.nc")),
+            stock_allowance_mm: Some(0.003),
+            ..TurningSpec::default()
+        }),
+    )
+    .grid(1.25, 32);
     let drift = 0.0005;
-    let nominal = run_cpu(job(&base));
-    let drifted = run_cpu(with_effects(
-        &base,
-        &format!("[[effects]]\nkind = \"axial_drift\"\ndrift_mm = {drift}"),
-    ));
+    let nominal = run_cpu(checked(base.clone()));
+    let drifted = run_cpu(with_effect(&base, EffectSpec::axial_drift(drift)));
     let bands: Vec<(f64, f64, f64)> = band_means(&drifted, 8, 0.05, 1.95, |i, j| {
         depth(&drifted, i, j) - depth(&nominal, i, j)
     })
@@ -256,10 +231,23 @@ azimuths = 32"#,
 // ---------------------------------------------------------------------------------------
 // Milling.
 
-fn milling(surface: &str, tool: &str, process: &str, grid: &str) -> String {
-    format!(
-        "version = 1\n[surface]\n{surface}\n[tool]\n{tool}\n[process]\nkind = \"milling\"\n{process}\n[grid]\n{grid}\n"
-    )
+/// A milling job on a grid of `pitch_um` and `azimuths`.
+fn milling(
+    surface: SurfaceSpec,
+    tool: ToolSpec,
+    process: MillingSpec,
+    pitch_um: f64,
+    azimuths: u32,
+) -> JobFile {
+    JobFile::new(surface, tool, ProcessSpec::Milling(process)).grid(pitch_um, azimuths)
+}
+
+/// A path of passes `stepover_mm` apart over stock `stock_mm` high.
+fn stepped(path: MillingPathKind, stepover_mm: f64, stock_mm: f64) -> MillingSpec {
+    MillingSpec {
+        stock_allowance_mm: Some(stock_mm),
+        ..MillingSpec::stepped(path, stepover_mm)
+    }
 }
 
 /// Arc length of the Archimedean spiral r = R_c − s·θ/2π from its start at R_c in to
@@ -278,18 +266,16 @@ fn milling_drift_on_a_spiral_follows_the_arc_length_fraction() {
     // samples (mean at ρ itself), less the cusps' second-order shift r·Δ²/(2s²), Δ the
     // drift over one turn, d·2πρ/A (≤ 0.12 nm here, included).
     let base = milling(
-        "kind = \"plane\"\naperture_diameter_mm = 4.0",
-        "kind = \"ball_end\"\ndiameter_mm = 2.0",
-        "path = \"spiral\"\nstepover_mm = 0.02\nstock_allowance_mm = 0.005",
-        "pitch_um = 2.5\nazimuths = 64",
+        SurfaceSpec::plane(4.0),
+        ToolSpec::ball_end(2.0),
+        stepped(MillingPathKind::Spiral, 0.02, 0.005),
+        2.5,
+        64,
     );
     let drift = 0.0005;
     let (step, start, radius) = (0.02, 2.04, 1.0);
-    let nominal = run_cpu(job(&base));
-    let drifted = run_cpu(with_effects(
-        &base,
-        &format!("[[effects]]\nkind = \"axial_drift\"\ndrift_mm = {drift}"),
-    ));
+    let nominal = run_cpu(checked(base.clone()));
+    let drifted = run_cpu(with_effect(&base, EffectSpec::axial_drift(drift)));
     let total = spiral_arc(step, start, 0.0);
     let bands: Vec<(f64, f64, f64)> = band_means(&drifted, 8, 0.1, 1.95, |i, j| {
         depth(&drifted, i, j) - depth(&nominal, i, j)
@@ -314,18 +300,16 @@ fn ball_radius_error_moves_the_cut_by_e_times_one_minus_cos_theta() {
     // changes with the ball's radius by (s_n²/24)(1/(r + e) − 1/r), s_n = s/cos θ the
     // spacing of the turns along the surface (parabolic cusps; included).
     let base = milling(
-        "kind = \"sphere\"\nform = \"convex\"\nradius_mm = 10.0\naperture_diameter_mm = 6.0",
-        "kind = \"ball_end\"\ndiameter_mm = 1.0",
-        "path = \"spiral\"\nstepover_mm = 0.01\nstock_allowance_mm = 0.005",
-        "pitch_um = 2.5\nazimuths = 16",
+        SurfaceSpec::sphere(Form::Convex, 10.0, 6.0),
+        ToolSpec::ball_end(1.0),
+        stepped(MillingPathKind::Spiral, 0.01, 0.005),
+        2.5,
+        16,
     );
     let (big_r, r, step) = (10.0, 0.5, 0.01);
-    let nominal = run_cpu(job(&base));
+    let nominal = run_cpu(checked(base.clone()));
     for e in [0.02, -0.02] {
-        let changed = run_cpu(with_effects(
-            &base,
-            &format!("[[effects]]\nkind = \"tool_radius_error\"\nerror_mm = {e}"),
-        ));
+        let changed = run_cpu(with_effect(&base, EffectSpec::tool_radius_error(e)));
         let bands: Vec<(f64, f64, f64)> = band_means(&changed, 4, 0.0, 2.95, |i, j| {
             depth(&changed, i, j) - depth(&nominal, i, j)
         })
@@ -477,8 +461,21 @@ fn tram_sawtooth_pv(step: f64, tau: f64, r: f64) -> (f64, f64) {
     (r - (r * r - d * d).sqrt(), d)
 }
 
-const TRAM_PLANE: &str = "kind = \"plane\"\naperture_diameter_mm = 3.0";
-const BULL_NOSE: &str = "kind = \"bull_nose\"\ndiameter_mm = 3.0\ncorner_radius_mm = 0.5";
+fn tram_plane() -> SurfaceSpec {
+    SurfaceSpec::plane(3.0)
+}
+
+fn bull_nose_tool() -> ToolSpec {
+    ToolSpec::bull_nose(3.0, 0.5)
+}
+
+/// A spindle tram of the given tilts (a tilt not given: `None`).
+fn tram(tilt_x_deg: Option<f64>, tilt_y_deg: Option<f64>) -> EffectSpec {
+    EffectSpec::SpindleTram(TramSpec {
+        tilt_x_deg,
+        tilt_y_deg,
+    })
+}
 
 #[test]
 fn tram_across_the_feed_leaves_a_sawtooth_of_sloped_facets() {
@@ -486,15 +483,13 @@ fn tram_across_the_feed_leaves_a_sawtooth_of_sloped_facets() {
     // the axis leaning 0.5° toward +Y (across the feed).
     let (step, tau_deg, big, r, stock) = (0.2, 0.5f64, 1.0, 0.5, 0.02);
     let base = milling(
-        TRAM_PLANE,
-        BULL_NOSE,
-        &format!("path = \"raster\"\nstepover_mm = {step}\nstock_allowance_mm = {stock}"),
-        "pitch_um = 1.0\nazimuths = 4",
+        tram_plane(),
+        bull_nose_tool(),
+        stepped(MillingPathKind::Raster, step, stock),
+        1.0,
+        4,
     );
-    let result = run_cpu(with_effects(
-        &base,
-        &format!("[[effects]]\nkind = \"spindle_tram\"\ntilt_y_deg = {tau_deg}"),
-    ));
+    let result = run_cpu(with_effect(&base, tram(None, Some(tau_deg))));
     // Contact path out to 1.5 + 2·0.2: passes k = −9..9; square poses sit r above. The
     // low corner is on the +Y side, so from y = −0.6 on every point has a pass whose
     // bottom lies within s on that side (the periodic sawtooth).
@@ -559,15 +554,13 @@ fn tram_along_the_feed_leaves_only_the_shallow_scallop_of_the_tilted_corner() {
     // passes leave its scallop, ≈ R sin τ (1 − √(1 − s²/4R²)) = 43.6 nm, not a facet.
     let (step, tau_deg, big, r, stock) = (0.2, 0.5f64, 1.0, 0.5, 0.02);
     let base = milling(
-        TRAM_PLANE,
-        BULL_NOSE,
-        &format!("path = \"raster\"\nstepover_mm = {step}\nstock_allowance_mm = {stock}"),
-        "pitch_um = 1.0\nazimuths = 4",
+        tram_plane(),
+        bull_nose_tool(),
+        stepped(MillingPathKind::Raster, step, stock),
+        1.0,
+        4,
     );
-    let result = run_cpu(with_effects(
-        &base,
-        &format!("[[effects]]\nkind = \"spindle_tram\"\ntilt_x_deg = {tau_deg}"),
-    ));
+    let result = run_cpu(with_effect(&base, tram(Some(tau_deg), None)));
     let rows = raster_rows(
         &result,
         9,
@@ -631,17 +624,17 @@ fn tram_across_a_flat_end_leaned_along_the_feed_tilts_its_elliptic_scallop() {
     // The tool sits R behind its contact and cuts a sample with its leading rim, so
     // the passes must run well past the rows checked: a Ø8 part, checked within 1.2 mm.
     let base = milling(
-        "kind = \"plane\"\naperture_diameter_mm = 8.0",
-        "kind = \"flat_end\"\ndiameter_mm = 4.0",
-        &format!(
-            "path = \"raster\"\naxes = 5\nlead_deg = {lead_deg}\nstepover_mm = {step}\nstock_allowance_mm = {stock}"
-        ),
-        "pitch_um = 1.0\nazimuths = 4",
+        SurfaceSpec::plane(8.0),
+        ToolSpec::flat_end(4.0),
+        MillingSpec {
+            axes: Some(5),
+            lead_deg: Some(lead_deg),
+            ..stepped(MillingPathKind::Raster, step, stock)
+        },
+        1.0,
+        4,
     );
-    let result = run_cpu(with_effects(
-        &base,
-        &format!("[[effects]]\nkind = \"spindle_tram\"\ntilt_y_deg = {tau_deg}"),
-    ));
+    let result = run_cpu(with_effect(&base, tram(None, Some(tau_deg))));
     let lead = lead_deg.to_radians();
     let planned = |k: i64| {
         let feed = if k.rem_euclid(2) == 1 { -1.0 } else { 1.0 };
@@ -676,16 +669,26 @@ fn radial_runout_alternates_the_feed_mark_spacing_by_two_epsilon_cos_phi() {
     // the feed each bottom stands off the row by ε·sin φ, r − √(r² − ε² sin²φ) high.
     let (r, feed, epsilon) = (1.0, 0.05, 0.005);
     for phase_deg in [0.0f64, 120.0, 90.0] {
-        let job = with_effects(
+        let job = with_effect(
             &milling(
-                "kind = \"plane\"\naperture_diameter_mm = 4.0",
-                "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2\nflutes = \"body\"",
-                "path = \"raster\"\nstepover_mm = 0.1\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.005",
-                "pitch_um = 0.1\nazimuths = 4",
+                SurfaceSpec::plane(4.0),
+                ToolSpec::BallEnd(MillToolSpec {
+                    diameter_mm: Some(2.0),
+                    teeth: Some(2),
+                    flutes: Some(FluteModel::Body),
+                    ..MillToolSpec::default()
+                }),
+                MillingSpec {
+                    feed_per_tooth_mm: Some(0.05),
+                    ..stepped(MillingPathKind::Raster, 0.1, 0.005)
+                },
+                0.1,
+                4,
             ),
-            &format!(
-                "[[effects]]\nkind = \"radial_runout\"\noffset_mm = {epsilon}\nphase_deg = {phase_deg}"
-            ),
+            EffectSpec::RadialRunout(RunoutSpec {
+                offset_mm: Some(epsilon),
+                phase_deg: Some(phase_deg),
+            }),
         );
         // Where the pass along y = 0 (feed +X) starts: its stamps' arcs map to x.
         let Scene::Milling(scene) = &prepare_scenes(&job)[0] else {
@@ -754,10 +757,10 @@ fn radial_runout_alternates_the_feed_mark_spacing_by_two_epsilon_cos_phi() {
 // ---------------------------------------------------------------------------------------
 // Zero is nothing.
 
-/// The job with the tables and without them leave bit-identical fields.
-fn assert_identical(name: &str, base: &str, effects: &str) {
-    let without = run_cpu(job(base));
-    let with = run_cpu(with_effects(base, effects));
+/// The job with the effect and without it leave bit-identical fields.
+fn assert_identical(name: &str, base: &JobFile, effect: EffectSpec) {
+    let without = run_cpu(checked(base.clone()));
+    let with = run_cpu(with_effect(base, effect));
     let same =
         without.field.depth_mm == with.field.depth_mm && without.field.pass == with.field.pass;
     println!(
@@ -771,45 +774,54 @@ fn assert_identical(name: &str, base: &str, effects: &str) {
 fn every_effect_at_zero_leaves_the_part_bit_identical() {
     assert_identical(
         "turning axial_drift",
-        FACING,
-        "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 0.0",
+        &facing(),
+        EffectSpec::axial_drift(0.0),
     );
     let spiral = milling(
-        "kind = \"sphere\"\nform = \"convex\"\nradius_mm = 10.0\naperture_diameter_mm = 2.0",
-        "kind = \"ball_end\"\ndiameter_mm = 1.0",
-        "path = \"spiral\"\nstepover_mm = 0.02\nstock_allowance_mm = 0.005",
-        "pitch_um = 5.0\nazimuths = 8",
+        SurfaceSpec::sphere(Form::Convex, 10.0, 2.0),
+        ToolSpec::ball_end(1.0),
+        stepped(MillingPathKind::Spiral, 0.02, 0.005),
+        5.0,
+        8,
     );
-    assert_identical(
-        "milling axial_drift",
-        &spiral,
-        "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 0.0",
-    );
+    assert_identical("milling axial_drift", &spiral, EffectSpec::axial_drift(0.0));
     assert_identical(
         "tool_radius_error",
         &spiral,
-        "[[effects]]\nkind = \"tool_radius_error\"\nerror_mm = 0.0",
+        EffectSpec::tool_radius_error(0.0),
     );
     let bull_nose = milling(
-        "kind = \"plane\"\naperture_diameter_mm = 2.0",
-        BULL_NOSE,
-        "path = \"raster\"\nstepover_mm = 0.2\nstock_allowance_mm = 0.01",
-        "pitch_um = 5.0\nazimuths = 8",
+        SurfaceSpec::plane(2.0),
+        bull_nose_tool(),
+        stepped(MillingPathKind::Raster, 0.2, 0.01),
+        5.0,
+        8,
     );
     assert_identical(
         "spindle_tram",
         &bull_nose,
-        "[[effects]]\nkind = \"spindle_tram\"\ntilt_x_deg = 0.0\ntilt_y_deg = 0.0",
+        EffectSpec::spindle_tram(0.0, 0.0),
     );
     let teeth = milling(
-        "kind = \"plane\"\naperture_diameter_mm = 2.0",
-        "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 3",
-        "path = \"raster\"\nstepover_mm = 0.1\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.005",
-        "pitch_um = 2.0\nazimuths = 8",
+        SurfaceSpec::plane(2.0),
+        ToolSpec::BallEnd(MillToolSpec {
+            diameter_mm: Some(2.0),
+            teeth: Some(3),
+            ..MillToolSpec::default()
+        }),
+        MillingSpec {
+            feed_per_tooth_mm: Some(0.05),
+            ..stepped(MillingPathKind::Raster, 0.1, 0.005)
+        },
+        2.0,
+        8,
     );
     assert_identical(
         "radial_runout",
         &teeth,
-        "[[effects]]\nkind = \"radial_runout\"\noffset_mm = 0.0\nphase_deg = 40.0",
+        EffectSpec::RadialRunout(RunoutSpec {
+            offset_mm: Some(0.0),
+            phase_deg: Some(40.0),
+        }),
     );
 }

@@ -12,7 +12,7 @@ use toolmark::geometry::Form;
 use toolmark::geometry::cup_wheel::{CupWheel, generated_sphere};
 use toolmark::loops::correct::{central_pv_nm, correction_loop};
 use toolmark::model::{
-    EffectKind, EffectSpec, GeneratingSpec, Job, JobFile, ProcessSpec, SurfaceSpec, ToolSpec,
+    EffectSpec, GeneratingSpec, Job, JobFile, ProcessSpec, SurfaceSpec, ToolSpec,
 };
 use toolmark::pipeline::RunResult;
 use toolmark::process::PlungeAxis;
@@ -63,13 +63,6 @@ impl Setup {
     /// The inclination the job resolves to.
     fn inclination(job: &Job) -> f64 {
         job.process.generating().unwrap().setup.inclination_rad
-    }
-}
-
-fn displaced(offset_mm: f64) -> EffectSpec {
-    EffectSpec {
-        offset_mm: Some(offset_mm),
-        ..EffectSpec::of(EffectKind::CutterDisplacement)
     }
 }
 
@@ -148,7 +141,12 @@ fn a_displaced_circle_leaves_a_pip_of_radius_e_on_either_side_of_the_axis() {
     ] {
         let alpha = Setup::inclination(&setup.job(2.0, pitch_um, GeneratingSpec::default(), &[]));
         for e in offsets {
-            let job = setup.job(2.0, pitch_um, GeneratingSpec::default(), &[displaced(e)]);
+            let job = setup.job(
+                2.0,
+                pitch_um,
+                GeneratingSpec::default(),
+                &[EffectSpec::cutter_displacement(e)],
+            );
             let (radius_um, height_nm, fitted_radius, shape) = pip_and_radius(&run_cpu(job));
             let closed = generated_sphere(
                 &setup.wheel(),
@@ -191,7 +189,12 @@ fn overshooting_the_axis_gives_the_part_of_the_opposite_miss_at_another_inclinat
     // form cannot tell the side. Check both parts agree everywhere, and that they
     // differ from the short part at the original inclination by its radius change.
     let e = 0.02;
-    let short = run_cpu(SEED.job(6.0, 2.0, GeneratingSpec::default(), &[displaced(e)]));
+    let short = run_cpu(SEED.job(
+        6.0,
+        2.0,
+        GeneratingSpec::default(),
+        &[EffectSpec::cutter_displacement(e)],
+    ));
     let alpha = Setup::inclination(&short.job);
     let nominal = generated_sphere(&SEED.wheel(), alpha, true, e, 0.5);
     let k = (nominal.radius_mm - 0.5).powi(2) - e * e;
@@ -200,7 +203,12 @@ fn overshooting_the_axis_gives_the_part_of_the_opposite_miss_at_another_inclinat
         inclination_deg: Some((alpha - shift).to_degrees()),
         ..GeneratingSpec::default()
     };
-    let past = run_cpu(SEED.job(6.0, 2.0, past_process, &[displaced(-e)]));
+    let past = run_cpu(SEED.job(
+        6.0,
+        2.0,
+        past_process,
+        &[EffectSpec::cutter_displacement(-e)],
+    ));
     let largest = short
         .field
         .depth_mm
@@ -208,7 +216,12 @@ fn overshooting_the_axis_gives_the_part_of_the_opposite_miss_at_another_inclinat
         .zip(&past.field.depth_mm)
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f64::max);
-    let same_inclination = run_cpu(SEED.job(6.0, 2.0, GeneratingSpec::default(), &[displaced(-e)]));
+    let same_inclination = run_cpu(SEED.job(
+        6.0,
+        2.0,
+        GeneratingSpec::default(),
+        &[EffectSpec::cutter_displacement(-e)],
+    ));
     let rim = short.grid().ring_count() - 1;
     println!(
         "e = ±{} µm: parts differ by at most {:.2e} nm with the inclination moved by {:.6}°; at the same inclination the rim differs by {:.1} nm",
@@ -235,10 +248,7 @@ fn overshooting_the_axis_gives_the_part_of_the_opposite_miss_at_another_inclinat
 #[test]
 fn plunge_errors_give_a_piston_along_z_and_a_pip_along_the_tool_axis() {
     let dp = 0.05;
-    let effect = [EffectSpec {
-        error_mm: Some(dp),
-        ..EffectSpec::of(EffectKind::PlungeError)
-    }];
+    let effect = [EffectSpec::plunge_error(dp)];
     let plunge = |axis: PlungeAxis| GeneratingSpec {
         plunge_axis: Some(axis),
         ..GeneratingSpec::default()
@@ -307,15 +317,28 @@ fn correction_removes_the_pip_and_the_radius_error_at_least_twenty_fold() {
         cutting_radius_mm: 10.0,
         edge_radius_mm: 3.5,
     };
-    let tilt = |deg: f64| EffectSpec {
-        error_deg: Some(deg),
-        ..EffectSpec::of(EffectKind::InclinationError)
-    };
+    let tilt = EffectSpec::inclination_error;
     let cases = [
-        (&SEED, 6.0, [displaced(0.02), tilt(0.01)]),
-        (&SEED, 6.0, [displaced(-0.015), tilt(-0.02)]),
-        (&convex, 8.0, [displaced(0.03), tilt(0.05)]),
-        (&seed_edge, 20.0, [displaced(-0.1), tilt(0.02)]),
+        (
+            &SEED,
+            6.0,
+            [EffectSpec::cutter_displacement(0.02), tilt(0.01)],
+        ),
+        (
+            &SEED,
+            6.0,
+            [EffectSpec::cutter_displacement(-0.015), tilt(-0.02)],
+        ),
+        (
+            &convex,
+            8.0,
+            [EffectSpec::cutter_displacement(0.03), tilt(0.05)],
+        ),
+        (
+            &seed_edge,
+            20.0,
+            [EffectSpec::cutter_displacement(-0.1), tilt(0.02)],
+        ),
     ];
     for (setup, aperture, effects) in cases {
         let job = setup.job(

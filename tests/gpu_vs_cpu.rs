@@ -4,29 +4,31 @@
 
 mod common;
 use common::*;
+use toolmark::geometry::Form;
+use toolmark::model::{
+    DirectionSpec, EffectSpec, GeneratingSpec, HarmonicSpec, HarmonicsSpec, Job, JobFile,
+    MillToolSpec, MillingSpec, ProcessSpec, SurfaceSpec, TiltHarmonicSpec, TiltHarmonicsSpec,
+    ToolSpec, VibrationSpec,
+};
+use toolmark::process::MillingPathKind;
 
-fn compare(name: &str, job: toolmark::model::Job) {
+fn compare(name: &str, job: Job) {
     assert_engines_agree(name, job);
 }
 
-/// An example job with extra effect tables appended.
-fn example_with(name: &str, effects: &str) -> toolmark::model::Job {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("examples")
-        .join(name);
-    let text = std::fs::read_to_string(path).expect("example");
-    job(&format!("{text}\n{effects}"))
+/// An example job with extra effects appended.
+fn example_with(name: &str, effects: impl IntoIterator<Item = EffectSpec>) -> Job {
+    let mut file = example_file(name);
+    file.effects.extend(effects);
+    in_examples(file)
 }
 
 #[test]
 fn centre_height_above_and_below_gpu_matches_cpu() {
-    for height in ["0.004", "-0.004"] {
+    for height in [0.004, -0.004] {
         compare(
             &format!("convex sphere, centre height {height} mm"),
-            example_with(
-                "convex_sphere.toml",
-                &format!("[[effects]]\nkind = \"centre_height\"\nheight_mm = {height}"),
-            ),
+            example_with("convex_sphere.toml", [EffectSpec::centre_height(height)]),
         );
     }
     // Above centre beside a wavy edge: the flank falls from the real edge at x = 0.
@@ -34,12 +36,10 @@ fn centre_height_above_and_below_gpu_matches_cpu() {
         "convex sphere, centre height 0.004 mm beside an edge waviness",
         example_with(
             "convex_sphere.toml",
-            r#"[[effects]]
-kind = "centre_height"
-height_mm = 0.004
-[[effects]]
-kind = "edge_waviness"
-harmonics = [{ order = 33, amplitude_mm = 0.000035, phase_deg = 26.0 }]"#,
+            [
+                EffectSpec::centre_height(0.004),
+                EffectSpec::edge_waviness(33.0, 0.000035, 26.0),
+            ],
         ),
     );
 }
@@ -50,15 +50,24 @@ fn decentre_radius_error_and_waviness_on_the_asphere_gpu_matches_cpu() {
         "seed-002 asphere XZ with decentre, radius error and waviness",
         example_with(
             "asphere_xz.toml",
-            r#"[[effects]]
-kind = "x_decentre"
-offset_mm = 0.0015
-[[effects]]
-kind = "nose_radius_error"
-error_mm = 0.0008
-[[effects]]
-kind = "edge_waviness"
-harmonics = [{ order = 20, amplitude_mm = 0.00005 }, { order = 7, amplitude_mm = 0.0001, phase_deg = 30.0 }]"#,
+            [
+                EffectSpec::x_decentre(0.0015),
+                EffectSpec::nose_radius_error(0.0008),
+                EffectSpec::EdgeWaviness(HarmonicsSpec {
+                    harmonics: Some(vec![
+                        HarmonicSpec {
+                            order: 20.0,
+                            amplitude_mm: 0.00005,
+                            phase_deg: 0.0,
+                        },
+                        HarmonicSpec {
+                            order: 7.0,
+                            amplitude_mm: 0.0001,
+                            phase_deg: 30.0,
+                        },
+                    ]),
+                }),
+            ],
         ),
     );
 }
@@ -68,10 +77,7 @@ fn axial_drift_on_the_asphere_gpu_matches_cpu() {
     // The drift reaches the GPU kernel only through the pose table (Z per node).
     compare(
         "seed-002 asphere XZ with an axial drift of −2 µm (into the part)",
-        example_with(
-            "asphere_xz.toml",
-            "[[effects]]\nkind = \"axial_drift\"\ndrift_mm = -0.002",
-        ),
+        example_with("asphere_xz.toml", [EffectSpec::axial_drift(-0.002)]),
     );
 }
 
@@ -82,26 +88,36 @@ fn vibration_error_motion_and_wear_on_the_asphere_gpu_matches_cpu() {
         "seed-002 asphere XZ with feed and depth vibration, axial and tilt error motion, wear",
         example_with(
             "asphere_xz.toml",
-            r#"[[effects]]
-kind = "vibration"
-amplitude_mm = 0.00002
-direction = "depth"
-per_revolution = 2.7
-[[effects]]
-kind = "vibration"
-amplitude_mm = 0.0003
-direction = "feed"
-per_revolution = 5.0
-phase_deg = 40.0
-[[effects]]
-kind = "axial_error_motion"
-harmonics = [{ order = 3, amplitude_mm = 0.00001 }]
-[[effects]]
-kind = "tilt_error_motion"
-tilt_harmonics = [{ order = 2, amplitude_deg = 0.0002, phase_deg = 10.0 }]
-[[effects]]
-kind = "tool_wear"
-recession_mm = 0.00005"#,
+            [
+                EffectSpec::Vibration(VibrationSpec {
+                    amplitude_mm: Some(0.00002),
+                    direction: Some(DirectionSpec::Depth),
+                    per_revolution: Some(2.7),
+                    ..VibrationSpec::default()
+                }),
+                EffectSpec::Vibration(VibrationSpec {
+                    amplitude_mm: Some(0.0003),
+                    direction: Some(DirectionSpec::Feed),
+                    per_revolution: Some(5.0),
+                    phase_deg: Some(40.0),
+                    ..VibrationSpec::default()
+                }),
+                EffectSpec::AxialErrorMotion(HarmonicsSpec {
+                    harmonics: Some(vec![HarmonicSpec {
+                        order: 3.0,
+                        amplitude_mm: 0.00001,
+                        phase_deg: 0.0,
+                    }]),
+                }),
+                EffectSpec::TiltErrorMotion(TiltHarmonicsSpec {
+                    tilt_harmonics: Some(vec![TiltHarmonicSpec {
+                        order: 2.0,
+                        amplitude_deg: 0.0002,
+                        phase_deg: 10.0,
+                    }]),
+                }),
+                EffectSpec::tool_wear(0.00005),
+            ],
         ),
     );
 }
@@ -110,33 +126,20 @@ recession_mm = 0.00005"#,
 fn generating_job(
     teeth: u32,
     tool_rpm: f64,
-    effects: &str,
+    effects: Vec<EffectSpec>,
     aperture_mm: f64,
     azimuths: u32,
-) -> toolmark::model::Job {
-    job(&format!(
-        r#"version = 1
-[surface]
-kind = "sphere"
-form = "concave"
-radius_mm = 53.5
-aperture_diameter_mm = {aperture_mm}
-[tool]
-kind = "cup_wheel"
-cutting_radius_mm = 3.5
-edge_radius_mm = 0.5
-teeth = {teeth}
-[process]
-kind = "generating"
-tool_rpm = {tool_rpm}
-workpiece_rpm = 10.0
-spark_out_revolutions = 1.5
-[grid]
-pitch_um = 5.0
-azimuths = {azimuths}
-{effects}
-"#
-    ))
+) -> Job {
+    let file = JobFile::new(
+        SurfaceSpec::sphere(Form::Concave, 53.5, aperture_mm),
+        ToolSpec::cup_wheel(3.5, 0.5, teeth),
+        ProcessSpec::Generating(GeneratingSpec {
+            spark_out_revolutions: Some(1.5),
+            ..GeneratingSpec::at_speeds(tool_rpm, 10.0)
+        }),
+    )
+    .grid(5.0, azimuths);
+    checked(JobFile { effects, ..file })
 }
 
 #[test]
@@ -146,7 +149,7 @@ fn generating_continuous_edge_with_a_displaced_wheel_gpu_matches_cpu() {
         generating_job(
             0,
             3000.0,
-            "[[effects]]\nkind = \"cutter_displacement\"\noffset_mm = 0.02",
+            vec![EffectSpec::cutter_displacement(0.02)],
             4.0,
             16,
         ),
@@ -162,7 +165,10 @@ fn generating_teeth_gpu_matches_cpu() {
         generating_job(
             6,
             1000.0,
-            "[[effects]]\nkind = \"cutter_displacement\"\noffset_mm = -0.01\n[[effects]]\nkind = \"inclination_error\"\nerror_deg = 0.01",
+            vec![
+                EffectSpec::cutter_displacement(-0.01),
+                EffectSpec::inclination_error(0.01),
+            ],
             3.0,
             4096,
         ),
@@ -170,11 +176,27 @@ fn generating_teeth_gpu_matches_cpu() {
 }
 
 /// A milling job with a feed per tooth: flutes as edges (the default), each tooth's edge
-/// sweeping its trochoid with the given helix and per-tooth runout.
-fn edges_job(surface: &str, tool: &str, process: &str, grid: &str) -> toolmark::model::Job {
-    job(&format!(
-        "version = 1\n[surface]\n{surface}\n[tool]\n{tool}\n[process]\nkind = \"milling\"\npath = \"raster\"\n{process}\n[grid]\n{grid}\n"
-    ))
+/// sweeping its trochoid with the given helix and per-tooth runout; a raster path.
+fn edges_job(
+    surface: SurfaceSpec,
+    tool: ToolSpec,
+    process: MillingSpec,
+    pitch_um: f64,
+    azimuths: u32,
+) -> Job {
+    let process = MillingSpec {
+        path: Some(MillingPathKind::Raster),
+        ..process
+    };
+    checked(JobFile::new(surface, tool, ProcessSpec::Milling(process)).grid(pitch_um, azimuths))
+}
+
+/// A milling tool of a diameter, its other fields to be set.
+fn mill_tool(diameter_mm: f64) -> MillToolSpec {
+    MillToolSpec {
+        diameter_mm: Some(diameter_mm),
+        ..MillToolSpec::default()
+    }
 }
 
 /// Flutes as edges on every milling tool, GPU against CPU: besides the field bound, the
@@ -183,7 +205,7 @@ fn edges_job(surface: &str, tool: &str, process: &str, grid: &str) -> toolmark::
 /// The f32 step is the floor a conforming device can promise: WGSL allows a few ULP in
 /// division and square roots, which lavapipe rounds exactly and an NVIDIA H100 does not
 /// (Ø8 bull-nose: 0.47 nm on lavapipe, 0.58 nm on the H100, where the step is 0.95 nm).
-fn compare_edges(name: &str, tool_diameter_mm: f64, job: toolmark::model::Job) {
+fn compare_edges(name: &str, tool_diameter_mm: f64, job: Job) {
     let diameter = tool_diameter_mm as f32;
     let step_nm = (diameter.next_up() - diameter) as f64 * 1e6;
     let bound_nm = step_nm.max(0.5);
@@ -200,10 +222,22 @@ fn milling_ball_edges_with_helix_and_runout_gpu_matches_cpu() {
         "ball Ø2, 2 edges, helix 30°, runout radial 10 µm / axial 2 µm",
         2.0,
         edges_job(
-            "kind = \"plane\"\naperture_diameter_mm = 0.6",
-            "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2\nhelix_deg = 30.0\ntooth_radial_runout_mm = [0.0, 0.01]\ntooth_axial_runout_mm = [0.002, 0.0]",
-            "stepover_mm = 0.1\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.005",
-            "pitch_um = 10.0\nazimuths = 256",
+            SurfaceSpec::plane(0.6),
+            ToolSpec::BallEnd(MillToolSpec {
+                teeth: Some(2),
+                helix_deg: Some(30.0),
+                tooth_radial_runout_mm: Some(vec![0.0, 0.01]),
+                tooth_axial_runout_mm: Some(vec![0.002, 0.0]),
+                ..mill_tool(2.0)
+            }),
+            MillingSpec {
+                stepover_mm: Some(0.1),
+                feed_per_tooth_mm: Some(0.05),
+                stock_allowance_mm: Some(0.005),
+                ..MillingSpec::default()
+            },
+            10.0,
+            256,
         ),
     );
 }
@@ -214,10 +248,23 @@ fn milling_bull_nose_5axis_edges_with_runout_gpu_matches_cpu() {
         "bull-nose Ø8 r1, 5-axis lead 10°, 3 edges, radial runout 5 µm",
         8.0,
         edges_job(
-            "kind = \"sphere\"\nform = \"concave\"\nradius_mm = 60.0\naperture_diameter_mm = 2.0",
-            "kind = \"bull_nose\"\ndiameter_mm = 8.0\ncorner_radius_mm = 1.0\nteeth = 3\ntooth_radial_runout_mm = [0.0, 0.005, 0.0]",
-            "axes = 5\nlead_deg = 10.0\nstepover_mm = 0.5\nfeed_per_tooth_mm = 0.1\nstock_allowance_mm = 0.02",
-            "pitch_um = 20.0\nazimuths = 128",
+            SurfaceSpec::sphere(Form::Concave, 60.0, 2.0),
+            ToolSpec::BullNose(MillToolSpec {
+                corner_radius_mm: Some(1.0),
+                teeth: Some(3),
+                tooth_radial_runout_mm: Some(vec![0.0, 0.005, 0.0]),
+                ..mill_tool(8.0)
+            }),
+            MillingSpec {
+                axes: Some(5),
+                lead_deg: Some(10.0),
+                stepover_mm: Some(0.5),
+                feed_per_tooth_mm: Some(0.1),
+                stock_allowance_mm: Some(0.02),
+                ..MillingSpec::default()
+            },
+            20.0,
+            128,
         ),
     );
 }
@@ -237,10 +284,22 @@ fn milling_flat_end_5axis_edges_gpu_matches_cpu() {
     compare(
         "flat end Ø6, 5-axis lead 10°, 4 edges, axial runout 1 µm",
         edges_job(
-            "kind = \"sphere\"\nform = \"convex\"\nradius_mm = 40.0\naperture_diameter_mm = 2.0",
-            "kind = \"flat_end\"\ndiameter_mm = 6.0\nteeth = 4\ntooth_axial_runout_mm = [0.0, 0.001, 0.0, 0.0]",
-            "axes = 5\nlead_deg = 10.0\nstepover_mm = 0.4\nfeed_per_tooth_mm = 0.1\nstock_allowance_mm = 0.02",
-            "pitch_um = 20.0\nazimuths = 256",
+            SurfaceSpec::sphere(Form::Convex, 40.0, 2.0),
+            ToolSpec::FlatEnd(MillToolSpec {
+                teeth: Some(4),
+                tooth_axial_runout_mm: Some(vec![0.0, 0.001, 0.0, 0.0]),
+                ..mill_tool(6.0)
+            }),
+            MillingSpec {
+                axes: Some(5),
+                lead_deg: Some(10.0),
+                stepover_mm: Some(0.4),
+                feed_per_tooth_mm: Some(0.1),
+                stock_allowance_mm: Some(0.02),
+                ..MillingSpec::default()
+            },
+            20.0,
+            256,
         ),
     );
 }
@@ -251,10 +310,22 @@ fn milling_disc_edges_gpu_matches_cpu() {
         "disc Ø30, λ 19°, oblique 10°, 8 edges",
         30.0,
         edges_job(
-            "kind = \"sphere\"\nform = \"convex\"\nradius_mm = 100.0\naperture_diameter_mm = 4.0",
-            "kind = \"disc\"\ndiameter_mm = 30.0\ninsert_length_mm = 10.0\nside_rake_deg = 19.0\nteeth = 8",
-            "stepover_mm = 3.0\nturn_deg = 10.0\nfeed_per_tooth_mm = 0.2\nstock_allowance_mm = 0.01",
-            "pitch_um = 40.0\nazimuths = 128",
+            SurfaceSpec::sphere(Form::Convex, 100.0, 4.0),
+            ToolSpec::Disc(MillToolSpec {
+                insert_length_mm: Some(10.0),
+                side_rake_deg: Some(19.0),
+                teeth: Some(8),
+                ..mill_tool(30.0)
+            }),
+            MillingSpec {
+                stepover_mm: Some(3.0),
+                turn_deg: Some(10.0),
+                feed_per_tooth_mm: Some(0.2),
+                stock_allowance_mm: Some(0.01),
+                ..MillingSpec::default()
+            },
+            40.0,
+            128,
         ),
     );
 }

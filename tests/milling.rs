@@ -5,19 +5,45 @@
 mod common;
 use common::*;
 use toolmark::engine::Scene;
+use toolmark::geometry::Form;
 use toolmark::geometry::formulas::{
     ball_effective_diameter_cusp_side, ball_effective_diameter_inclined, ball_main_angle,
     ball_scallop_height, ball_side_angle, ball_stepover_for_scallop, effective_radius,
     flat_scallop_height, oblique_section_radius, sphere_scallop_height, working_width_concave,
     working_width_convex,
 };
-use toolmark::model::Job;
+use toolmark::model::{
+    AsphereSpec, CylinderSpec, FluteModel, Job, JobFile, MillToolSpec, MillingSpec, ProcessSpec,
+    SurfaceSpec, ToolSpec,
+};
 use toolmark::pipeline::{RunResult, prepare_scenes};
+use toolmark::process::MillingPathKind;
 
-fn milling(surface: &str, tool: &str, process: &str, grid: &str) -> Job {
-    job(&format!(
-        "version = 1\n[surface]\n{surface}\n[tool]\n{tool}\n[process]\nkind = \"milling\"\n{process}\n[grid]\n{grid}\n"
-    ))
+/// A milling job on a grid of `pitch_um` and `azimuths`, checked.
+fn milling(
+    surface: SurfaceSpec,
+    tool: ToolSpec,
+    process: MillingSpec,
+    pitch_um: f64,
+    azimuths: u32,
+) -> Job {
+    checked(JobFile::new(surface, tool, ProcessSpec::Milling(process)).grid(pitch_um, azimuths))
+}
+
+/// A path of passes `stepover_mm` apart over stock `stock_mm` high.
+fn stepped(path: MillingPathKind, stepover_mm: f64, stock_mm: f64) -> MillingSpec {
+    MillingSpec {
+        stock_allowance_mm: Some(stock_mm),
+        ..MillingSpec::stepped(path, stepover_mm)
+    }
+}
+
+/// A milling tool of a diameter, its other fields to be set.
+fn mill_tool(diameter_mm: f64) -> MillToolSpec {
+    MillToolSpec {
+        diameter_mm: Some(diameter_mm),
+        ..MillToolSpec::default()
+    }
 }
 
 /// Interior cusps with their position (mm along the meridian), within [from, to].
@@ -39,16 +65,19 @@ fn worst(cusps: &[(f64, f64)], expected: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
-const PLANE: &str = "kind = \"plane\"\naperture_diameter_mm = 20.0";
+fn plane() -> SurfaceSpec {
+    SurfaceSpec::plane(20.0)
+}
 
 #[test]
 fn scallops_match_the_closed_forms_on_six_cases() {
     // Ball on a plane, seed 004: D = 16, Tn = 3 → 0.142 mm.
     let result = run_cpu(milling(
-        PLANE,
-        "kind = \"ball_end\"\ndiameter_mm = 16.0",
-        "path = \"raster\"\nstepover_mm = 3.0\nstock_allowance_mm = 0.3",
-        "pitch_um = 10.0\nazimuths = 48",
+        plane(),
+        ToolSpec::ball_end(16.0),
+        stepped(MillingPathKind::Raster, 3.0, 0.3),
+        10.0,
+        48,
     ));
     let expected = ball_scallop_height(16.0, 3.0);
     let found = cusps(&result, 0.0, 10.0);
@@ -64,10 +93,16 @@ fn scallops_match_the_closed_forms_on_six_cases() {
 
     // Ball on a plane planned for h = 0.01 mm: Tn = 0.80 mm (seed 004 eqs. 7–8).
     let job = milling(
-        PLANE,
-        "kind = \"ball_end\"\ndiameter_mm = 16.0",
-        "path = \"raster\"\nscallop_mm = 0.01\nstock_allowance_mm = 0.05",
-        "pitch_um = 5.0\nazimuths = 16",
+        plane(),
+        ToolSpec::ball_end(16.0),
+        MillingSpec {
+            path: Some(MillingPathKind::Raster),
+            scallop_mm: Some(0.01),
+            stock_allowance_mm: Some(0.05),
+            ..MillingSpec::default()
+        },
+        5.0,
+        16,
     );
     let step = job.process.milling().unwrap().setup.stepover_mm;
     assert!(
@@ -84,17 +119,24 @@ fn scallops_match_the_closed_forms_on_six_cases() {
 
     // Ball on concave and convex spheres, step from seed 001 eq. (8) and its convex
     // counterpart for h = 0.5 µm (near the axis the radial step is the surface spacing).
-    for (form, width) in [
-        ("concave", working_width_concave(0.0005, 1.0, 20.0)),
-        ("convex", working_width_convex(0.0005, 1.0, 20.0)),
+    for (form, shape, width) in [
+        (
+            "concave",
+            Form::Concave,
+            working_width_concave(0.0005, 1.0, 20.0),
+        ),
+        (
+            "convex",
+            Form::Convex,
+            working_width_convex(0.0005, 1.0, 20.0),
+        ),
     ] {
         let result = run_cpu(milling(
-            &format!(
-                "kind = \"sphere\"\nform = \"{form}\"\nradius_mm = 20.0\naperture_diameter_mm = 2.0"
-            ),
-            "kind = \"ball_end\"\ndiameter_mm = 2.0",
-            &format!("path = \"spiral\"\nstepover_mm = {width}\nstock_allowance_mm = 0.003"),
-            "pitch_um = 0.5\nazimuths = 8",
+            SurfaceSpec::sphere(shape, 20.0, 2.0),
+            ToolSpec::ball_end(2.0),
+            stepped(MillingPathKind::Spiral, width, 0.003),
+            0.5,
+            8,
         ));
         // Away from the spiral's end at the centre; exact form at each cusp's radius.
         let found = cusps(&result, 0.2, 0.9);
@@ -120,10 +162,11 @@ fn scallops_match_the_closed_forms_on_six_cases() {
     // Bull-nose D4 r0.5 (flat bottom radius 1.5) at 3.4 mm on a plane: the corner arcs
     // 0.4 mm apart leave r − √(r² − (0.2)²).
     let result = run_cpu(milling(
-        PLANE,
-        "kind = \"bull_nose\"\ndiameter_mm = 4.0\ncorner_radius_mm = 0.5",
-        "path = \"raster\"\nstepover_mm = 3.4\nstock_allowance_mm = 0.05",
-        "pitch_um = 2.0\nazimuths = 48",
+        plane(),
+        ToolSpec::bull_nose(4.0, 0.5),
+        stepped(MillingPathKind::Raster, 3.4, 0.05),
+        2.0,
+        48,
     ));
     let expected = flat_scallop_height(0.5, 3.4 - 3.0);
     let found = cusps(&result, 0.0, 10.0);
@@ -137,10 +180,15 @@ fn scallops_match_the_closed_forms_on_six_cases() {
 
     // Flat end D4 leaned 10° toward the feed (5-axis): r_e = r/sin λ (seed 001 eq. 10).
     let result = run_cpu(milling(
-        PLANE,
-        "kind = \"flat_end\"\ndiameter_mm = 4.0",
-        "path = \"raster\"\naxes = 5\nlead_deg = 10.0\nstepover_mm = 0.5\nstock_allowance_mm = 0.05",
-        "pitch_um = 2.0\nazimuths = 16",
+        plane(),
+        ToolSpec::flat_end(4.0),
+        MillingSpec {
+            axes: Some(5),
+            lead_deg: Some(10.0),
+            ..stepped(MillingPathKind::Raster, 0.5, 0.05)
+        },
+        2.0,
+        16,
     ));
     let r_e = effective_radius(2.0, 10f64.to_radians(), 0.0);
     let expected = 0.5f64.powi(2) / (8.0 * r_e);
@@ -166,12 +214,16 @@ fn seed_004_effective_diameters_from_the_simulated_contacts() {
     // side at D sin(φ − α) (eq. 4).
     for alpha_deg in [0.0f64, 10.5, 55.0] {
         let job = milling(
-            "kind = \"plane\"\naperture_diameter_mm = 24.0",
-            "kind = \"ball_end\"\ndiameter_mm = 16.0",
-            &format!(
-                "path = \"raster\"\nstepover_mm = 3.0\naxes = 5\nlead_deg = {alpha_deg}\ntilt_deg = 90.0\nstock_allowance_mm = 1.2"
-            ),
-            "pitch_um = 10.0\nazimuths = 32",
+            SurfaceSpec::plane(24.0),
+            ToolSpec::ball_end(16.0),
+            MillingSpec {
+                axes: Some(5),
+                lead_deg: Some(alpha_deg),
+                tilt_deg: Some(90.0),
+                ..stepped(MillingPathKind::Raster, 3.0, 1.2)
+            },
+            10.0,
+            32,
         );
         let result = run_cpu(job.clone());
         let alpha = alpha_deg.to_radians();
@@ -219,12 +271,18 @@ fn disc_cutter_section_radius_follows_the_hyperboloid_and_falls_with_the_turn() 
     // (d/2)(cos²λ − sin²ξ)/sin²λ — 126.5 mm at ξ = 0.
     for turn in [0.0f64, 10.0, 20.0] {
         let result = run_cpu(milling(
-            "kind = \"plane\"\naperture_diameter_mm = 3.0",
-            "kind = \"disc\"\ndiameter_mm = 30.0\ninsert_length_mm = 10.0\nside_rake_deg = 19.0",
-            &format!(
-                "path = \"raster\"\nstepover_mm = 9.0\nturn_deg = {turn}\nstock_allowance_mm = 0.05"
-            ),
-            "pitch_um = 5.0\nazimuths = 4",
+            SurfaceSpec::plane(3.0),
+            ToolSpec::Disc(MillToolSpec {
+                insert_length_mm: Some(10.0),
+                side_rake_deg: Some(19.0),
+                ..mill_tool(30.0)
+            }),
+            MillingSpec {
+                turn_deg: Some(turn),
+                ..stepped(MillingPathKind::Raster, 9.0, 0.05)
+            },
+            5.0,
+            4,
         ));
         let grid = result.grid();
         // Azimuth row 1 runs along +Y; fit depth = c + y²/(2R) over |y| ≤ 1 mm.
@@ -254,20 +312,34 @@ fn disc_cutter_section_radius_follows_the_hyperboloid_and_falls_with_the_turn() 
 
 #[test]
 fn constant_scallop_holds_h_on_the_seed_002_asphere_where_constant_step_does_not() {
-    let asphere = "kind = \"asphere\"\nform = \"convex\"\nbase_radius_mm = 5.5\nconic = -0.7\na4 = 0.000284\naperture_diameter_mm = 20.0";
-    let tool = "kind = \"ball_end\"\ndiameter_mm = 1.0";
+    let asphere = SurfaceSpec::Asphere(AsphereSpec {
+        form: Some(Form::Convex),
+        base_radius_mm: Some(5.5),
+        conic: Some(-0.7),
+        a4: Some(0.000284),
+        aperture_diameter_mm: Some(20.0),
+        ..AsphereSpec::default()
+    });
+    let tool = ToolSpec::ball_end(1.0);
     let h = 0.001;
     let constant_scallop = run_cpu(milling(
-        asphere,
-        tool,
-        &format!("path = \"constant_scallop\"\nscallop_mm = {h}\nstock_allowance_mm = 0.02"),
-        "pitch_um = 2.0\nazimuths = 4",
+        asphere.clone(),
+        tool.clone(),
+        MillingSpec {
+            path: Some(MillingPathKind::ConstantScallop),
+            scallop_mm: Some(h),
+            stock_allowance_mm: Some(0.02),
+            ..MillingSpec::default()
+        },
+        2.0,
+        4,
     ));
     let constant_step = run_cpu(milling(
         asphere,
         tool,
-        "path = \"spiral\"\nstepover_mm = 0.06\nstock_allowance_mm = 0.02",
-        "pitch_um = 2.0\nazimuths = 4",
+        stepped(MillingPathKind::Spiral, 0.06, 0.02),
+        2.0,
+        4,
     ));
     // The spiral ends on the axis at whatever angle its last turn reaches it, so the
     // innermost turns are spaced unevenly on some azimuths: skip three steps there.
@@ -310,10 +382,18 @@ fn teeth_as_bodies_leave_feed_marks_of_the_per_tooth_advance() {
     // stamp: stamps 0.05 mm apart along the feed leave marks r − √(r² − (f/2)²) =
     // 312.7 nm high along a pass, on its centre line too.
     let result = run_cpu(milling(
-        "kind = \"plane\"\naperture_diameter_mm = 4.0",
-        "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2\nflutes = \"body\"",
-        "path = \"raster\"\nstepover_mm = 0.1\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.005",
-        "pitch_um = 0.1\nazimuths = 4",
+        SurfaceSpec::plane(4.0),
+        ToolSpec::BallEnd(MillToolSpec {
+            teeth: Some(2),
+            flutes: Some(FluteModel::Body),
+            ..mill_tool(2.0)
+        }),
+        MillingSpec {
+            feed_per_tooth_mm: Some(0.05),
+            ..stepped(MillingPathKind::Raster, 0.1, 0.005)
+        },
+        0.1,
+        4,
     ));
     let grid = result.grid();
     // Azimuth row 0 runs along +X, on the pass through the axis: its deviation swings
@@ -345,14 +425,19 @@ fn cylinders_milled_along_their_axis_leave_the_circle_on_circle_scallop() {
     for (form, convex) in [("convex", true), ("concave", false)] {
         for axes in [3, 5] {
             let result = run_cpu(milling(
-                &format!(
-                    "kind = \"cylinder\"\nform = \"{form}\"\nradius_mm = 20.0\naperture_diameter_mm = 8.0\nlength_mm = 4.0"
-                ),
-                "kind = \"ball_end\"\ndiameter_mm = 2.0",
-                &format!(
-                    "path = \"raster\"\naxes = {axes}\nstepover_mm = 0.2\nstock_allowance_mm = 0.01"
-                ),
-                "pitch_um = 2.0\nazimuths = 16",
+                SurfaceSpec::Cylinder(CylinderSpec {
+                    form: Some(if convex { Form::Convex } else { Form::Concave }),
+                    radius_mm: Some(20.0),
+                    aperture_diameter_mm: Some(8.0),
+                    length_mm: Some(4.0),
+                }),
+                ToolSpec::ball_end(2.0),
+                MillingSpec {
+                    axes: Some(axes),
+                    ..stepped(MillingPathKind::Raster, 0.2, 0.01)
+                },
+                2.0,
+                16,
             ));
             let expected = sphere_scallop_height(1.0, 20.0, 0.2 / 20.0, convex);
             let found = cusps(&result, -3.5, 3.5);
@@ -390,10 +475,16 @@ fn a_lead_varying_along_the_path_varies_the_effective_radius_with_it() {
     // on a flat: each cusp is the ellipse scallop of the local lead, ≈ s² sin λ/(8r), so
     // the scallops grow about four-fold across the part (sin 20°/sin 5°).
     let job = milling(
-        "kind = \"plane\"\naperture_diameter_mm = 12.0",
-        "kind = \"flat_end\"\ndiameter_mm = 4.0",
-        "path = \"raster\"\naxes = 5\nlead_deg = 5.0\nlead_end_deg = 20.0\nstepover_mm = 0.4\nstock_allowance_mm = 0.05",
-        "pitch_um = 2.0\nazimuths = 4",
+        SurfaceSpec::plane(12.0),
+        ToolSpec::flat_end(4.0),
+        MillingSpec {
+            axes: Some(5),
+            lead_deg: Some(5.0),
+            lead_end_deg: Some(20.0),
+            ..stepped(MillingPathKind::Raster, 0.4, 0.05)
+        },
+        2.0,
+        4,
     );
     let Scene::Milling(scene) = &prepare_scenes(&job)[0] else {
         panic!()
@@ -447,16 +538,32 @@ fn a_lead_varying_along_the_path_varies_the_effective_radius_with_it() {
 /// Flutes as edges: a cylinder of R 1000 mm (its section flat to 0.1 µm under the tool),
 /// milled along its axis by a Ø2 mm ball with two teeth in passes 1.2 mm apart (one on
 /// the axis; the next cuts 0.32 mm above it at x = 0.4), rings 0.4 mm apart across it
-/// (x = −0.4, 0, 0.4), `rows` rows along 0.6 mm.
-fn flute_job(tool: &str, feed_per_tooth_mm: f64, rows: u32) -> Job {
+/// (x = −0.4, 0, 0.4), `rows` rows along 0.6 mm. `tool`: the ball's other fields.
+fn flute_job(tool: MillToolSpec, feed_per_tooth_mm: f64, rows: u32) -> Job {
     milling(
-        "kind = \"cylinder\"\nform = \"convex\"\nradius_mm = 1000.0\naperture_diameter_mm = 0.8\nlength_mm = 0.6",
-        &format!("kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2\n{tool}"),
-        &format!(
-            "path = \"raster\"\nstepover_mm = 1.2\nfeed_per_tooth_mm = {feed_per_tooth_mm}\nstock_allowance_mm = 0.3"
-        ),
-        &format!("pitch_um = 400.0\nazimuths = {rows}"),
+        long_cylinder(0.8),
+        ToolSpec::BallEnd(MillToolSpec {
+            diameter_mm: Some(2.0),
+            teeth: Some(2),
+            ..tool
+        }),
+        MillingSpec {
+            feed_per_tooth_mm: Some(feed_per_tooth_mm),
+            ..stepped(MillingPathKind::Raster, 1.2, 0.3)
+        },
+        400.0,
+        rows,
     )
+}
+
+/// A convex cylinder of R 1000 mm, 0.6 mm long, `width_mm` across its axis.
+fn long_cylinder(width_mm: f64) -> SurfaceSpec {
+    SurfaceSpec::Cylinder(CylinderSpec {
+        form: Some(Form::Convex),
+        radius_mm: Some(1000.0),
+        aperture_diameter_mm: Some(width_mm),
+        length_mm: Some(0.6),
+    })
 }
 
 /// The feed marks along the pass at arc length `arc_mm` across it, over the middle two
@@ -505,7 +612,7 @@ fn edges_leave_feed_marks_of_f_z_squared_over_8r() {
     // f_z²/8r' = 13.6 nm (r' = 0.917 mm), f_z apart: on the two sides of the path within
     // the trochoid's ±1.6 % (see below), whose mean cancels it to 0.03 %. Rows every
     // 0.025 µm miss a mark's top by < 0.07 nm.
-    let result = run_cpu(flute_job("", 0.01, 24000));
+    let result = run_cpu(flute_job(MillToolSpec::default(), 0.01, 24000));
     let sides = [marks_at(&result, -0.4), marks_at(&result, 0.4)];
     for (height, spacing, x) in sides {
         println!(
@@ -535,8 +642,15 @@ fn edges_sweep_trochoids_that_bodies_do_not() {
     // As bodies the teeth cut f_z apart on both sides. On the path itself every edge's
     // tip runs along it: no marks (bodies: f_z²/8r).
     let q = |x: f64| 2.0 * 0.05 / (std::f64::consts::TAU * x.abs());
-    for (flutes, trochoid) in [("flutes = \"edges\"", true), ("flutes = \"body\"", false)] {
-        let result = run_cpu(flute_job(flutes, 0.05, 12000));
+    for (flutes, model, trochoid) in [
+        ("flutes = \"edges\"", FluteModel::Edges, true),
+        ("flutes = \"body\"", FluteModel::Body, false),
+    ] {
+        let tool = MillToolSpec {
+            flutes: Some(model),
+            ..MillToolSpec::default()
+        };
+        let result = run_cpu(flute_job(tool, 0.05, 12000));
         let mut sides = [marks_at(&result, -0.4), marks_at(&result, 0.4)];
         sides.sort_by(|a, b| a.0.total_cmp(&b.0));
         for ((height, spacing, x), sign) in sides.into_iter().zip([1.0, -1.0]) {
@@ -579,14 +693,20 @@ fn one_tooth_cuts_alone_when_its_runout_exceeds_its_marks() {
     // Radial runout of 60 µm (more than f_z) does the same through the flanks: marks a
     // revolution apart, over three times the height of two even teeth.
     let q = |x: f64| 2.0 * 0.05 / (std::f64::consts::TAU * x.abs());
-    let even = run_cpu(flute_job("", 0.05, 12000));
+    let even = run_cpu(flute_job(MillToolSpec::default(), 0.05, 12000));
     let axial = run_cpu(flute_job(
-        "tooth_axial_runout_mm = [0.0, 0.005]",
+        MillToolSpec {
+            tooth_axial_runout_mm: Some(vec![0.0, 0.005]),
+            ..MillToolSpec::default()
+        },
         0.05,
         12000,
     ));
     let radial = run_cpu(flute_job(
-        "tooth_radial_runout_mm = [0.0, 0.06]",
+        MillToolSpec {
+            tooth_radial_runout_mm: Some(vec![0.0, 0.06]),
+            ..MillToolSpec::default()
+        },
         0.05,
         12000,
     ));
@@ -679,10 +799,17 @@ fn edges_match_a_brute_force_sweep_near_the_path() {
     // tangent plane the reference cuts in (≤ 0.45 nm); both sides of the path, sorted by
     // height as up- and down-milling differ and the sense of turning does not matter.
     let result = run_cpu(milling(
-        "kind = \"cylinder\"\nform = \"convex\"\nradius_mm = 1000.0\naperture_diameter_mm = 0.06\nlength_mm = 0.6",
-        "kind = \"ball_end\"\ndiameter_mm = 2.0\nteeth = 2",
-        "path = \"raster\"\nstepover_mm = 1.2\nfeed_per_tooth_mm = 0.05\nstock_allowance_mm = 0.3",
-        "pitch_um = 10.0\nazimuths = 6000",
+        long_cylinder(0.06),
+        ToolSpec::BallEnd(MillToolSpec {
+            teeth: Some(2),
+            ..mill_tool(2.0)
+        }),
+        MillingSpec {
+            feed_per_tooth_mm: Some(0.05),
+            ..stepped(MillingPathKind::Raster, 1.2, 0.3)
+        },
+        10.0,
+        6000,
     ));
     let grid = result.grid();
     let profile_at = |arc: f64| -> (f64, f64) {

@@ -30,7 +30,9 @@
 mod common;
 use common::*;
 use toolmark::field::NO_PASS;
-use toolmark::model::Job;
+use toolmark::model::{
+    EffectSpec, Job, JobFile, PlaneSpec, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec,
+};
 use toolmark::pipeline::RunResult;
 
 /// A facing case: nose radius, feed, h_min (mm), ρ and the grid pitch (µm).
@@ -50,37 +52,25 @@ const WINDOW_MM: (f64, f64) = (0.15, 0.25);
 
 impl Facing {
     fn job(&self, spring_back: bool) -> Job {
-        let effect = if spring_back {
-            format!(
-                "[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = {}\nrecovery = {}\n",
-                self.min_chip, self.recovery
-            )
+        let file = JobFile::new(
+            SurfaceSpec::Plane(PlaneSpec {
+                aperture_diameter_mm: Some(0.6),
+                inner_diameter_mm: 0.2,
+            }),
+            ToolSpec::arc_nose(self.radius, 100.0),
+            ProcessSpec::Turning(TurningSpec {
+                start_radius_mm: Some(START_MM),
+                stock_allowance_mm: Some(0.002),
+                depth_of_cut_mm: Some(0.002),
+                ..TurningSpec::xz(self.feed)
+            }),
+        )
+        .grid(self.pitch_um, 4);
+        checked(if spring_back {
+            file.effect(EffectSpec::spring_back(self.min_chip, self.recovery))
         } else {
-            String::new()
-        };
-        job(&format!(
-            r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 0.6
-inner_diameter_mm = 0.2
-[tool]
-kind = "arc_nose"
-nose_radius_mm = {}
-included_angle_deg = 100.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = {}
-start_radius_mm = {START_MM}
-stock_allowance_mm = 0.002
-depth_of_cut_mm = 0.002
-[grid]
-pitch_um = {}
-azimuths = 4
-{effect}"#,
-            self.radius, self.feed, self.pitch_um
-        ))
+            file
+        })
     }
 
     /// The chip pass k cuts at u (see the module note).
@@ -337,15 +327,12 @@ fn full_recovery_raises_the_cusp_by_brammertz_formula() {
 #[test]
 fn spring_back_stays_within_rho_h_min_of_the_running_minimum_and_only_raises() {
     let (min_chip, recovery) = (0.00001, 0.7);
-    let base = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/sphere_centre_height.toml"),
-    )
-    .expect("example")
-    .replace("azimuths = 16", "azimuths = 6");
-    let plain = run_cpu(job(&base));
-    let sprung = run_cpu(job(&format!(
-        "{base}\n[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = {min_chip}\nrecovery = {recovery}\n"
-    )));
+    let mut base = example_file("sphere_centre_height.toml");
+    base.grid.azimuths = Some(6);
+    let plain = run_cpu(checked(base.clone()));
+    let sprung = run_cpu(checked(
+        base.effect(EffectSpec::spring_back(min_chip, recovery)),
+    ));
     let (mut lowest, mut highest, mut raised) = (f64::INFINITY, f64::NEG_INFINITY, 0);
     for (a, b) in sprung.field.depth_mm.iter().zip(&plain.field.depth_mm) {
         lowest = lowest.min(a - b);
@@ -374,13 +361,13 @@ fn spring_back_stays_within_rho_h_min_of_the_running_minimum_and_only_raises() {
 /// (max(0.5 nm, 0.1 % PV), `assert_engines_agree`) plus ρ·h_min, and at most 1 % of the
 /// samples beyond the usual bound — a tenth of the ploughed ones at least, so a GPU that
 /// ignored spring-back would fail.
-fn assert_engines_agree_with_spring_back(name: &str, text: &str, min_chip: f64, recovery: f64) {
-    let with_effect = format!(
-        "{text}\n[[effects]]\nkind = \"spring_back\"\nmin_chip_mm = {min_chip}\nrecovery = {recovery}\n"
-    );
-    let plain = run_cpu(job(text));
-    let cpu = run_cpu(job(&with_effect));
-    let gpu = run_gpu(job(&with_effect));
+fn assert_engines_agree_with_spring_back(name: &str, file: &JobFile, min_chip: f64, recovery: f64) {
+    let with_effect = file
+        .clone()
+        .effect(EffectSpec::spring_back(min_chip, recovery));
+    let plain = run_cpu(checked(file.clone()));
+    let cpu = run_cpu(checked(with_effect.clone()));
+    let gpu = run_gpu(checked(with_effect));
     let bound = (0.001 * cpu.deviation.pv_nm).max(0.5) * 1e-6;
     let samples = cpu.field.depth_mm.len();
     let (mut worst, mut worst_usual, mut beyond, mut ploughed) = (0.0f64, 0.0f64, 0, 0);
@@ -427,20 +414,12 @@ fn assert_engines_agree_with_spring_back(name: &str, text: &str, min_chip: f64, 
 
 #[test]
 fn gpu_matches_cpu_with_spring_back_on_and_off_centre() {
-    let example = |name: &str| {
-        std::fs::read_to_string(
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("examples")
-                .join(name),
-        )
-        .expect("example")
-    };
-    let sphere = example("convex_sphere.toml")
-        .replace("aperture_diameter_mm = 12.0", "aperture_diameter_mm = 3.0")
-        .replace("pitch_um = 1.0", "pitch_um = 0.25")
-        .replace("azimuths = 32", "azimuths = 6");
+    let mut sphere = example_file("convex_sphere.toml").grid(0.25, 6);
+    let inner = sphere.surface.aperture_diameters_mm().1;
+    sphere.surface = sphere.surface.with_aperture(3.0, inner);
     assert_engines_agree_with_spring_back("convex sphere R25, Ø3, XZ", &sphere, 0.00001, 0.7);
-    let above = example("sphere_centre_height.toml").replace("azimuths = 16", "azimuths = 6");
+    let mut above = example_file("sphere_centre_height.toml");
+    above.grid.azimuths = Some(6);
     assert_engines_agree_with_spring_back(
         "convex sphere, tool 5 µm above centre (flank branch)",
         &above,

@@ -10,89 +10,120 @@ use toolmark::diagnose::synth::instrument::{footprint, pixel_mean, stylus_trace}
 use toolmark::diagnose::synth::section::TurnedSection;
 use toolmark::diagnose::synth::{MeasurementModel, Unmodelled, synthesize};
 use toolmark::engine::cpu::CpuEngine;
-use toolmark::model::Job;
+use toolmark::geometry::Form;
+use toolmark::model::{
+    DirectionSpec, EffectSpec, HarmonicSpec, HarmonicsSpec, Job, JobFile, ProcessSpec, SurfaceSpec,
+    TiltHarmonicSpec, TiltHarmonicsSpec, ToolSpec, TurningSpec, VibrationSpec,
+};
 use toolmark::pipeline::RunResult;
 use toolmark::process::Process;
+use toolmark::process::TurningMode;
 
 /// A flat faced with a 0.5 mm nose at 10 µm/rev, Ø0.3 mm, rings 0.5 µm apart.
-const FLAT: &str = r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 0.3
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 140.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-[grid]
-pitch_um = 0.5
-azimuths = 8
-"#;
+fn flat() -> JobFile {
+    JobFile::new(
+        SurfaceSpec::plane(0.3),
+        ToolSpec::arc_nose(0.5, 140.0),
+        ProcessSpec::Turning(TurningSpec::xz(0.01)),
+    )
+    .grid(0.5, 8)
+}
 
 /// A convex sphere R5, Ø0.6 mm, turned with a 0.2 mm nose at 5 µm/rev.
-fn sphere(mode: &str) -> String {
-    format!(
-        r#"version = 1
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 5.0
-aperture_diameter_mm = 0.6
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.2
-included_angle_deg = 140.0
-[process]
-kind = "turning"
-mode = "{mode}"
-feed_per_rev_mm = 0.005
-[grid]
-pitch_um = 0.5
-azimuths = 8
-"#
+fn sphere(mode: TurningMode) -> JobFile {
+    JobFile::new(
+        SurfaceSpec::sphere(Form::Convex, 5.0, 0.6),
+        ToolSpec::arc_nose(0.2, 140.0),
+        ProcessSpec::Turning(TurningSpec {
+            mode: Some(mode),
+            ..TurningSpec::xz(0.005)
+        }),
     )
+    .grid(0.5, 8)
+}
+
+/// Harmonics of an edge or a spindle's axial motion: (order, amplitude mm, phase °).
+fn harmonics(terms: &[(f64, f64, f64)]) -> HarmonicsSpec {
+    let list = terms
+        .iter()
+        .map(|&(order, amplitude_mm, phase_deg)| HarmonicSpec {
+            order,
+            amplitude_mm,
+            phase_deg,
+        });
+    HarmonicsSpec {
+        harmonics: Some(list.collect()),
+    }
+}
+
+/// Harmonics of a spindle's tilt motion: (order, amplitude °, phase °).
+fn tilt_harmonics(terms: &[(f64, f64, f64)]) -> EffectSpec {
+    let list = terms
+        .iter()
+        .map(|&(order, amplitude_deg, phase_deg)| TiltHarmonicSpec {
+            order,
+            amplitude_deg,
+            phase_deg,
+        });
+    EffectSpec::TiltErrorMotion(TiltHarmonicsSpec {
+        tilt_harmonics: Some(list.collect()),
+    })
+}
+
+/// A vibration of an amplitude (mm) along a direction, at cycles per revolution and a
+/// phase (°).
+fn vibration(
+    amplitude_mm: f64,
+    direction: DirectionSpec,
+    per_rev: f64,
+    phase_deg: f64,
+) -> EffectSpec {
+    EffectSpec::Vibration(VibrationSpec {
+        amplitude_mm: Some(amplitude_mm),
+        direction: Some(direction),
+        per_revolution: Some(per_rev),
+        phase_deg: Some(phase_deg),
+        ..VibrationSpec::default()
+    })
 }
 
 /// The effects each agreement case adds (one at a time; waviness with two orders).
-const EFFECTS: [(&str, &str); 9] = [
-    ("ideal", ""),
-    (
-        "centre height +3 µm",
-        "kind = \"centre_height\"\nheight_mm = 0.003",
-    ),
-    (
-        "centre height −3 µm",
-        "kind = \"centre_height\"\nheight_mm = -0.003",
-    ),
-    ("decentre +2 µm", "kind = \"x_decentre\"\noffset_mm = 0.002"),
-    (
-        "decentre −2 µm",
-        "kind = \"x_decentre\"\noffset_mm = -0.002",
-    ),
-    (
-        "nose radius +5 µm",
-        "kind = \"nose_radius_error\"\nerror_mm = 0.005",
-    ),
-    (
-        "nose radius −8 µm",
-        "kind = \"nose_radius_error\"\nerror_mm = -0.008",
-    ),
-    ("drift +200 nm", "kind = \"axial_drift\"\ndrift_mm = 0.0002"),
-    (
-        "waviness orders 20 and 45",
-        "kind = \"edge_waviness\"\nharmonics = [{ order = 20, amplitude_mm = 0.00004 }, { order = 45, amplitude_mm = 0.000012, phase_deg = -21.0 }]",
-    ),
-];
+fn effects() -> [(&'static str, Vec<EffectSpec>); 9] {
+    [
+        ("ideal", vec![]),
+        (
+            "centre height +3 µm",
+            vec![EffectSpec::centre_height(0.003)],
+        ),
+        (
+            "centre height −3 µm",
+            vec![EffectSpec::centre_height(-0.003)],
+        ),
+        ("decentre +2 µm", vec![EffectSpec::x_decentre(0.002)]),
+        ("decentre −2 µm", vec![EffectSpec::x_decentre(-0.002)]),
+        (
+            "nose radius +5 µm",
+            vec![EffectSpec::nose_radius_error(0.005)],
+        ),
+        (
+            "nose radius −8 µm",
+            vec![EffectSpec::nose_radius_error(-0.008)],
+        ),
+        ("drift +200 nm", vec![EffectSpec::axial_drift(0.0002)]),
+        (
+            "waviness orders 20 and 45",
+            vec![EffectSpec::EdgeWaviness(harmonics(&[
+                (20.0, 0.00004, 0.0),
+                (45.0, 0.000012, -21.0),
+            ]))],
+        ),
+    ]
+}
 
-fn with_effect(base: &str, effect: &str) -> Job {
-    if effect.is_empty() {
-        job(base)
-    } else {
-        job(&format!("{base}\n[[effects]]\n{effect}\n"))
-    }
+fn with_effect(base: &JobFile, effects: &[EffectSpec]) -> Job {
+    let mut file = base.clone();
+    file.effects.extend_from_slice(effects);
+    checked(file)
 }
 
 /// Largest |section − engine| (nm) over every sample of the engine's grid, read at the
@@ -129,9 +160,9 @@ fn gaps_nm(job: &Job, result: &RunResult) -> Vec<f64> {
     gaps
 }
 
-fn assert_agreement(name: &str, base: &str) {
-    for (effect, table) in EFFECTS {
-        let job = with_effect(base, table);
+fn assert_agreement(name: &str, base: &JobFile) {
+    for (effect, tables) in effects() {
+        let job = with_effect(base, &tables);
         let (worst, compared) = agreement_nm(&job);
         let samples = job.azimuths as usize * run_cpu(job.clone()).grid().ring_count();
         println!("{name}, {effect}: max |Δ| = {worst:.2e} nm over {compared} samples");
@@ -157,17 +188,17 @@ fn assert_job_agrees(name: &str, job: &Job, bound_nm: f64) {
 
 #[test]
 fn the_section_model_agrees_with_the_engine_on_a_faced_flat() {
-    assert_agreement("flat", FLAT);
+    assert_agreement("flat", &flat());
 }
 
 #[test]
 fn the_section_model_agrees_with_the_engine_on_a_sphere_in_xz() {
-    assert_agreement("sphere XZ", &sphere("xz"));
+    assert_agreement("sphere XZ", &sphere(TurningMode::Xz));
 }
 
 #[test]
 fn the_section_model_agrees_with_the_engine_on_a_sphere_in_xzb() {
-    assert_agreement("sphere XZB", &sphere("xzb"));
+    assert_agreement("sphere XZB", &sphere(TurningMode::Xzb));
 }
 
 #[test]
@@ -176,8 +207,11 @@ fn the_section_model_agrees_with_the_engine_on_a_program_turned_about_the_axis()
     // line's azimuth) with a centre height and a decentre, which make the part differ
     // from azimuth to azimuth near the centre.
     let mut turned = with_effect(
-        &sphere("xz"),
-        "kind = \"centre_height\"\nheight_mm = 0.002\n[[effects]]\nkind = \"x_decentre\"\noffset_mm = 0.0015",
+        &sphere(TurningMode::Xz),
+        &[
+            EffectSpec::centre_height(0.002),
+            EffectSpec::x_decentre(0.0015),
+        ],
     );
     if let Process::Turning(t) = &mut turned.process {
         t.azimuth_offset_rad = 40f64.to_radians();
@@ -226,29 +260,20 @@ fn the_section_model_agrees_with_the_engine_on_a_two_pass_program_with_drift() {
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("two_passes.nc");
     std::fs::write(&file, program).unwrap();
-    let job = job(&format!(
-        r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 0.4
-[tool]
-kind = "arc_nose"
-nose_radius_mm = {nose}
-included_angle_deg = 100.0
-[process]
-kind = "turning"
-mode = "xz"
-nc_program = "{}"
-stock_allowance_mm = 0.003
-[grid]
-pitch_um = 0.5
-azimuths = 8
-[[effects]]
-kind = "axial_drift"
-drift_mm = 0.0006
-"#,
-        file.display()
-    ));
+    let job = checked(
+        JobFile::new(
+            SurfaceSpec::plane(0.4),
+            ToolSpec::arc_nose(nose, 100.0),
+            ProcessSpec::Turning(TurningSpec {
+                mode: Some(TurningMode::Xz),
+                nc_program: Some(file),
+                stock_allowance_mm: Some(0.003),
+                ..TurningSpec::default()
+            }),
+        )
+        .grid(0.5, 8)
+        .effect(EffectSpec::axial_drift(0.0006)),
+    );
     let _ = std::fs::remove_dir_all(&dir);
     assert_job_agrees("two-pass NC program, drift +600 nm", &job, 0.01);
 }
@@ -259,25 +284,17 @@ drift_mm = 0.0006
 /// A flat faced from r = 0.3 mm inward (the program's start given, so the passes'
 /// positions are known here: at azimuth 0 the nose centre crosses at r_k = 0.3 − k·f).
 fn facing(nose_mm: f64, feed_mm: f64) -> Job {
-    job(&format!(
-        r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 0.6
-[tool]
-kind = "arc_nose"
-nose_radius_mm = {nose_mm}
-included_angle_deg = 140.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = {feed_mm}
-start_radius_mm = 0.3
-[grid]
-pitch_um = 1.0
-azimuths = 4
-"#
-    ))
+    checked(
+        JobFile::new(
+            SurfaceSpec::plane(0.6),
+            ToolSpec::arc_nose(nose_mm, 140.0),
+            ProcessSpec::Turning(TurningSpec {
+                start_radius_mm: Some(START_MM),
+                ..TurningSpec::xz(feed_mm)
+            }),
+        )
+        .grid(1.0, 4),
+    )
 }
 
 const START_MM: f64 = 0.3;
@@ -580,7 +597,7 @@ fn withheld_milling_job() -> &'static str {
 /// steepest slope of its nominal surface (at the rim).
 struct Turned {
     name: &'static str,
-    toml: String,
+    file: JobFile,
     nose_mm: f64,
     feed_mm: f64,
     surface_slope: f64,
@@ -592,21 +609,21 @@ fn turned_bases() -> [Turned; 3] {
     [
         Turned {
             name: "flat",
-            toml: FLAT.to_string(),
+            file: flat(),
             nose_mm: 0.5,
             feed_mm: 0.01,
             surface_slope: 0.0,
         },
         Turned {
             name: "sphere XZ",
-            toml: sphere("xz"),
+            file: sphere(TurningMode::Xz),
             nose_mm: 0.2,
             feed_mm: 0.005,
             surface_slope: sphere_slope,
         },
         Turned {
             name: "sphere XZB",
-            toml: sphere("xzb"),
+            file: sphere(TurningMode::Xzb),
             nose_mm: 0.2,
             feed_mm: 0.005,
             surface_slope: sphere_slope,
@@ -619,37 +636,38 @@ fn turned_bases() -> [Turned; 3] {
 /// interpolation between its table's nodes can miss. A feed motion moves the surface
 /// along Z by the X motion times the slope there (`slope`, the mark's included); a tilt
 /// by the nose centre's X (at most `x_max_mm`) times the angle.
-fn motion_cases(slope: f64, x_max_mm: f64) -> Vec<(&'static str, &'static str, Vec<[f64; 2]>)> {
+fn motion_cases(slope: f64, x_max_mm: f64) -> Vec<(&'static str, EffectSpec, Vec<[f64; 2]>)> {
     let tilt_nm = |deg: f64| x_max_mm * 1e6 * deg.to_radians();
+    let (depth, feed) = (DirectionSpec::Depth, DirectionSpec::Feed);
     vec![
         (
             "depth vibration, 3 per revolution",
-            "kind = \"vibration\"\namplitude_mm = 0.00002\ndirection = \"depth\"\nper_revolution = 3\nphase_deg = 40",
+            vibration(0.00002, depth, 3.0, 40.0),
             vec![[20.0, 3.0]],
         ),
         (
             "depth vibration, 2.37 per revolution",
-            "kind = \"vibration\"\namplitude_mm = 0.00002\ndirection = \"depth\"\nper_revolution = 2.37\nphase_deg = -70",
+            vibration(0.00002, depth, 2.37, -70.0),
             vec![[20.0, 2.37]],
         ),
         (
             "feed vibration, 2 per revolution",
-            "kind = \"vibration\"\namplitude_mm = 0.001\ndirection = \"feed\"\nper_revolution = 2\nphase_deg = 25",
+            vibration(0.001, feed, 2.0, 25.0),
             vec![[1000.0 * slope, 2.0]],
         ),
         (
             "feed vibration, 7.3 per revolution",
-            "kind = \"vibration\"\namplitude_mm = 0.0005\ndirection = \"feed\"\nper_revolution = 7.3\nphase_deg = 10",
+            vibration(0.0005, feed, 7.3, 10.0),
             vec![[500.0 * slope, 7.3]],
         ),
         (
             "axial error motion, orders 2 and 5",
-            "kind = \"axial_error_motion\"\nharmonics = [{ order = 2, amplitude_mm = 0.00002 }, { order = 5, amplitude_mm = 0.000008, phase_deg = 30 }]",
+            EffectSpec::AxialErrorMotion(harmonics(&[(2.0, 0.00002, 0.0), (5.0, 0.000008, 30.0)])),
             vec![[20.0, 2.0], [8.0, 5.0]],
         ),
         (
             "tilt error motion, orders 1 and 3",
-            "kind = \"tilt_error_motion\"\ntilt_harmonics = [{ order = 1, amplitude_deg = 0.003 }, { order = 3, amplitude_deg = 0.001, phase_deg = -50 }]",
+            tilt_harmonics(&[(1.0, 0.003, 0.0), (3.0, 0.001, -50.0)]),
             vec![[tilt_nm(0.003), 1.0], [tilt_nm(0.001), 3.0]],
         ),
     ]
@@ -667,12 +685,12 @@ fn assert_motions_agree(base: &Turned) {
     // The largest feed vibration here is 1 µm: the marks' slope reaches (f/2 + 1 µm)/R.
     let slope = base.surface_slope + (0.5 * base.feed_mm + 0.001) / base.nose_mm;
     for azimuths in [8, 7] {
-        let toml = base
-            .toml
-            .replace("azimuths = 8", &format!("azimuths = {azimuths}"));
-        let x_max = x_max_mm(&run_cpu(job(&toml)));
+        let mut file = base.file.clone();
+        assert_eq!(file.grid.azimuths, Some(8));
+        file.grid.azimuths = Some(azimuths);
+        let x_max = x_max_mm(&run_cpu(checked(file.clone())));
         for (effect, table, terms) in motion_cases(slope, x_max) {
-            let job = with_effect(&toml, table);
+            let job = with_effect(&file, &[table]);
             let result = run_cpu(job.clone());
             let gaps = gaps_nm(&job, &result);
             let worst = gaps.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
@@ -728,11 +746,19 @@ fn the_section_model_agrees_with_the_engine_on_motions_together_with_set_up_erro
     // axial error motion at once. Bound: 0.001 nm plus the engine's chord sag.
     let base = &turned_bases()[1];
     let job = with_effect(
-        &base.toml,
-        "kind = \"centre_height\"\nheight_mm = 0.003\n[[effects]]\nkind = \"x_decentre\"\noffset_mm = 0.002\n\
-         [[effects]]\nkind = \"vibration\"\namplitude_mm = 0.00002\ndirection = \"depth\"\nper_revolution = 2.37\n\
-         [[effects]]\nkind = \"tilt_error_motion\"\ntilt_harmonics = [{ order = 1, amplitude_deg = 0.003 }, { order = 3, amplitude_deg = 0.001 }]\n\
-         [[effects]]\nkind = \"axial_error_motion\"\nharmonics = [{ order = 2, amplitude_mm = 0.00002 }]",
+        &base.file,
+        &[
+            EffectSpec::centre_height(0.003),
+            EffectSpec::x_decentre(0.002),
+            EffectSpec::Vibration(VibrationSpec {
+                amplitude_mm: Some(0.00002),
+                direction: Some(DirectionSpec::Depth),
+                per_revolution: Some(2.37),
+                ..VibrationSpec::default()
+            }),
+            tilt_harmonics(&[(1.0, 0.003, 0.0), (3.0, 0.001, 0.0)]),
+            EffectSpec::AxialErrorMotion(harmonics(&[(2.0, 0.00002, 0.0)])),
+        ],
     );
     let result = run_cpu(job.clone());
     let x_max = x_max_mm(&result);
@@ -775,10 +801,7 @@ fn the_section_model_agrees_with_the_engine_on_wear_to_second_order() {
     // 0.001 nm between the codes.
     let w = 0.001;
     for base in turned_bases() {
-        let job = with_effect(
-            &base.toml,
-            &format!("kind = \"tool_wear\"\nrecession_mm = {w}"),
-        );
+        let job = with_effect(&base.file, &[EffectSpec::tool_wear(w)]);
         let result = run_cpu(job.clone());
         let (r, f) = (base.nose_mm, base.feed_mm);
         let u_max = 0.5 * f + 2.0 * w * r / x_max_mm(&result);

@@ -8,8 +8,12 @@
 mod common;
 use common::*;
 use toolmark::analysis::ProtrusionShape;
-use toolmark::model::Job;
+use toolmark::geometry::Form;
+use toolmark::model::{
+    AsphereSpec, EffectSpec, Job, JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec,
+};
 use toolmark::pipeline::RunResult;
+use toolmark::process::{FeedAlong, TurningMode};
 
 /// Azimuth-mean deviation per ring, box-filtered over `window_mm`.
 fn form_profile(result: &RunResult, window_mm: f64) -> Vec<f64> {
@@ -32,36 +36,29 @@ fn form_profile(result: &RunResult, window_mm: f64) -> Vec<f64> {
         .collect()
 }
 
-fn with_effect(base: &str, effect: &str) -> Job {
-    job(&format!("{base}\n[[effects]]\n{effect}\n"))
+fn with_effect(base: &JobFile, effect: EffectSpec) -> Job {
+    checked(base.clone().effect(effect))
 }
 
-const SPHERE_CENTRE: &str = r#"version = 1
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 20.0
-aperture_diameter_mm = 0.4
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.005
-stock_allowance_mm = 0.002
-[grid]
-pitch_um = 0.25
-azimuths = 8"#;
+fn sphere_centre() -> JobFile {
+    JobFile::new(
+        SurfaceSpec::sphere(Form::Convex, 20.0, 0.4),
+        ToolSpec::arc_nose(0.5, 120.0),
+        ProcessSpec::Turning(TurningSpec {
+            stock_allowance_mm: Some(0.002),
+            ..TurningSpec::xz(0.005)
+        }),
+    )
+    .grid(0.25, 8)
+}
 
 #[test]
 fn centre_height_leaves_a_central_feature_of_radius_h_cone_above_cylinder_below() {
     let pitch_um = 0.25;
     for height_um in [2.0f64, 5.0, 12.0, -2.0, -5.0, -12.0] {
         let job = with_effect(
-            SPHERE_CENTRE,
-            &format!("kind = \"centre_height\"\nheight_mm = {}", height_um * 1e-3),
+            &sphere_centre(),
+            EffectSpec::centre_height(height_um * 1e-3),
         );
         for (engine, result) in [("cpu", run_cpu(job.clone())), ("gpu", run_gpu(job))] {
             let p = &result.protrusion;
@@ -100,7 +97,7 @@ fn centre_height_leaves_a_central_feature_of_radius_h_cone_above_cylinder_below(
 
 #[test]
 fn a_clean_turning_job_reports_no_central_feature() {
-    let result = run_cpu(job(SPHERE_CENTRE));
+    let result = run_cpu(checked(sphere_centre()));
     println!("clean: {:?}", result.protrusion);
     assert_eq!(
         result.protrusion.shape,
@@ -110,32 +107,23 @@ fn a_clean_turning_job_reports_no_central_feature() {
     );
 }
 
-const SPHERE_DECENTRE: &str = r#"version = 1
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 20.0
-aperture_diameter_mm = 10.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-[grid]
-pitch_um = 1.0
-azimuths = 4"#;
+fn sphere_decentre() -> JobFile {
+    JobFile::new(
+        SurfaceSpec::sphere(Form::Convex, 20.0, 10.0),
+        ToolSpec::arc_nose(0.5, 120.0),
+        ProcessSpec::Turning(TurningSpec::xz(0.01)),
+    )
+    .grid(1.0, 4)
+}
 
 #[test]
 fn x_decentre_on_a_sphere_leaves_a_cone_of_pv_delta_a_over_r() {
     let (a, radius) = (5.0, 20.0);
-    let clean = form_profile(&run_cpu(job(SPHERE_DECENTRE)), 0.01);
+    let clean = form_profile(&run_cpu(checked(sphere_decentre())), 0.01);
     for delta_um in [1.0f64, 3.0, -2.0] {
         let result = run_cpu(with_effect(
-            SPHERE_DECENTRE,
-            &format!("kind = \"x_decentre\"\noffset_mm = {}", delta_um * 1e-3),
+            &sphere_decentre(),
+            EffectSpec::x_decentre(delta_um * 1e-3),
         ));
         let form = form_profile(&result, 0.01);
         let grid = result.grid();
@@ -156,36 +144,30 @@ fn x_decentre_on_a_sphere_leaves_a_cone_of_pv_delta_a_over_r() {
     }
 }
 
-const ASPHERE: &str = r#"version = 1
-[surface]
-kind = "asphere"
-form = "convex"
-base_radius_mm = 5.5
-conic = -0.7
-a4 = 0.000284
-aperture_diameter_mm = 20.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 180.0
-[process]
-kind = "turning"
-feed_per_rev_mm = 0.01
-feed_along = "arc_length"
-[grid]
-pitch_um = 1.5
-azimuths = 2"#;
-
-fn asphere(mode: &str) -> String {
-    ASPHERE.replace(
-        "kind = \"turning\"",
-        &format!("kind = \"turning\"\nmode = \"{mode}\""),
+fn asphere(mode: TurningMode) -> JobFile {
+    JobFile::new(
+        SurfaceSpec::Asphere(AsphereSpec {
+            form: Some(Form::Convex),
+            base_radius_mm: Some(5.5),
+            conic: Some(-0.7),
+            a4: Some(0.000284),
+            aperture_diameter_mm: Some(20.0),
+            ..AsphereSpec::default()
+        }),
+        ToolSpec::arc_nose(0.5, 180.0),
+        ProcessSpec::Turning(TurningSpec {
+            mode: Some(mode),
+            feed_per_rev_mm: Some(0.01),
+            feed_along: Some(FeedAlong::ArcLength),
+            ..TurningSpec::default()
+        }),
     )
+    .grid(1.5, 2)
 }
 
 /// The effect's z-signature per ring: (run − clean) along the normal, seen along Z.
-fn z_signature(base: &str, effect: &str) -> (RunResult, Vec<f64>) {
-    let clean = form_profile(&run_cpu(job(base)), 0.01);
+fn z_signature(base: &JobFile, effect: EffectSpec) -> (RunResult, Vec<f64>) {
+    let clean = form_profile(&run_cpu(checked(base.clone())), 0.01);
     let result = run_cpu(with_effect(base, effect));
     let form = form_profile(&result, 0.01);
     let z: Vec<f64> = result
@@ -202,10 +184,7 @@ fn z_signature(base: &str, effect: &str) -> (RunResult, Vec<f64>) {
 fn x_decentre_on_the_seed_002_asphere_follows_f_of_r_minus_delta() {
     // Seed 002 eq. (1): f(x − e) + eᵢ = f(x); the machined height is z(r − δ).
     let delta = 0.001;
-    let (result, z) = z_signature(
-        &asphere("xz"),
-        &format!("kind = \"x_decentre\"\noffset_mm = {delta}"),
-    );
+    let (result, z) = z_signature(&asphere(TurningMode::Xz), EffectSpec::x_decentre(delta));
     let surface = &result.job.surface;
     let rings = &result.grid().rings;
     let window: Vec<usize> = (0..rings.len())
@@ -234,9 +213,9 @@ fn x_decentre_on_the_seed_002_asphere_follows_f_of_r_minus_delta() {
 #[test]
 fn nose_radius_error_shows_in_xz_as_e_over_cos_minus_e_and_vanishes_in_xzb() {
     let e = 0.001;
-    let effect = format!("kind = \"nose_radius_error\"\nerror_mm = {e}");
-    let (xz, z_xz) = z_signature(&asphere("xz"), &effect);
-    let (_, z_xzb) = z_signature(&asphere("xzb"), &effect);
+    let effect = EffectSpec::nose_radius_error(e);
+    let (xz, z_xz) = z_signature(&asphere(TurningMode::Xz), effect.clone());
+    let (_, z_xzb) = z_signature(&asphere(TurningMode::Xzb), effect);
     let rings = &xz.grid().rings;
     let window: Vec<usize> = (0..rings.len())
         .filter(|&i| rings[i].radius_mm > 0.05 && rings[i].radius_mm < 9.9)
@@ -272,19 +251,17 @@ fn edge_waviness_is_printed_at_each_radius_in_xz_and_not_in_xzb() {
     // normal error is −(w(θ) − w(0) cos θ) (tip-set tool, DESIGN §3); in XZB ψ = 0
     // everywhere. Compared along the normal, where the signature is defined.
     let amplitude = 0.0002;
-    let effect = format!(
-        "kind = \"edge_waviness\"\nharmonics = [{{ order = 12, amplitude_mm = {amplitude} }}]"
-    );
-    let normal_signature = |mode: &str| {
+    let effect = EffectSpec::edge_waviness(12.0, amplitude, 0.0);
+    let normal_signature = |mode: TurningMode| {
         let base = asphere(mode);
-        let clean = form_profile(&run_cpu(job(&base)), 0.01);
-        let result = run_cpu(with_effect(&base, &effect));
+        let clean = form_profile(&run_cpu(checked(base.clone())), 0.01);
+        let result = run_cpu(with_effect(&base, effect.clone()));
         let form = form_profile(&result, 0.01);
         let signature: Vec<f64> = form.iter().zip(&clean).map(|(a, b)| a - b).collect();
         (result, signature)
     };
-    let (xz, n_xz) = normal_signature("xz");
-    let (_, n_xzb) = normal_signature("xzb");
+    let (xz, n_xz) = normal_signature(TurningMode::Xz);
+    let (_, n_xzb) = normal_signature(TurningMode::Xzb);
     let rings = &xz.grid().rings;
     let window: Vec<usize> = (0..rings.len())
         .filter(|&i| rings[i].radius_mm > 0.05 && rings[i].radius_mm < 9.9)

@@ -10,27 +10,44 @@
 
 mod common;
 use common::*;
+use toolmark::model::{
+    DirectionSpec, EffectSpec, HarmonicSpec, HarmonicsSpec, JobFile, ProcessSpec, SurfaceSpec,
+    TiltHarmonicSpec, TiltHarmonicsSpec, ToolSpec, TurningSpec, VibrationSpec,
+};
 use toolmark::pipeline::RunResult;
 
-const FACING: &str = r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 1.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.5
-included_angle_deg = 100.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-stock_allowance_mm = 0.002
-[grid]
-pitch_um = 0.5
-azimuths = 32"#;
+fn facing() -> JobFile {
+    JobFile::new(
+        SurfaceSpec::plane(1.0),
+        ToolSpec::arc_nose(0.5, 100.0),
+        ProcessSpec::Turning(TurningSpec {
+            stock_allowance_mm: Some(0.002),
+            ..TurningSpec::xz(0.01)
+        }),
+    )
+    .grid(0.5, 32)
+}
 
-fn facing_with(effects: &str) -> RunResult {
-    run_cpu(job(&format!("{FACING}\n{effects}")))
+fn facing_with(effects: &[EffectSpec]) -> RunResult {
+    let file = effects.iter().cloned().fold(facing(), JobFile::effect);
+    run_cpu(checked(file))
+}
+
+/// A vibration of `amplitude_mm` along `direction`, `per_revolution` cycles per
+/// revolution, at `phase_deg`.
+fn vibration(
+    amplitude_mm: f64,
+    direction: DirectionSpec,
+    per_revolution: f64,
+    phase_deg: f64,
+) -> EffectSpec {
+    EffectSpec::Vibration(VibrationSpec {
+        amplitude_mm: Some(amplitude_mm),
+        direction: Some(direction),
+        per_revolution: Some(per_revolution),
+        phase_deg: Some(phase_deg),
+        ..Default::default()
+    })
 }
 
 fn height(result: &RunResult, ring: usize, row: u32) -> f64 {
@@ -71,10 +88,8 @@ fn a_whole_order_depth_vibration_lifts_each_azimuth_rigidly_by_a_cos_of_minus_k_
     // is rounding), 1e-4 relative on the amplitude, 1e-6 rad on the phase (32 exact
     // samples of a pure order-3 cosine).
     let a = 2e-5;
-    let nominal = facing_with("");
-    let shaken = facing_with(&format!(
-        "[[effects]]\nkind = \"vibration\"\namplitude_mm = {a}\ndirection = \"depth\"\nper_revolution = 3\nphase_deg = 40"
-    ));
+    let nominal = facing_with(&[]);
+    let shaken = facing_with(&[vibration(a, DirectionSpec::Depth, 3.0, 40.0)]);
     let rings = inner_rings(&nominal);
     let rows = nominal.grid().azimuths;
     let mut per_row = Vec::new();
@@ -107,11 +122,22 @@ fn a_whole_order_depth_vibration_lifts_each_azimuth_rigidly_by_a_cos_of_minus_k_
 fn axial_error_motion_cuts_deeper_exactly_where_a_depth_vibration_of_the_same_order_lifts() {
     // The part moving toward the tool by a·cos(kC) and the tool moving away by
     // a·cos(2πk·n) with n = C/2π (one pass starting at C = 0) cancel node by node.
-    let nominal = facing_with("");
-    let both = facing_with(
-        "[[effects]]\nkind = \"vibration\"\namplitude_mm = 0.00002\ndirection = \"depth\"\nper_revolution = 4\n\
-         [[effects]]\nkind = \"axial_error_motion\"\nharmonics = [{ order = 4, amplitude_mm = 0.00002 }]",
-    );
+    let nominal = facing_with(&[]);
+    let both = facing_with(&[
+        EffectSpec::Vibration(VibrationSpec {
+            amplitude_mm: Some(0.00002),
+            direction: Some(DirectionSpec::Depth),
+            per_revolution: Some(4.0),
+            ..Default::default()
+        }),
+        EffectSpec::AxialErrorMotion(HarmonicsSpec {
+            harmonics: Some(vec![HarmonicSpec {
+                order: 4.0,
+                amplitude_mm: 0.00002,
+                phase_deg: 0.0,
+            }]),
+        }),
+    ]);
     let worst = nominal
         .field
         .depth_mm
@@ -127,11 +153,14 @@ fn tilt_error_motion_tilts_each_azimuth_by_minus_r_theta() {
     // that left the point: within f/2 of r, so a band's order-2 amplitude is r·θ within
     // (f/2)·θ = 0.5 nm, and its phase that of −cos(−2φ + 10°).
     let theta: f64 = 1e-4;
-    let nominal = facing_with("");
-    let tilted = facing_with(&format!(
-        "[[effects]]\nkind = \"tilt_error_motion\"\ntilt_harmonics = [{{ order = 2, amplitude_deg = {}, phase_deg = 10 }}]",
-        theta.to_degrees()
-    ));
+    let nominal = facing_with(&[]);
+    let tilted = facing_with(&[EffectSpec::TiltErrorMotion(TiltHarmonicsSpec {
+        tilt_harmonics: Some(vec![TiltHarmonicSpec {
+            order: 2.0,
+            amplitude_deg: theta.to_degrees(),
+            phase_deg: 10.0,
+        }]),
+    })]);
     let grid = nominal.grid();
     for band in [(0.08, 0.12), (0.18, 0.22), (0.38, 0.42)] {
         let rings: Vec<usize> = (0..grid.ring_count())
@@ -167,10 +196,8 @@ fn wear_lifts_the_face_by_the_share_of_the_cut_length_already_run() {
     // adds no length). The passes either side of r differ by one revolution's wear,
     // 2π·r·w/(π·x₀²/f) = 2wrf/x₀²: the tolerance.
     let w = 1e-4;
-    let nominal = facing_with("");
-    let worn = facing_with(&format!(
-        "[[effects]]\nkind = \"tool_wear\"\nrecession_mm = {w}"
-    ));
+    let nominal = facing_with(&[]);
+    let worn = facing_with(&[EffectSpec::tool_wear(w)]);
     let x0 = nominal.turning_scenes().next().unwrap().poses.poses[0].x_mm;
     let grid = nominal.grid();
     for &i in inner_rings(&nominal).iter().step_by(40) {
@@ -215,10 +242,8 @@ fn a_whole_order_feed_vibration_moves_each_azimuths_marks_out_by_a_cos_of_minus_
     // located to a small fraction of the 0.5 µm pitch): amplitude within 1 %, phase
     // within 0.01 rad.
     let a = 0.002;
-    let nominal = facing_with("");
-    let shaken = facing_with(&format!(
-        "[[effects]]\nkind = \"vibration\"\namplitude_mm = {a}\ndirection = \"feed\"\nper_revolution = 2\nphase_deg = 25"
-    ));
+    let nominal = facing_with(&[]);
+    let shaken = facing_with(&[vibration(a, DirectionSpec::Feed, 2.0, 25.0)]);
     let shifts: Vec<f64> = (0..nominal.grid().azimuths)
         .map(|row| {
             let (before, after) = (mark_bottoms(&nominal, row), mark_bottoms(&shaken, row));
@@ -253,11 +278,8 @@ fn the_cut_clock_tells_when_each_point_was_cut_so_a_fractional_vibration_reads_o
     // it: the clock `pipeline::cut_clock_rad` gives 2πn. Where a neighbouring pass takes a
     // point over (near the cusps) the rule fails; elsewhere it holds to 1e-3·a.
     let (a, k, phase): (f64, f64, f64) = (1e-6, 2.37, 0.3);
-    let nominal = facing_with("");
-    let shaken = facing_with(&format!(
-        "[[effects]]\nkind = \"vibration\"\namplitude_mm = {a}\ndirection = \"depth\"\nper_revolution = {k}\nphase_deg = {}",
-        phase.to_degrees()
-    ));
+    let nominal = facing_with(&[]);
+    let shaken = facing_with(&[vibration(a, DirectionSpec::Depth, k, phase.to_degrees())]);
     let clock = toolmark::pipeline::cut_clock_rad(&shaken.scenes, &shaken.field);
     let (mut held, mut total) = (0, 0);
     for &i in &inner_rings(&nominal) {

@@ -1410,17 +1410,37 @@ mod tests {
     }
 }
 
-/// A convex sphere of `radius_mm`, Ø0.4 mm, turned XZ with a 0.2 mm nose at
-/// `feed_mm` per revolution on 1 µm rings and 8 rows, with `effects` (TOML tables).
+/// A job turned XZ with a 0.2 mm nose (included angle 140°) at `feed_mm` per
+/// revolution on rings `pitch_um` apart and 8 rows, with `effects`.
 #[cfg(test)]
-fn turned_sphere_job(radius_mm: f64, feed_mm: f64, effects: &str) -> Job {
-    let toml = format!(
-        "version = 1\n[surface]\nkind = \"sphere\"\nform = \"convex\"\nradius_mm = {radius_mm}\n\
-         aperture_diameter_mm = 0.4\n[tool]\nkind = \"arc_nose\"\nnose_radius_mm = 0.2\n\
-         included_angle_deg = 140.0\n[process]\nkind = \"turning\"\nmode = \"xz\"\n\
-         feed_per_rev_mm = {feed_mm}\n[grid]\npitch_um = 1.0\nazimuths = 8\n{effects}"
-    );
-    Job::from_toml_str(&toml, "test").unwrap()
+fn turned_job(
+    surface: crate::model::SurfaceSpec,
+    feed_mm: f64,
+    pitch_um: f64,
+    effects: &[crate::model::EffectSpec],
+) -> Job {
+    use crate::model::{JobFile, ProcessSpec, ToolSpec, TurningSpec};
+    let mut file = JobFile::new(
+        surface,
+        ToolSpec::arc_nose(0.2, 140.0),
+        ProcessSpec::Turning(TurningSpec::xz(feed_mm)),
+    )
+    .grid(pitch_um, 8);
+    file.effects.extend_from_slice(effects);
+    file.check().unwrap()
+}
+
+/// A convex sphere of `radius_mm`, Ø0.4 mm, turned on 1 µm rings (see `turned_job`).
+#[cfg(test)]
+fn turned_sphere_job(radius_mm: f64, feed_mm: f64, effects: &[crate::model::EffectSpec]) -> Job {
+    use crate::geometry::Form;
+    use crate::model::SurfaceSpec;
+    turned_job(
+        SurfaceSpec::sphere(Form::Convex, radius_mm, 0.4),
+        feed_mm,
+        1.0,
+        effects,
+    )
 }
 
 #[cfg(test)]
@@ -1433,8 +1453,8 @@ mod rotation_tests {
     /// that azimuth (independently built rows, sample for sample).
     #[test]
     fn a_turned_program_looks_along_the_azimuth_it_was_turned_to() {
-        let effects = "[[effects]]\nkind = \"centre_height\"\nheight_mm = 0.002\n";
-        let job = turned_sphere_job(5.0, 0.01, effects);
+        let effects = [crate::model::EffectSpec::centre_height(0.002)];
+        let job = turned_sphere_job(5.0, 0.01, &effects);
         let azimuth = 135f64.to_radians();
         let line = Measurement::line(
             &[-0.15, 0.15],
@@ -1479,26 +1499,7 @@ mod decentre_marks_tests {
     /// matches the nominal's marks.
     #[test]
     fn a_decentre_paired_with_the_azimuth_leaves_the_marks_in_place() {
-        let job = Job::from_toml_str(
-            r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 0.6
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.2
-included_angle_deg = 140.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.01
-[grid]
-pitch_um = 0.25
-azimuths = 8
-"#,
-            "test",
-        )
-        .unwrap();
+        let job = turned_job(crate::model::SurfaceSpec::plane(0.6), 0.01, 0.25, &[]);
         let x: Vec<f64> = (-25..=25).map(|i| i as f64 * 0.01).collect();
         let line = Measurement::line(&x, &vec![0.0; x.len()], 0.0, 0.0, Instrument::default());
         let mut engine = CpuEngine;
@@ -1558,29 +1559,8 @@ mod centre_height_tests {
     /// not at a ring, so that a fit of h is continuous.
     #[test]
     fn the_core_a_tool_below_centre_leaves_ends_where_the_tool_does() {
-        let job = Job::from_toml_str(
-            r#"version = 1
-[surface]
-kind = "plane"
-aperture_diameter_mm = 0.2
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.2
-included_angle_deg = 140.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.005
-[grid]
-pitch_um = 0.5
-azimuths = 8
-[[effects]]
-kind = "centre_height"
-height_mm = -0.00213
-"#,
-            "test",
-        )
-        .unwrap();
+        let below = [crate::model::EffectSpec::centre_height(-0.00213)];
+        let job = turned_job(crate::model::SurfaceSpec::plane(0.2), 0.005, 0.5, &below);
         let x: Vec<f64> = (-50..=50).map(|i| i as f64 * 1e-3).collect();
         let line = Measurement::line(&x, &vec![0.0; x.len()], 0.0, 0.0, Instrument::default());
         let mut engine = CpuEngine;
@@ -1611,7 +1591,7 @@ mod place_tests {
     /// itself, to the bit; a centre height's trial moves the rings, and says so.
     #[test]
     fn places_and_rings_found_on_one_surface_read_another_on_the_same_rings() {
-        let job = turned_sphere_job(10.0, 0.004, "");
+        let job = turned_sphere_job(10.0, 0.004, &[]);
         let instrument = Instrument {
             pixel_averaging: true,
             ..Instrument::default()

@@ -487,7 +487,6 @@ fn revolution_bounds(poses: &PoseTable, c_from: f64, c_to: f64) -> Option<Bounds
 mod tests {
     use super::*;
     use crate::engine::Scene;
-    use crate::model::Job;
 
     /// Every ring tested against every revolution's box by [`within`], no window and no
     /// blocks: what [`reachable_revolutions`] must find.
@@ -529,28 +528,19 @@ mod tests {
 
     #[test]
     fn skipped_ring_blocks_change_no_reachable_range() {
-        let job = Job::from_toml_str(
-            r#"version = 1
-[surface]
-kind = "sphere"
-form = "convex"
-radius_mm = 3.0
-aperture_diameter_mm = 1.0
-[tool]
-kind = "arc_nose"
-nose_radius_mm = 0.1
-included_angle_deg = 120.0
-[process]
-kind = "turning"
-mode = "xz"
-feed_per_rev_mm = 0.005
-stock_allowance_mm = 0.002
-[grid]
-pitch_um = 0.5
-azimuths = 4
-"#,
-            "reach",
+        use crate::geometry::Form;
+        use crate::model::{JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec};
+        let job = JobFile::new(
+            SurfaceSpec::sphere(Form::Convex, 3.0, 1.0),
+            ToolSpec::arc_nose(0.1, 120.0),
+            ProcessSpec::Turning(TurningSpec {
+                stock_allowance_mm: Some(0.002),
+                ..TurningSpec::xz(0.005)
+            }),
         )
+        .named("reach")
+        .grid(0.5, 4)
+        .check()
         .expect("valid job");
         let scenes = crate::pipeline::prepare_scenes(&job);
         let Some(Scene::Turning(scene)) = scenes.first() else {

@@ -19,9 +19,10 @@
 //! ```
 
 use super::{
-    ArcNoseSpec, AsphereSpec, CupWheelSpec, EffectKind, EffectSpec, GeneratingSpec, GridSpec,
-    JOB_VERSION, Job, JobError, JobFile, MillToolSpec, MillingSpec, OutputSpec, PlaneSpec,
-    ProcessSpec, SphereSpec, SurfaceSpec, ToolSpec, TurningSpec,
+    AngleErrorSpec, ArcNoseSpec, AsphereSpec, CentreHeightSpec, CupWheelSpec, DriftSpec,
+    EffectSpec, ErrorSpec, GeneratingSpec, GridSpec, HarmonicSpec, HarmonicsSpec, JOB_VERSION, Job,
+    JobError, JobFile, MillToolSpec, MillingSpec, OffsetSpec, OutputSpec, PlaneSpec, ProcessSpec,
+    SphereSpec, SpringBackSpec, SurfaceSpec, ToolSpec, TramSpec, TurningSpec, WearSpec,
 };
 use crate::geometry::Form;
 use crate::process::{MillingPathKind, TurningMode};
@@ -145,29 +146,83 @@ impl ToolSpec {
 }
 
 impl EffectSpec {
-    /// A table of `kind` with no parameter given yet (set them on the result:
-    /// `EffectSpec { offset_mm: Some(0.02), ..EffectSpec::of(EffectKind::CutterDisplacement) }`).
-    pub fn of(kind: EffectKind) -> EffectSpec {
-        EffectSpec {
-            kind,
-            height_mm: None,
-            offset_mm: None,
-            error_mm: None,
-            harmonics: None,
-            error_deg: None,
-            drift_mm: None,
-            tilt_x_deg: None,
-            tilt_y_deg: None,
-            phase_deg: None,
-            amplitude_mm: None,
-            direction: None,
-            per_revolution: None,
-            frequency_hz: None,
-            tilt_harmonics: None,
-            recession_mm: None,
-            min_chip_mm: None,
-            recovery: None,
-        }
+    pub fn centre_height(height_mm: f64) -> EffectSpec {
+        EffectSpec::CentreHeight(CentreHeightSpec {
+            height_mm: Some(height_mm),
+        })
+    }
+
+    pub fn x_decentre(offset_mm: f64) -> EffectSpec {
+        EffectSpec::XDecentre(OffsetSpec {
+            offset_mm: Some(offset_mm),
+        })
+    }
+
+    pub fn nose_radius_error(error_mm: f64) -> EffectSpec {
+        EffectSpec::NoseRadiusError(ErrorSpec {
+            error_mm: Some(error_mm),
+        })
+    }
+
+    /// One harmonic of edge waviness.
+    pub fn edge_waviness(order: f64, amplitude_mm: f64, phase_deg: f64) -> EffectSpec {
+        EffectSpec::EdgeWaviness(HarmonicsSpec {
+            harmonics: Some(vec![HarmonicSpec {
+                order,
+                amplitude_mm,
+                phase_deg,
+            }]),
+        })
+    }
+
+    pub fn axial_drift(drift_mm: f64) -> EffectSpec {
+        EffectSpec::AxialDrift(DriftSpec {
+            drift_mm: Some(drift_mm),
+        })
+    }
+
+    pub fn tool_wear(recession_mm: f64) -> EffectSpec {
+        EffectSpec::ToolWear(WearSpec {
+            recession_mm: Some(recession_mm),
+        })
+    }
+
+    pub fn spring_back(min_chip_mm: f64, recovery: f64) -> EffectSpec {
+        EffectSpec::SpringBack(SpringBackSpec {
+            min_chip_mm: Some(min_chip_mm),
+            recovery: Some(recovery),
+        })
+    }
+
+    pub fn cutter_displacement(offset_mm: f64) -> EffectSpec {
+        EffectSpec::CutterDisplacement(OffsetSpec {
+            offset_mm: Some(offset_mm),
+        })
+    }
+
+    pub fn inclination_error(error_deg: f64) -> EffectSpec {
+        EffectSpec::InclinationError(AngleErrorSpec {
+            error_deg: Some(error_deg),
+        })
+    }
+
+    pub fn plunge_error(error_mm: f64) -> EffectSpec {
+        EffectSpec::PlungeError(ErrorSpec {
+            error_mm: Some(error_mm),
+        })
+    }
+
+    pub fn tool_radius_error(error_mm: f64) -> EffectSpec {
+        EffectSpec::ToolRadiusError(ErrorSpec {
+            error_mm: Some(error_mm),
+        })
+    }
+
+    pub fn spindle_tram(tilt_x_deg: f64, tilt_y_deg: f64) -> EffectSpec {
+        EffectSpec::SpindleTram(TramSpec {
+            tilt_x_deg: Some(tilt_x_deg),
+            tilt_y_deg: Some(tilt_y_deg),
+        })
     }
 }
 
@@ -299,5 +354,41 @@ azimuths = 8
             .expect_err("a milling tool's key on an arc-nosed tool")
             .to_string();
         assert!(message.contains("unknown field `diameter_mm`"), "{message}");
+    }
+
+    #[test]
+    fn built_effects_are_the_tables_their_toml_gives() {
+        let text = format!(
+            "{TURNED_SPHERE}[[effects]]\nkind = \"centre_height\"\nheight_mm = 0.003\n\
+             [[effects]]\nkind = \"edge_waviness\"\n\
+             harmonics = [{{ order = 20, amplitude_mm = 4e-5, phase_deg = 30.0 }}]\n\
+             [[effects]]\nkind = \"spring_back\"\nmin_chip_mm = 5e-6\nrecovery = 0.6\n"
+        );
+        let built = turned_sphere()
+            .effect(EffectSpec::centre_height(0.003))
+            .effect(EffectSpec::edge_waviness(20.0, 4e-5, 30.0))
+            .effect(EffectSpec::spring_back(5e-6, 0.6));
+        assert_eq!(JobFile::from_toml_str(&text).expect("valid"), built);
+        // Written out, the tables read back as the same effects.
+        let again = JobFile::from_toml_str(&built.to_toml()).expect("valid");
+        assert_eq!(again.effects, built.effects);
+        assert_eq!(
+            built.check().expect("valid").process,
+            Job::from_toml_str(&text, "job").expect("valid").process
+        );
+    }
+
+    #[test]
+    fn a_wrong_value_in_an_effect_is_named_by_its_table_and_key() {
+        let text = format!(
+            "{TURNED_SPHERE}[[effects]]\nkind = \"axial_drift\"\ndrift_mm = 1e-4\n\
+             [[effects]]\nkind = \"tool_wear\"\nrecession_mm = \"a little\"\n"
+        );
+        let err = Job::from_toml_str(&text, "job").expect_err("a string for a length");
+        assert_eq!(err.field, "effects[1].recession_mm", "{err}");
+        let text = text.replace("recession_mm = \"a little\"", "drift_mm = 1e-4");
+        let err = Job::from_toml_str(&text, "job").expect_err("another kind's key");
+        assert_eq!(err.field, "effects[1].drift_mm", "{err}");
+        assert!(err.message.contains("expected `recession_mm`"), "{err}");
     }
 }

@@ -173,6 +173,11 @@ impl EffectKind {
         }
     }
 
+    /// The kind of this job-file name.
+    pub fn named(name: &str) -> Option<EffectKind> {
+        EffectKind::ALL.into_iter().find(|kind| kind.name() == name)
+    }
+
     /// The processes whose jobs take this kind.
     pub fn processes(self) -> &'static [ProcessKind] {
         match self {
@@ -192,33 +197,6 @@ impl EffectKind {
             EffectKind::ToolRadiusError | EffectKind::SpindleTram | EffectKind::RadialRunout => {
                 &[ProcessKind::Milling]
             }
-        }
-    }
-
-    /// The parameter fields each kind takes.
-    fn parameters(self) -> &'static [&'static str] {
-        match self {
-            EffectKind::CentreHeight => &["height_mm"],
-            EffectKind::XDecentre | EffectKind::CutterDisplacement => &["offset_mm"],
-            EffectKind::NoseRadiusError | EffectKind::PlungeError | EffectKind::ToolRadiusError => {
-                &["error_mm"]
-            }
-            EffectKind::EdgeWaviness => &["harmonics"],
-            EffectKind::InclinationError => &["error_deg"],
-            EffectKind::AxialDrift => &["drift_mm"],
-            EffectKind::SpindleTram => &["tilt_x_deg", "tilt_y_deg"],
-            EffectKind::RadialRunout => &["offset_mm", "phase_deg"],
-            EffectKind::Vibration => &[
-                "amplitude_mm",
-                "direction",
-                "per_revolution",
-                "frequency_hz",
-                "phase_deg",
-            ],
-            EffectKind::AxialErrorMotion => &["harmonics"],
-            EffectKind::TiltErrorMotion => &["tilt_harmonics"],
-            EffectKind::ToolWear => &["recession_mm"],
-            EffectKind::SpringBack => &["min_chip_mm", "recovery"],
         }
     }
 }
@@ -259,28 +237,110 @@ pub enum DirectionSpec {
     Depth,
 }
 
+/// One `[[effects]]` table, one kind per variant: a key another kind uses is refused as
+/// an unknown field of this one. Parameters are options so that a missing one is
+/// reported with the range the job allows (which depends on the tool).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum EffectSpec {
+    CentreHeight(CentreHeightSpec),
+    XDecentre(OffsetSpec),
+    NoseRadiusError(ErrorSpec),
+    EdgeWaviness(HarmonicsSpec),
+    CutterDisplacement(OffsetSpec),
+    InclinationError(AngleErrorSpec),
+    PlungeError(ErrorSpec),
+    AxialDrift(DriftSpec),
+    ToolRadiusError(ErrorSpec),
+    SpindleTram(TramSpec),
+    RadialRunout(RunoutSpec),
+    Vibration(VibrationSpec),
+    AxialErrorMotion(HarmonicsSpec),
+    TiltErrorMotion(TiltHarmonicsSpec),
+    ToolWear(WearSpec),
+    SpringBack(SpringBackSpec),
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct EffectSpec {
-    pub kind: EffectKind,
+pub struct CentreHeightSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub height_mm: Option<f64>,
+}
+
+/// A length offset: an x decentre, a cutter displacement.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OffsetSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub offset_mm: Option<f64>,
+}
+
+/// A length error: a nose or tool radius error, a plunge error.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ErrorSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error_mm: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub harmonics: Option<Vec<HarmonicSpec>>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AngleErrorSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error_deg: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriftSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub drift_mm: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WearSpec {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recession_mm: Option<f64>,
+}
+
+/// Harmonics of a length: an edge waviness, an axial error motion.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HarmonicsSpec {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub harmonics: Option<Vec<HarmonicSpec>>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TiltHarmonicsSpec {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tilt_harmonics: Option<Vec<TiltHarmonicSpec>>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TramSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tilt_x_deg: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tilt_y_deg: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunoutSpec {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offset_mm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub phase_deg: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VibrationSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub amplitude_mm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -290,9 +350,12 @@ pub struct EffectSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frequency_hz: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub tilt_harmonics: Option<Vec<TiltHarmonicSpec>>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub recession_mm: Option<f64>,
+    pub phase_deg: Option<f64>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringBackSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub min_chip_mm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -300,61 +363,74 @@ pub struct EffectSpec {
 }
 
 impl EffectSpec {
-    /// Each parameter field and whether it is given.
-    fn given(&self) -> [(&'static str, bool); 17] {
-        [
-            ("height_mm", self.height_mm.is_some()),
-            ("offset_mm", self.offset_mm.is_some()),
-            ("error_mm", self.error_mm.is_some()),
-            ("harmonics", self.harmonics.is_some()),
-            ("error_deg", self.error_deg.is_some()),
-            ("drift_mm", self.drift_mm.is_some()),
-            ("tilt_x_deg", self.tilt_x_deg.is_some()),
-            ("tilt_y_deg", self.tilt_y_deg.is_some()),
-            ("phase_deg", self.phase_deg.is_some()),
-            ("amplitude_mm", self.amplitude_mm.is_some()),
-            ("direction", self.direction.is_some()),
-            ("per_revolution", self.per_revolution.is_some()),
-            ("frequency_hz", self.frequency_hz.is_some()),
-            ("tilt_harmonics", self.tilt_harmonics.is_some()),
-            ("recession_mm", self.recession_mm.is_some()),
-            ("min_chip_mm", self.min_chip_mm.is_some()),
-            ("recovery", self.recovery.is_some()),
-        ]
+    pub fn kind(&self) -> EffectKind {
+        match self {
+            EffectSpec::CentreHeight(_) => EffectKind::CentreHeight,
+            EffectSpec::XDecentre(_) => EffectKind::XDecentre,
+            EffectSpec::NoseRadiusError(_) => EffectKind::NoseRadiusError,
+            EffectSpec::EdgeWaviness(_) => EffectKind::EdgeWaviness,
+            EffectSpec::CutterDisplacement(_) => EffectKind::CutterDisplacement,
+            EffectSpec::InclinationError(_) => EffectKind::InclinationError,
+            EffectSpec::PlungeError(_) => EffectKind::PlungeError,
+            EffectSpec::AxialDrift(_) => EffectKind::AxialDrift,
+            EffectSpec::ToolRadiusError(_) => EffectKind::ToolRadiusError,
+            EffectSpec::SpindleTram(_) => EffectKind::SpindleTram,
+            EffectSpec::RadialRunout(_) => EffectKind::RadialRunout,
+            EffectSpec::Vibration(_) => EffectKind::Vibration,
+            EffectSpec::AxialErrorMotion(_) => EffectKind::AxialErrorMotion,
+            EffectSpec::TiltErrorMotion(_) => EffectKind::TiltErrorMotion,
+            EffectSpec::ToolWear(_) => EffectKind::ToolWear,
+            EffectSpec::SpringBack(_) => EffectKind::SpringBack,
+        }
     }
 
-    /// Checks the table gives only its kind's parameters, and that the kind belongs to
-    /// the job's process.
-    fn check_fields(&self, index: usize, process: ProcessKind) -> Result<(), JobError> {
-        let field = |name: &str| format!("effects[{index}].{name}");
-        let owners = self.kind.processes();
-        if !owners.contains(&process) {
-            let owners: Vec<&str> = owners.iter().map(|&p| process_name(p)).collect();
-            let allowed: Vec<&str> = EffectKind::ALL
-                .iter()
-                .filter(|kind| kind.processes().contains(&process))
-                .map(|kind| kind.name())
-                .collect();
-            return Err(error(
-                field("kind"),
-                format!(
-                    "\"{}\" is a {} effect and this is a {} job; allowed: {}",
-                    self.kind.name(),
-                    owners.join(" and "),
-                    process_name(process),
-                    allowed.join(", ")
-                ),
-            ));
+    /// Checks that the kind belongs to the job's process.
+    fn check_process(&self, index: usize, process: ProcessKind) -> Result<(), JobError> {
+        let kind = self.kind();
+        let owners = kind.processes();
+        if owners.contains(&process) {
+            return Ok(());
         }
-        for (name, given) in self.given() {
-            if given && !self.kind.parameters().contains(&name) {
-                return Err(error(
-                    field(name),
-                    format!("is not a parameter of kind = \"{}\"", self.kind.name()),
-                ));
-            }
+        let owners: Vec<&str> = owners.iter().map(|&p| process_name(p)).collect();
+        let allowed: Vec<&str> = EffectKind::ALL
+            .iter()
+            .filter(|kind| kind.processes().contains(&process))
+            .map(|kind| kind.name())
+            .collect();
+        Err(error(
+            format!("effects[{index}].kind"),
+            format!(
+                "\"{}\" is a {} effect and this is a {} job; allowed: {}",
+                kind.name(),
+                owners.join(" and "),
+                process_name(process),
+                allowed.join(", ")
+            ),
+        ))
+    }
+}
+
+/// The error of reading `text` (an `[[effects]]` table without its `kind` key) as the
+/// fields of the effect `kind`; `None` when the kind is unknown or the table reads.
+pub(super) fn effect_fields_error(kind: &str, text: &str) -> Option<toml::de::Error> {
+    fn read<T: serde::de::DeserializeOwned>(text: &str) -> Option<toml::de::Error> {
+        toml::from_str::<T>(text).err()
+    }
+    match EffectKind::named(kind)? {
+        EffectKind::CentreHeight => read::<CentreHeightSpec>(text),
+        EffectKind::XDecentre | EffectKind::CutterDisplacement => read::<OffsetSpec>(text),
+        EffectKind::NoseRadiusError | EffectKind::PlungeError | EffectKind::ToolRadiusError => {
+            read::<ErrorSpec>(text)
         }
-        Ok(())
+        EffectKind::EdgeWaviness | EffectKind::AxialErrorMotion => read::<HarmonicsSpec>(text),
+        EffectKind::InclinationError => read::<AngleErrorSpec>(text),
+        EffectKind::AxialDrift => read::<DriftSpec>(text),
+        EffectKind::SpindleTram => read::<TramSpec>(text),
+        EffectKind::RadialRunout => read::<RunoutSpec>(text),
+        EffectKind::Vibration => read::<VibrationSpec>(text),
+        EffectKind::TiltErrorMotion => read::<TiltHarmonicsSpec>(text),
+        EffectKind::ToolWear => read::<WearSpec>(text),
+        EffectKind::SpringBack => read::<SpringBackSpec>(text),
     }
 }
 
@@ -448,25 +524,24 @@ pub fn turning_effects(
     let mut spring_back_at = None;
     for (index, spec) in specs.iter().enumerate() {
         let field = |name: &str| format!("effects[{index}].{name}");
-        spec.check_fields(index, ProcessKind::Turning)?;
-        match spec.kind {
-            EffectKind::CentreHeight => {
+        spec.check_process(index, ProcessKind::Turning)?;
+        match spec {
+            EffectSpec::CentreHeight(s) => {
                 effects.centre_height_mm +=
-                    bounded(field("height_mm"), spec.height_mm, 0.5 * nose_radius_mm)?;
+                    bounded(field("height_mm"), s.height_mm, 0.5 * nose_radius_mm)?;
             }
-            EffectKind::XDecentre => {
-                effects.x_decentre_mm +=
-                    bounded(field("offset_mm"), spec.offset_mm, nose_radius_mm)?;
+            EffectSpec::XDecentre(s) => {
+                effects.x_decentre_mm += bounded(field("offset_mm"), s.offset_mm, nose_radius_mm)?;
             }
-            EffectKind::NoseRadiusError => {
+            EffectSpec::NoseRadiusError(s) => {
                 effects.radius_error_mm +=
-                    bounded(field("error_mm"), spec.error_mm, 0.5 * nose_radius_mm)?;
+                    bounded(field("error_mm"), s.error_mm, 0.5 * nose_radius_mm)?;
             }
-            EffectKind::AxialDrift => {
+            EffectSpec::AxialDrift(s) => {
                 effects.axial_drift_mm +=
-                    bounded(field("drift_mm"), spec.drift_mm, 0.5 * nose_radius_mm)?;
+                    bounded(field("drift_mm"), s.drift_mm, 0.5 * nose_radius_mm)?;
             }
-            EffectKind::SpringBack => {
+            EffectSpec::SpringBack(s) => {
                 if let Some(first) = spring_back_at.replace(index) {
                     return Err(error(
                         field("kind"),
@@ -477,12 +552,11 @@ pub fn turning_effects(
                 }
                 let limit = MAX_MIN_CHIP_MM.min(MAX_MIN_CHIP_PER_NOSE_RADIUS * nose_radius_mm);
                 effects.spring_back_min_chip_mm =
-                    positive_up_to(field("min_chip_mm"), spec.min_chip_mm, limit)?;
-                effects.spring_back_recovery =
-                    positive_up_to(field("recovery"), spec.recovery, 1.0)?;
+                    positive_up_to(field("min_chip_mm"), s.min_chip_mm, limit)?;
+                effects.spring_back_recovery = positive_up_to(field("recovery"), s.recovery, 1.0)?;
             }
-            EffectKind::EdgeWaviness => {
-                let list = spec
+            EffectSpec::EdgeWaviness(s) => {
+                let list = s
                     .harmonics
                     .as_ref()
                     .filter(|list| !list.is_empty())
@@ -505,13 +579,13 @@ pub fn turning_effects(
                     harmonics.push((harmonic.order, amplitude, phase.to_radians()));
                 }
             }
-            EffectKind::Vibration => {
+            EffectSpec::Vibration(s) => {
                 effects
                     .vibrations
-                    .push(vibration(spec, index, nose_radius_mm, spindle_rpm)?);
+                    .push(vibration(s, index, nose_radius_mm, spindle_rpm)?);
             }
-            EffectKind::AxialErrorMotion => {
-                let list = spec.harmonics.as_deref().unwrap_or_default();
+            EffectSpec::AxialErrorMotion(s) => {
+                let list = s.harmonics.as_deref().unwrap_or_default();
                 let terms = list.iter().map(|h| (h.order, h.amplitude_mm, h.phase_deg));
                 let limit = 0.1 * nose_radius_mm;
                 effects.axial_error_motion.extend(spindle_harmonics(
@@ -521,8 +595,8 @@ pub fn turning_effects(
                     limit,
                 )?);
             }
-            EffectKind::TiltErrorMotion => {
-                let list = spec.tilt_harmonics.as_deref().unwrap_or_default();
+            EffectSpec::TiltErrorMotion(s) => {
+                let list = s.tilt_harmonics.as_deref().unwrap_or_default();
                 let terms = list.iter().map(|h| (h.order, h.amplitude_deg, h.phase_deg));
                 let tilts =
                     spindle_harmonics(terms, &field("tilt_harmonics"), "amplitude_deg", 0.05)?;
@@ -533,14 +607,11 @@ pub fn turning_effects(
                         ..h
                     }));
             }
-            EffectKind::ToolWear => {
-                effects.wear_recession_mm += bounded(
-                    field("recession_mm"),
-                    spec.recession_mm,
-                    0.1 * nose_radius_mm,
-                )?;
+            EffectSpec::ToolWear(s) => {
+                effects.wear_recession_mm +=
+                    bounded(field("recession_mm"), s.recession_mm, 0.1 * nose_radius_mm)?;
             }
-            _ => unreachable!("check_fields admits turning kinds only"),
+            _ => unreachable!("check_process admits turning kinds only"),
         }
     }
     if !harmonics.is_empty() {
@@ -553,7 +624,7 @@ pub fn turning_effects(
 /// and exactly one of `per_revolution` and `frequency_hz` (with the spindle speed), at
 /// most [`MAX_CYCLES_PER_REV`] cycles per revolution.
 fn vibration(
-    spec: &EffectSpec,
+    spec: &VibrationSpec,
     index: usize,
     nose_radius_mm: f64,
     spindle_rpm: Option<f64>,
@@ -680,22 +751,22 @@ pub fn generating_effects(
     let edge_radius = setup.wheel.edge_radius_mm;
     let max_tilt_deg = 0.1 * setup.inclination_rad.to_degrees();
     for (index, spec) in specs.iter().enumerate() {
-        spec.check_fields(index, ProcessKind::Generating)?;
+        spec.check_process(index, ProcessKind::Generating)?;
         let field = |name: &str| format!("effects[{index}].{name}");
-        match spec.kind {
-            EffectKind::CutterDisplacement => {
+        match spec {
+            EffectSpec::CutterDisplacement(s) => {
                 effects.cutter_displacement_mm +=
-                    bounded(field("offset_mm"), spec.offset_mm, 0.5 * edge_radius)?;
+                    bounded(field("offset_mm"), s.offset_mm, 0.5 * edge_radius)?;
             }
-            EffectKind::InclinationError => {
+            EffectSpec::InclinationError(s) => {
                 effects.inclination_error_rad +=
-                    bounded(field("error_deg"), spec.error_deg, max_tilt_deg)?.to_radians();
+                    bounded(field("error_deg"), s.error_deg, max_tilt_deg)?.to_radians();
             }
-            EffectKind::PlungeError => {
+            EffectSpec::PlungeError(s) => {
                 effects.plunge_error_mm +=
-                    bounded(field("error_mm"), spec.error_mm, 0.5 * edge_radius)?;
+                    bounded(field("error_mm"), s.error_mm, 0.5 * edge_radius)?;
             }
-            _ => unreachable!("check_fields admits generating kinds only"),
+            _ => unreachable!("check_process admits generating kinds only"),
         }
     }
     Ok(effects)
@@ -732,17 +803,17 @@ pub fn milling_effects(
     let (mut tram_x, mut tram_y) = (Total::new(), Total::new());
     let (mut runout, mut runout_field) = (DVec2::ZERO, None);
     for (index, spec) in specs.iter().enumerate() {
-        spec.check_fields(index, ProcessKind::Milling)?;
+        spec.check_process(index, ProcessKind::Milling)?;
         let field = |name: &str| format!("effects[{index}].{name}");
-        match spec.kind {
-            EffectKind::AxialDrift => {
+        match spec {
+            EffectSpec::AxialDrift(s) => {
                 let limit = 0.5 * tool_radius;
                 drift.add(
                     field("drift_mm"),
-                    bounded(field("drift_mm"), spec.drift_mm, limit)?,
+                    bounded(field("drift_mm"), s.drift_mm, limit)?,
                 );
             }
-            EffectKind::ToolRadiusError => {
+            EffectSpec::ToolRadiusError(s) => {
                 if corner_radius == 0.0 {
                     return Err(error(
                         field("kind"),
@@ -752,10 +823,10 @@ pub fn milling_effects(
                     ));
                 }
                 let limit = 0.5 * corner_radius;
-                let e = strictly_within(field("error_mm"), spec.error_mm, limit)?;
+                let e = strictly_within(field("error_mm"), s.error_mm, limit)?;
                 radius_error.add(field("error_mm"), e);
             }
-            EffectKind::SpindleTram => {
+            EffectSpec::SpindleTram(s) => {
                 let reason = match setup.tool {
                     MillingTool::EndMill(cutter) if cutter.major_radius_mm == 0.0 => Some(
                         "has no effect on a ball end mill (a ball turned about its centre is the same ball)",
@@ -771,7 +842,7 @@ pub fn milling_effects(
                         ),
                     ));
                 }
-                if spec.tilt_x_deg.is_none() && spec.tilt_y_deg.is_none() {
+                if s.tilt_x_deg.is_none() && s.tilt_y_deg.is_none() {
                     return Err(error(
                         field("tilt_x_deg"),
                         format!(
@@ -781,20 +852,22 @@ pub fn milling_effects(
                 }
                 let x = bounded(
                     field("tilt_x_deg"),
-                    spec.tilt_x_deg.or(Some(0.0)),
+                    s.tilt_x_deg.or(Some(0.0)),
                     MAX_TRAM_DEG,
                 )?;
                 let y = bounded(
                     field("tilt_y_deg"),
-                    spec.tilt_y_deg.or(Some(0.0)),
+                    s.tilt_y_deg.or(Some(0.0)),
                     MAX_TRAM_DEG,
                 )?;
                 tram_x.add(field("tilt_x_deg"), x);
                 tram_y.add(field("tilt_y_deg"), y);
-                resolved[index].tilt_x_deg = Some(x);
-                resolved[index].tilt_y_deg = Some(y);
+                resolved[index] = EffectSpec::SpindleTram(TramSpec {
+                    tilt_x_deg: Some(x),
+                    tilt_y_deg: Some(y),
+                });
             }
-            EffectKind::RadialRunout => {
+            EffectSpec::RadialRunout(s) => {
                 let at = field("offset_mm");
                 if setup.teeth < 2 {
                     return Err(error(
@@ -812,13 +885,16 @@ pub fn milling_effects(
                         "radial runout acts at each tooth's cut: it needs process.feed_per_tooth_mm > 0 (the job sweeps continuously)",
                     ));
                 }
-                let offset = bounded(at.clone(), spec.offset_mm, 0.5 * feed)?;
-                let phase = bounded(field("phase_deg"), spec.phase_deg.or(Some(0.0)), 360.0)?;
+                let offset = bounded(at.clone(), s.offset_mm, 0.5 * feed)?;
+                let phase = bounded(field("phase_deg"), s.phase_deg.or(Some(0.0)), 360.0)?;
                 runout += offset * DVec2::from_angle(phase.to_radians());
                 runout_field = Some(at);
-                resolved[index].phase_deg = Some(phase);
+                resolved[index] = EffectSpec::RadialRunout(RunoutSpec {
+                    offset_mm: s.offset_mm,
+                    phase_deg: Some(phase),
+                });
             }
-            _ => unreachable!("check_fields admits milling kinds only"),
+            _ => unreachable!("check_process admits milling kinds only"),
         }
     }
     let drift_limit = 0.5 * tool_radius;

@@ -16,7 +16,10 @@ pub mod resources;
 mod surface;
 
 pub use effects::{
-    EffectKind, EffectSpec, HarmonicSpec, generating_effects, milling_effects, turning_effects,
+    AngleErrorSpec, CentreHeightSpec, DirectionSpec, DriftSpec, EffectKind, EffectSpec, ErrorSpec,
+    HarmonicSpec, HarmonicsSpec, OffsetSpec, RunoutSpec, SpringBackSpec, TiltHarmonicSpec,
+    TiltHarmonicsSpec, TramSpec, VibrationSpec, WearSpec, generating_effects, milling_effects,
+    turning_effects,
 };
 pub use surface::MAX_SLOPE_DEG;
 
@@ -658,7 +661,10 @@ impl EffectsFragment {
                 "an effects file holds only [[effects]] tables (and comments); remove it",
             ));
         }
-        toml::from_str(text).map_err(|err| error("effects", err.to_string()))
+        toml::from_str(text).map_err(|err| {
+            let field = tagged_field_error(text);
+            error(field.as_deref().unwrap_or("effects"), err.to_string())
+        })
     }
 
     pub fn load(path: &Path) -> Result<Self, JobError> {
@@ -1084,13 +1090,27 @@ fn read_job_file(path: &Path) -> Result<(String, String, &Path), JobError> {
     Ok((text, stem.unwrap_or_else(|| "job".into()), base_dir))
 }
 
-/// Which key of a kind-tagged table (`surface.radius_mm`) holds a value its kind's
-/// fields refuse: the table is read again alone, as its kind's own struct.
+/// Which key of a kind-tagged table (`surface.radius_mm`, `effects[1].drift_mm`) holds
+/// a value its kind's fields refuse: the table is read again alone, as its kind's own
+/// struct.
 fn tagged_field_error(text: &str) -> Option<String> {
     let table: toml::Table = toml::from_str(text).ok()?;
-    ["surface", "tool", "process"].into_iter().find_map(|name| {
-        let mut section = table.get(name)?.as_table()?.clone();
+    let single = ["surface", "tool", "process"]
+        .into_iter()
+        .filter_map(|name| Some((name.to_string(), name, table.get(name)?.as_table()?)));
+    let effects = table
+        .get("effects")
+        .and_then(|list| list.as_array())
+        .into_iter()
+        .flatten()
+        .enumerate()
+        .filter_map(|(i, effect)| Some((format!("effects[{i}]"), "effects", effect.as_table()?)));
+    single.chain(effects).find_map(|(field, name, section)| {
+        let mut section = section.clone();
         let kind = section.remove("kind")?.as_str()?.to_string();
+        if !known_kind(name, &kind) {
+            return Some(format!("{field}.kind"));
+        }
         let alone = toml::to_string(&section).ok()?;
         let err = kind_fields_error(name, &kind, &alone)?;
         // An unknown key is named in the message; a wrong value by the line it is on.
@@ -1102,8 +1122,22 @@ fn tagged_field_error(text: &str) -> Option<String> {
                 line.split('=').next()?.trim()
             }
         };
-        (!key.is_empty() && !key.starts_with('[')).then(|| format!("{name}.{key}"))
+        (!key.is_empty() && !key.starts_with('[')).then(|| format!("{field}.{key}"))
     })
+}
+
+/// Whether `kind` names a kind of the `table`'s (`surface`, `tool`, `process`, `effects`).
+fn known_kind(table: &str, kind: &str) -> bool {
+    fn names<T: serde::de::DeserializeOwned>(kind: &str) -> bool {
+        let name = serde::de::value::StrDeserializer::<serde::de::value::Error>::new(kind);
+        T::deserialize(name).is_ok()
+    }
+    match table {
+        "surface" => names::<SurfaceKind>(kind),
+        "tool" => names::<ToolKind>(kind),
+        "process" => names::<ProcessKind>(kind),
+        _ => names::<EffectKind>(kind),
+    }
 }
 
 /// The error of reading `text` as the fields of `table`'s `kind`.
@@ -1122,6 +1156,7 @@ fn kind_fields_error(table: &str, kind: &str, text: &str) -> Option<toml::de::Er
         ("process", "turning") => read::<TurningSpec>(text),
         ("process", "generating") => read::<GeneratingSpec>(text),
         ("process", "milling") => read::<MillingSpec>(text),
+        ("effects", kind) => effects::effect_fields_error(kind, text),
         _ => None,
     }
 }

@@ -75,7 +75,7 @@ pub fn validate_turning(
         && let Some(index) = file
             .effects
             .iter()
-            .position(|effect| effect.kind == EffectKind::SpringBack)
+            .position(|effect| effect.kind() == EffectKind::SpringBack)
     {
         return Err(error(
             &format!("effects[{index}].kind"),

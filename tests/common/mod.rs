@@ -3,7 +3,7 @@
 
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::engine::gpu::GpuEngine;
-use toolmark::model::Job;
+use toolmark::model::{Job, JobFile};
 use toolmark::pipeline::{RunResult, simulate};
 
 /// The GPU engine, or a failing test: in CI a missing adapter is an error, never a skip.
@@ -25,6 +25,27 @@ pub fn example(name: &str) -> Job {
         .join("examples")
         .join(name);
     Job::load(&path).unwrap_or_else(|err| panic!("{name}: {err}"))
+}
+
+/// An example job's file, to change in Rust before checking it with [`in_examples`].
+pub fn example_file(name: &str) -> JobFile {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(name);
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|err| panic!("{name}: {err}"));
+    JobFile::from_toml_str(&text).unwrap_or_else(|err| panic!("{name}: {err}"))
+}
+
+/// A job file checked as if it lay in `examples/` (its file names resolve there).
+pub fn in_examples(file: JobFile) -> Job {
+    let examples = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
+    Job::from_file(file, "test", &examples).unwrap_or_else(|err| panic!("test job invalid: {err}"))
+}
+
+/// A job built in Rust, checked (a test's own job: it must be valid).
+pub fn checked(file: JobFile) -> Job {
+    Job::from_file(file, "test", std::path::Path::new("."))
+        .unwrap_or_else(|err| panic!("test job invalid: {err}"))
 }
 
 pub fn run_cpu(job: Job) -> RunResult {

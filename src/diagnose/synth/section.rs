@@ -35,7 +35,7 @@ use super::tool_motion::{CutLength, ToolAt, ToolMotion};
 use super::unmodelled::{Unmodelled, notch_depth_mm};
 use crate::geometry::SurfaceOfRevolution;
 use crate::geometry::tool::AngleTable;
-use crate::model::{EffectKind, Job};
+use crate::model::{EffectSpec, Job};
 use crate::process::effects::{Vibration, VibrationDirection};
 use crate::process::{PoseTable, Process, TurningProcess};
 use glam::DVec2;
@@ -572,8 +572,11 @@ fn deviation_of(job: &Job, table: &AngleTable) -> Deviation {
         .resolved
         .effects
         .iter()
-        .filter(|spec| spec.kind == EffectKind::EdgeWaviness)
-        .flat_map(|spec| spec.harmonics.iter().flatten())
+        .filter_map(|spec| match spec {
+            EffectSpec::EdgeWaviness(waviness) => waviness.harmonics.as_ref(),
+            _ => None,
+        })
+        .flatten()
         .map(|h| [h.order, h.amplitude_mm, h.phase_deg.to_radians()])
         .collect();
     let exact = Deviation::Harmonics(harmonics);
