@@ -566,7 +566,25 @@ impl Trace {
 
     /// The traced height at signed position `s` (mm); NaN off the trace.
     pub fn at(&self, s: f64) -> f64 {
-        let k = self.x.partition_point(|v| *v <= s);
+        self.at_partition(self.x.partition_point(|v| *v <= s), s)
+    }
+
+    /// [`Trace::at`] from a cursor: `k` is walked from where it stands to the first
+    /// position beyond `s` (the partition point `at` searches for, so the same height),
+    /// in as many steps as positions lie between — for queries in order.
+    fn at_walking(&self, k: &mut usize, s: f64) -> f64 {
+        let x = &self.x;
+        while *k < x.len() && x[*k] <= s {
+            *k += 1;
+        }
+        while *k > 0 && x[*k - 1] > s {
+            *k -= 1;
+        }
+        self.at_partition(*k, s)
+    }
+
+    /// The height at `s`, `k` the index of the first position beyond it.
+    fn at_partition(&self, k: usize, s: f64) -> f64 {
         if k == 0 || k == self.x.len() {
             let edge = if k == 0 { 0 } else { self.x.len() - 1 };
             return if (s - self.x[edge]).abs() <= 1e-12 {
@@ -616,11 +634,18 @@ impl Trace {
     /// out), as a binned measurement sees the surface: tabulated [`AVERAGED_PER_INTERVAL`]
     /// times per interval of this trace, so that the averaged crests stay resolved.
     fn averaged(&self, width_mm: f64) -> Trace {
-        let mean_at = |centre: f64| {
+        // The centres come in order: each run's first midpoint starts its walk where the
+        // last run's first one ended.
+        let mut cursor = 0;
+        let mut mean_at = |centre: f64| {
             let (mut sum, mut count) = (0.0, 0usize);
+            let mut k = cursor;
             for j in 0..BIN_SUBSAMPLES {
                 let offset = ((j as f64 + 0.5) / BIN_SUBSAMPLES as f64 - 0.5) * width_mm;
-                let v = self.at(centre + offset);
+                let v = self.at_walking(&mut k, centre + offset);
+                if j == 0 {
+                    cursor = k;
+                }
                 if v.is_finite() {
                     sum += v;
                     count += 1;

@@ -181,6 +181,10 @@ struct Segment {
     rho: f64,
     axis_a: DVec3,
     axis_b: DVec3,
+    /// The unit axis all along, where both nodes hold the same one (3-axis paths),
+    /// normalised once: the interpolation would give it again at every pose, up to
+    /// rounding.
+    fixed_axis: Option<DVec3>,
     step: DVec3,
 }
 
@@ -214,13 +218,15 @@ impl<'a> PassPoses<'a> {
                 let step = frame.direction(nb.centre - na.centre);
                 (frame.offset(na), frame.offset(nb), 0.0, step)
             };
+            let (axis_a, axis_b) = (frame.direction(na.axis), frame.direction(nb.axis));
             self.segment = Some(Segment {
                 index: i,
                 a,
                 b,
                 rho,
-                axis_a: frame.direction(na.axis),
-                axis_b: frame.direction(nb.axis),
+                axis_a,
+                axis_b,
+                fixed_axis: (axis_a == axis_b).then(|| axis_a.normalize()),
                 step,
             });
         }
@@ -240,10 +246,11 @@ impl<'a> PassPoses<'a> {
         } else {
             g.a + t * (g.b - g.a)
         };
-        LocalPose {
-            centre,
-            axis: g.axis_a.lerp(g.axis_b, t).normalize(),
-        }
+        let axis = match g.fixed_axis {
+            Some(axis) => axis,
+            None => g.axis_a.lerp(g.axis_b, t).normalize(),
+        };
+        LocalPose { centre, axis }
     }
 
     /// The unit direction of travel of the pose centre at `u` (the derivative of the
