@@ -6,23 +6,13 @@
 mod common;
 use common::*;
 use toolmark::engine::cpu::CpuEngine;
-use toolmark::geometry::Form;
 use toolmark::loops::compensate::compensation_loop;
-use toolmark::model::{
-    AsphereSpec, EffectSpec, JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec,
-};
+use toolmark::model::{EffectSpec, JobFile, ProcessSpec, ToolSpec, TurningSpec};
 use toolmark::process::FeedAlong;
 
 fn asphere_with_errors() -> JobFile {
     JobFile::new(
-        SurfaceSpec::Asphere(AsphereSpec {
-            form: Some(Form::Convex),
-            base_radius_mm: Some(5.5),
-            conic: Some(-0.7),
-            a4: Some(0.000284),
-            aperture_diameter_mm: Some(20.0),
-            ..AsphereSpec::default()
-        }),
+        seed_002_asphere(),
         ToolSpec::arc_nose(0.5, 180.0),
         ProcessSpec::Turning(TurningSpec {
             feed_along: Some(FeedAlong::ArcLength),

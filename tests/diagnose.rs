@@ -14,7 +14,6 @@ use toolmark::engine::cpu::CpuEngine;
 use toolmark::geometry::Form;
 use toolmark::model::{
     DirectionSpec, EffectSpec, EffectsFragment, Job, JobFile, RunoutSpec, SurfaceSpec,
-    VibrationSpec,
 };
 
 /// A suite base's job file.
@@ -576,13 +575,7 @@ fn a_fractional_depth_vibration_is_found_at_its_rate_modulo_the_profiles_aliases
     // line through the axis reads the cut clock at two spindle angles half a turn
     // apart, so 0.37 and 0.63 (= 1 − 0.37, phase mirrored) leave the same trace; the
     // amplitude within 10 %, the rate within 0.01 of one of them.
-    let vibration = EffectSpec::Vibration(VibrationSpec {
-        amplitude_mm: Some(0.000008),
-        direction: Some(DirectionSpec::Depth),
-        per_revolution: Some(0.37),
-        phase_deg: Some(20.0),
-        ..VibrationSpec::default()
-    });
+    let vibration = EffectSpec::vibration(0.000008, DirectionSpec::Depth, 0.37, 20.0);
     let m = measure(&sphere(), &[vibration], &model(PROFILE));
     let outcome = run(&sphere(), &m, &mut CpuEngine, &Options::default());
     let d = &outcome.diagnosis;

@@ -231,25 +231,6 @@ fn turning_drift_runs_over_an_nc_programs_passes_in_program_order() {
 // ---------------------------------------------------------------------------------------
 // Milling.
 
-/// A milling job on a grid of `pitch_um` and `azimuths`.
-fn milling(
-    surface: SurfaceSpec,
-    tool: ToolSpec,
-    process: MillingSpec,
-    pitch_um: f64,
-    azimuths: u32,
-) -> JobFile {
-    JobFile::new(surface, tool, ProcessSpec::Milling(process)).grid(pitch_um, azimuths)
-}
-
-/// A path of passes `stepover_mm` apart over stock `stock_mm` high.
-fn stepped(path: MillingPathKind, stepover_mm: f64, stock_mm: f64) -> MillingSpec {
-    MillingSpec {
-        stock_allowance_mm: Some(stock_mm),
-        ..MillingSpec::stepped(path, stepover_mm)
-    }
-}
-
 /// Arc length of the Archimedean spiral r = R_c − s·θ/2π from its start at R_c in to
 /// radius ρ: F(R_c) − F(ρ), F(x) = x√(1 + k²x²)/2 + asinh(kx)/(2k), k = 2π/s.
 fn spiral_arc(step: f64, start: f64, radius: f64) -> f64 {
@@ -265,7 +246,7 @@ fn milling_drift_on_a_spiral_follows_the_arc_length_fraction() {
     // d·a(ρ)/A higher there; around a ring the two turns either side each leave half the
     // samples (mean at ρ itself), less the cusps' second-order shift r·Δ²/(2s²), Δ the
     // drift over one turn, d·2πρ/A (≤ 0.12 nm here, included).
-    let base = milling(
+    let base = milling_file(
         SurfaceSpec::plane(4.0),
         ToolSpec::ball_end(2.0),
         stepped(MillingPathKind::Spiral, 0.02, 0.005),
@@ -299,7 +280,7 @@ fn ball_radius_error_moves_the_cut_by_e_times_one_minus_cos_theta() {
     // moves by e·cos θ + √((R − e)² − e² sin²θ) − R ≈ −e(1 − cos θ). The scallops' mean
     // changes with the ball's radius by (s_n²/24)(1/(r + e) − 1/r), s_n = s/cos θ the
     // spacing of the turns along the surface (parabolic cusps; included).
-    let base = milling(
+    let base = milling_file(
         SurfaceSpec::sphere(Form::Convex, 10.0, 6.0),
         ToolSpec::ball_end(1.0),
         stepped(MillingPathKind::Spiral, 0.01, 0.005),
@@ -482,7 +463,7 @@ fn tram_across_the_feed_leaves_a_sawtooth_of_sloped_facets() {
     // Bull-nose D3 r 0.5 (flat radius 1.0) in 3-axis, passes 0.2 mm apart along X,
     // the axis leaning 0.5° toward +Y (across the feed).
     let (step, tau_deg, big, r, stock) = (0.2, 0.5f64, 1.0, 0.5, 0.02);
-    let base = milling(
+    let base = milling_file(
         tram_plane(),
         bull_nose_tool(),
         stepped(MillingPathKind::Raster, step, stock),
@@ -553,7 +534,7 @@ fn tram_along_the_feed_leaves_only_the_shallow_scallop_of_the_tilted_corner() {
     // feed the corner circle is an ellipse of semi-axes R and R sin τ, offset by r; the
     // passes leave its scallop, ≈ R sin τ (1 − √(1 − s²/4R²)) = 43.6 nm, not a facet.
     let (step, tau_deg, big, r, stock) = (0.2, 0.5f64, 1.0, 0.5, 0.02);
-    let base = milling(
+    let base = milling_file(
         tram_plane(),
         bull_nose_tool(),
         stepped(MillingPathKind::Raster, step, stock),
@@ -623,7 +604,7 @@ fn tram_across_a_flat_end_leaned_along_the_feed_tilts_its_elliptic_scallop() {
     let (step, tau_deg, lead_deg, big, stock) = (0.2, 0.5f64, 0.2f64, 2.0, 0.03);
     // The tool sits R behind its contact and cuts a sample with its leading rim, so
     // the passes must run well past the rows checked: a Ø8 part, checked within 1.2 mm.
-    let base = milling(
+    let base = milling_file(
         SurfaceSpec::plane(8.0),
         ToolSpec::flat_end(4.0),
         MillingSpec {
@@ -670,7 +651,7 @@ fn radial_runout_alternates_the_feed_mark_spacing_by_two_epsilon_cos_phi() {
     let (r, feed, epsilon) = (1.0, 0.05, 0.005);
     for phase_deg in [0.0f64, 120.0, 90.0] {
         let job = with_effect(
-            &milling(
+            &milling_file(
                 SurfaceSpec::plane(4.0),
                 ToolSpec::BallEnd(MillToolSpec {
                     diameter_mm: Some(2.0),
@@ -777,7 +758,7 @@ fn every_effect_at_zero_leaves_the_part_bit_identical() {
         &facing(),
         EffectSpec::axial_drift(0.0),
     );
-    let spiral = milling(
+    let spiral = milling_file(
         SurfaceSpec::sphere(Form::Convex, 10.0, 2.0),
         ToolSpec::ball_end(1.0),
         stepped(MillingPathKind::Spiral, 0.02, 0.005),
@@ -790,7 +771,7 @@ fn every_effect_at_zero_leaves_the_part_bit_identical() {
         &spiral,
         EffectSpec::tool_radius_error(0.0),
     );
-    let bull_nose = milling(
+    let bull_nose = milling_file(
         SurfaceSpec::plane(2.0),
         bull_nose_tool(),
         stepped(MillingPathKind::Raster, 0.2, 0.01),
@@ -802,7 +783,7 @@ fn every_effect_at_zero_leaves_the_part_bit_identical() {
         &bull_nose,
         EffectSpec::spindle_tram(0.0, 0.0),
     );
-    let teeth = milling(
+    let teeth = milling_file(
         SurfaceSpec::plane(2.0),
         ToolSpec::BallEnd(MillToolSpec {
             diameter_mm: Some(2.0),

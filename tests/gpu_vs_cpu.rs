@@ -191,14 +191,6 @@ fn edges_job(
     checked(JobFile::new(surface, tool, ProcessSpec::Milling(process)).grid(pitch_um, azimuths))
 }
 
-/// A milling tool of a diameter, its other fields to be set.
-fn mill_tool(diameter_mm: f64) -> MillToolSpec {
-    MillToolSpec {
-        diameter_mm: Some(diameter_mm),
-        ..MillToolSpec::default()
-    }
-}
-
 /// Flutes as edges on every milling tool, GPU against CPU: besides the field bound, the
 /// f32 kernel stays within max(0.5 nm, one f32 step at the tool's diameter) of its f64
 /// twin — tighter than the max(0.5 nm, 0.1 % of PV), as the maps' PV is µm-scale.
@@ -228,7 +220,7 @@ fn milling_ball_edges_with_helix_and_runout_gpu_matches_cpu() {
                 helix_deg: Some(30.0),
                 tooth_radial_runout_mm: Some(vec![0.0, 0.01]),
                 tooth_axial_runout_mm: Some(vec![0.002, 0.0]),
-                ..mill_tool(2.0)
+                ..MillToolSpec::of_diameter(2.0)
             }),
             MillingSpec {
                 stepover_mm: Some(0.1),
@@ -253,7 +245,7 @@ fn milling_bull_nose_5axis_edges_with_runout_gpu_matches_cpu() {
                 corner_radius_mm: Some(1.0),
                 teeth: Some(3),
                 tooth_radial_runout_mm: Some(vec![0.0, 0.005, 0.0]),
-                ..mill_tool(8.0)
+                ..MillToolSpec::of_diameter(8.0)
             }),
             MillingSpec {
                 axes: Some(5),
@@ -288,7 +280,7 @@ fn milling_flat_end_5axis_edges_gpu_matches_cpu() {
             ToolSpec::FlatEnd(MillToolSpec {
                 teeth: Some(4),
                 tooth_axial_runout_mm: Some(vec![0.0, 0.001, 0.0, 0.0]),
-                ..mill_tool(6.0)
+                ..MillToolSpec::of_diameter(6.0)
             }),
             MillingSpec {
                 axes: Some(5),
@@ -315,7 +307,7 @@ fn milling_disc_edges_gpu_matches_cpu() {
                 insert_length_mm: Some(10.0),
                 side_rake_deg: Some(19.0),
                 teeth: Some(8),
-                ..mill_tool(30.0)
+                ..MillToolSpec::of_diameter(30.0)
             }),
             MillingSpec {
                 stepover_mm: Some(3.0),

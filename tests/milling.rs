@@ -13,8 +13,7 @@ use toolmark::geometry::formulas::{
     working_width_convex,
 };
 use toolmark::model::{
-    AsphereSpec, CylinderSpec, FluteModel, Job, JobFile, MillToolSpec, MillingSpec, ProcessSpec,
-    SurfaceSpec, ToolSpec,
+    CylinderSpec, FluteModel, Job, MillToolSpec, MillingSpec, SurfaceSpec, ToolSpec,
 };
 use toolmark::pipeline::{RunResult, prepare_scenes};
 use toolmark::process::MillingPathKind;
@@ -27,23 +26,7 @@ fn milling(
     pitch_um: f64,
     azimuths: u32,
 ) -> Job {
-    checked(JobFile::new(surface, tool, ProcessSpec::Milling(process)).grid(pitch_um, azimuths))
-}
-
-/// A path of passes `stepover_mm` apart over stock `stock_mm` high.
-fn stepped(path: MillingPathKind, stepover_mm: f64, stock_mm: f64) -> MillingSpec {
-    MillingSpec {
-        stock_allowance_mm: Some(stock_mm),
-        ..MillingSpec::stepped(path, stepover_mm)
-    }
-}
-
-/// A milling tool of a diameter, its other fields to be set.
-fn mill_tool(diameter_mm: f64) -> MillToolSpec {
-    MillToolSpec {
-        diameter_mm: Some(diameter_mm),
-        ..MillToolSpec::default()
-    }
+    checked(milling_file(surface, tool, process, pitch_um, azimuths))
 }
 
 /// Interior cusps with their position (mm along the meridian), within [from, to].
@@ -275,7 +258,7 @@ fn disc_cutter_section_radius_follows_the_hyperboloid_and_falls_with_the_turn() 
             ToolSpec::Disc(MillToolSpec {
                 insert_length_mm: Some(10.0),
                 side_rake_deg: Some(19.0),
-                ..mill_tool(30.0)
+                ..MillToolSpec::of_diameter(30.0)
             }),
             MillingSpec {
                 turn_deg: Some(turn),
@@ -312,14 +295,7 @@ fn disc_cutter_section_radius_follows_the_hyperboloid_and_falls_with_the_turn() 
 
 #[test]
 fn constant_scallop_holds_h_on_the_seed_002_asphere_where_constant_step_does_not() {
-    let asphere = SurfaceSpec::Asphere(AsphereSpec {
-        form: Some(Form::Convex),
-        base_radius_mm: Some(5.5),
-        conic: Some(-0.7),
-        a4: Some(0.000284),
-        aperture_diameter_mm: Some(20.0),
-        ..AsphereSpec::default()
-    });
+    let asphere = seed_002_asphere();
     let tool = ToolSpec::ball_end(1.0);
     let h = 0.001;
     let constant_scallop = run_cpu(milling(
@@ -386,7 +362,7 @@ fn teeth_as_bodies_leave_feed_marks_of_the_per_tooth_advance() {
         ToolSpec::BallEnd(MillToolSpec {
             teeth: Some(2),
             flutes: Some(FluteModel::Body),
-            ..mill_tool(2.0)
+            ..MillToolSpec::of_diameter(2.0)
         }),
         MillingSpec {
             feed_per_tooth_mm: Some(0.05),
@@ -802,7 +778,7 @@ fn edges_match_a_brute_force_sweep_near_the_path() {
         long_cylinder(0.06),
         ToolSpec::BallEnd(MillToolSpec {
             teeth: Some(2),
-            ..mill_tool(2.0)
+            ..MillToolSpec::of_diameter(2.0)
         }),
         MillingSpec {
             feed_per_tooth_mm: Some(0.05),

@@ -70,23 +70,6 @@ fn tilt_harmonics(terms: &[(f64, f64, f64)]) -> EffectSpec {
     })
 }
 
-/// A vibration of an amplitude (mm) along a direction, at cycles per revolution and a
-/// phase (°).
-fn vibration(
-    amplitude_mm: f64,
-    direction: DirectionSpec,
-    per_rev: f64,
-    phase_deg: f64,
-) -> EffectSpec {
-    EffectSpec::Vibration(VibrationSpec {
-        amplitude_mm: Some(amplitude_mm),
-        direction: Some(direction),
-        per_revolution: Some(per_rev),
-        phase_deg: Some(phase_deg),
-        ..VibrationSpec::default()
-    })
-}
-
 /// The effects each agreement case adds (one at a time; waviness with two orders).
 fn effects() -> [(&'static str, Vec<EffectSpec>); 9] {
     [
@@ -642,22 +625,22 @@ fn motion_cases(slope: f64, x_max_mm: f64) -> Vec<(&'static str, EffectSpec, Vec
     vec![
         (
             "depth vibration, 3 per revolution",
-            vibration(0.00002, depth, 3.0, 40.0),
+            EffectSpec::vibration(0.00002, depth, 3.0, 40.0),
             vec![[20.0, 3.0]],
         ),
         (
             "depth vibration, 2.37 per revolution",
-            vibration(0.00002, depth, 2.37, -70.0),
+            EffectSpec::vibration(0.00002, depth, 2.37, -70.0),
             vec![[20.0, 2.37]],
         ),
         (
             "feed vibration, 2 per revolution",
-            vibration(0.001, feed, 2.0, 25.0),
+            EffectSpec::vibration(0.001, feed, 2.0, 25.0),
             vec![[1000.0 * slope, 2.0]],
         ),
         (
             "feed vibration, 7.3 per revolution",
-            vibration(0.0005, feed, 7.3, 10.0),
+            EffectSpec::vibration(0.0005, feed, 7.3, 10.0),
             vec![[500.0 * slope, 7.3]],
         ),
         (

@@ -9,9 +9,7 @@ mod common;
 use common::*;
 use toolmark::analysis::ProtrusionShape;
 use toolmark::geometry::Form;
-use toolmark::model::{
-    AsphereSpec, EffectSpec, Job, JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec,
-};
+use toolmark::model::{EffectSpec, Job, JobFile, ProcessSpec, SurfaceSpec, ToolSpec, TurningSpec};
 use toolmark::pipeline::RunResult;
 use toolmark::process::{FeedAlong, TurningMode};
 
@@ -146,14 +144,7 @@ fn x_decentre_on_a_sphere_leaves_a_cone_of_pv_delta_a_over_r() {
 
 fn asphere(mode: TurningMode) -> JobFile {
     JobFile::new(
-        SurfaceSpec::Asphere(AsphereSpec {
-            form: Some(Form::Convex),
-            base_radius_mm: Some(5.5),
-            conic: Some(-0.7),
-            a4: Some(0.000284),
-            aperture_diameter_mm: Some(20.0),
-            ..AsphereSpec::default()
-        }),
+        seed_002_asphere(),
         ToolSpec::arc_nose(0.5, 180.0),
         ProcessSpec::Turning(TurningSpec {
             mode: Some(mode),

@@ -33,23 +33,6 @@ fn facing_with(effects: &[EffectSpec]) -> RunResult {
     run_cpu(checked(file))
 }
 
-/// A vibration of `amplitude_mm` along `direction`, `per_revolution` cycles per
-/// revolution, at `phase_deg`.
-fn vibration(
-    amplitude_mm: f64,
-    direction: DirectionSpec,
-    per_revolution: f64,
-    phase_deg: f64,
-) -> EffectSpec {
-    EffectSpec::Vibration(VibrationSpec {
-        amplitude_mm: Some(amplitude_mm),
-        direction: Some(direction),
-        per_revolution: Some(per_revolution),
-        phase_deg: Some(phase_deg),
-        ..Default::default()
-    })
-}
-
 fn height(result: &RunResult, ring: usize, row: u32) -> f64 {
     result.field.depth_mm[result.grid().sample_index(ring, row)]
 }
@@ -89,7 +72,7 @@ fn a_whole_order_depth_vibration_lifts_each_azimuth_rigidly_by_a_cos_of_minus_k_
     // samples of a pure order-3 cosine).
     let a = 2e-5;
     let nominal = facing_with(&[]);
-    let shaken = facing_with(&[vibration(a, DirectionSpec::Depth, 3.0, 40.0)]);
+    let shaken = facing_with(&[EffectSpec::vibration(a, DirectionSpec::Depth, 3.0, 40.0)]);
     let rings = inner_rings(&nominal);
     let rows = nominal.grid().azimuths;
     let mut per_row = Vec::new();
@@ -243,7 +226,7 @@ fn a_whole_order_feed_vibration_moves_each_azimuths_marks_out_by_a_cos_of_minus_
     // within 0.01 rad.
     let a = 0.002;
     let nominal = facing_with(&[]);
-    let shaken = facing_with(&[vibration(a, DirectionSpec::Feed, 2.0, 25.0)]);
+    let shaken = facing_with(&[EffectSpec::vibration(a, DirectionSpec::Feed, 2.0, 25.0)]);
     let shifts: Vec<f64> = (0..nominal.grid().azimuths)
         .map(|row| {
             let (before, after) = (mark_bottoms(&nominal, row), mark_bottoms(&shaken, row));
@@ -279,7 +262,12 @@ fn the_cut_clock_tells_when_each_point_was_cut_so_a_fractional_vibration_reads_o
     // point over (near the cusps) the rule fails; elsewhere it holds to 1e-3·a.
     let (a, k, phase): (f64, f64, f64) = (1e-6, 2.37, 0.3);
     let nominal = facing_with(&[]);
-    let shaken = facing_with(&[vibration(a, DirectionSpec::Depth, k, phase.to_degrees())]);
+    let shaken = facing_with(&[EffectSpec::vibration(
+        a,
+        DirectionSpec::Depth,
+        k,
+        phase.to_degrees(),
+    )]);
     let clock = toolmark::pipeline::cut_clock_rad(&shaken.scenes, &shaken.field);
     let (mut held, mut total) = (0, 0);
     for &i in &inner_rings(&nominal) {

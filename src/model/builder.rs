@@ -19,10 +19,11 @@
 //! ```
 
 use super::{
-    AngleErrorSpec, ArcNoseSpec, AsphereSpec, CentreHeightSpec, CupWheelSpec, DriftSpec,
-    EffectSpec, ErrorSpec, GeneratingSpec, GridSpec, HarmonicSpec, HarmonicsSpec, JOB_VERSION, Job,
-    JobError, JobFile, MillToolSpec, MillingSpec, OffsetSpec, OutputSpec, PlaneSpec, ProcessSpec,
-    SphereSpec, SpringBackSpec, SurfaceSpec, ToolSpec, TramSpec, TurningSpec, WearSpec,
+    AngleErrorSpec, ArcNoseSpec, AsphereSpec, CentreHeightSpec, CupWheelSpec, DirectionSpec,
+    DriftSpec, EffectSpec, ErrorSpec, GeneratingSpec, GridSpec, HarmonicSpec, HarmonicsSpec,
+    JOB_VERSION, Job, JobError, JobFile, MillToolSpec, MillingSpec, OffsetSpec, OutputSpec,
+    PlaneSpec, ProcessSpec, SphereSpec, SpringBackSpec, SurfaceSpec, ToolSpec, TramSpec,
+    TurningSpec, VibrationSpec, WearSpec,
 };
 use crate::geometry::Form;
 use crate::process::{MillingPathKind, TurningMode};
@@ -175,6 +176,23 @@ impl EffectSpec {
         })
     }
 
+    /// A relative vibration of an amplitude along a direction, at cycles per spindle
+    /// revolution and a phase (°).
+    pub fn vibration(
+        amplitude_mm: f64,
+        direction: DirectionSpec,
+        per_revolution: f64,
+        phase_deg: f64,
+    ) -> EffectSpec {
+        EffectSpec::Vibration(VibrationSpec {
+            amplitude_mm: Some(amplitude_mm),
+            direction: Some(direction),
+            per_revolution: Some(per_revolution),
+            phase_deg: Some(phase_deg),
+            ..VibrationSpec::default()
+        })
+    }
+
     pub fn axial_drift(drift_mm: f64) -> EffectSpec {
         EffectSpec::AxialDrift(DriftSpec {
             drift_mm: Some(drift_mm),
@@ -227,7 +245,8 @@ impl EffectSpec {
 }
 
 impl MillToolSpec {
-    fn of_diameter(diameter_mm: f64) -> MillToolSpec {
+    /// A milling tool's table of a diameter, its other fields to be set.
+    pub fn of_diameter(diameter_mm: f64) -> MillToolSpec {
         MillToolSpec {
             diameter_mm: Some(diameter_mm),
             ..MillToolSpec::default()

@@ -3,8 +3,9 @@
 
 use toolmark::engine::cpu::CpuEngine;
 use toolmark::engine::gpu::GpuEngine;
-use toolmark::model::{Job, JobFile};
+use toolmark::model::{Job, JobFile, MillingSpec, ProcessSpec, SurfaceSpec, ToolSpec};
 use toolmark::pipeline::{RunResult, simulate};
+use toolmark::process::MillingPathKind;
 
 /// The GPU engine, or a failing test: in CI a missing adapter is an error, never a skip.
 pub fn gpu_engine() -> GpuEngine {
@@ -46,6 +47,31 @@ pub fn in_examples(file: JobFile) -> Job {
 pub fn checked(file: JobFile) -> Job {
     Job::from_file(file, "test", std::path::Path::new("."))
         .unwrap_or_else(|err| panic!("test job invalid: {err}"))
+}
+
+/// Seed 002's asphere (R0 5.5 mm, k −0.7, A2 0.000284, Ø20 mm, convex): the default
+/// job's surface.
+pub fn seed_002_asphere() -> SurfaceSpec {
+    example_file("asphere_xz.toml").surface
+}
+
+/// A milling job's file on a grid of `pitch_um` and `azimuths`.
+pub fn milling_file(
+    surface: SurfaceSpec,
+    tool: ToolSpec,
+    process: MillingSpec,
+    pitch_um: f64,
+    azimuths: u32,
+) -> JobFile {
+    JobFile::new(surface, tool, ProcessSpec::Milling(process)).grid(pitch_um, azimuths)
+}
+
+/// A path of passes `stepover_mm` apart over stock `stock_mm` high.
+pub fn stepped(path: MillingPathKind, stepover_mm: f64, stock_mm: f64) -> MillingSpec {
+    MillingSpec {
+        stock_allowance_mm: Some(stock_mm),
+        ..MillingSpec::stepped(path, stepover_mm)
+    }
 }
 
 pub fn run_cpu(job: Job) -> RunResult {
