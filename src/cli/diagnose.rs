@@ -283,6 +283,17 @@ fn carried_fragment(carried: &Path, fitted: &str) -> Result<String, Failure> {
     ))
 }
 
+/// A length's σ as a person reads it: nm below 0.1 µm, else µm.
+fn sigma_text(sigma_mm: f64) -> String {
+    if sigma_mm < 1e-4 {
+        format!("± {:.1} nm", sigma_mm * 1e6)
+    } else if sigma_mm.is_finite() {
+        format!("± {:.2} µm", sigma_mm * 1e3)
+    } else {
+        "σ not determined".into()
+    }
+}
+
 /// What a person reads first: the verdict, what to do, where the data lies, the
 /// comparison and the shrinkage.
 fn print_summary(d: &toolmark::diagnose::report::Diagnosis) {
@@ -294,17 +305,19 @@ fn print_summary(d: &toolmark::diagnose::report::Diagnosis) {
         println!("  note: {}", f.message);
     }
     let r = &d.registration;
+    let axis = match (r.axis_y_mm, r.axis_y_sigma_mm) {
+        (Some(y), Some(y_sigma)) => format!(
+            "({:.4} ({}), {:.4} ({})) mm",
+            r.axis_x_mm,
+            sigma_text(r.axis_x_sigma_mm),
+            y,
+            sigma_text(y_sigma)
+        ),
+        _ => format!("{:.4} mm ({})", r.axis_x_mm, sigma_text(r.axis_x_sigma_mm)),
+    };
     println!(
-        "\n  placed: a {} with the axis at {:.4} mm of the file ({}); lateral scale {:.4} ({}){}",
+        "\n  placed: a {} with the axis at {axis} of the file; lateral scale {:.4} ({}){}",
         r.trace,
-        r.axis_x_mm,
-        if r.axis_x_sigma_mm < 1e-4 {
-            format!("± {:.1} nm", r.axis_x_sigma_mm * 1e6)
-        } else if r.axis_x_sigma_mm.is_finite() {
-            format!("± {:.2} µm", r.axis_x_sigma_mm * 1e3)
-        } else {
-            "σ not determined".into()
-        },
         r.lateral_scale,
         r.lateral_scale_status,
         r.azimuth_deg

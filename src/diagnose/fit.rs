@@ -737,6 +737,18 @@ impl<'a, 'e> Problem<'a, 'e> {
         Ok(sigma / stretch)
     }
 
+    /// One σ of a map's axis position in `fit` along X and Y (mm, in the placed
+    /// measurement's frame): the fit's linearised σ of the shift alone
+    /// ([`super::locate::map_sigmas`]).
+    pub fn map_axis_sigmas_mm(&mut self, fit: &Fit) -> Result<[f64; 2], ForwardError> {
+        let sim = self.simulation(&fit.set, &fit.values)?;
+        let stretch = stretch_of(&fit.set, &fit.values);
+        let stretched = stretched(self.measurement, stretch);
+        let frame = Frame::at(fit.evaluation.registered.shift_mm);
+        let sigmas = super::locate::map_sigmas(&stretched, &sim, frame, self.terms.power, false);
+        Ok([sigmas[0] / stretch, sigmas[1] / stretch])
+    }
+
     /// Half the difference between where the two halves of a line put its axis (mm, in
     /// the placed measurement's frame), each registered alone with `fit`'s model by the
     /// fits' own search (a jackknife over halves): on a radius the axis lies outside the

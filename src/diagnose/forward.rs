@@ -711,6 +711,20 @@ impl SimulatedSurface {
         }
     }
 
+    /// The same surface with turned marks `feed_mm` apart averaged out: each row over a
+    /// feed in radius (its form, for placing a map whose pixels alias the marks).
+    pub fn without_marks(&self, feed_mm: f64) -> SimulatedSurface {
+        SimulatedSurface {
+            grid: self.grid.clone(),
+            height_mm: radially_averaged(&self.grid, &self.height_mm, feed_mm),
+            clock_rad: self.clock_rad.clone(),
+            trace: None,
+            pixel_mm: self.pixel_mm,
+            instrument: self.instrument,
+            rings: RingLookup::new(self.grid.rings.iter().map(|r| r.radius_mm).collect()),
+        }
+    }
+
     /// The trace through the axis along row `row` and its opposite (the grid's rows
     /// must be even), as the instrument records it.
     pub fn trace_along(&self, row: u32) -> Trace {
@@ -903,6 +917,11 @@ impl SimulatedSurface {
         self.rings.key
     }
 
+    /// Whether a raster's pixels are averaged (the instrument's pixel averaging).
+    pub fn averages_pixels(&self) -> bool {
+        self.pixel_mm.is_some()
+    }
+
     /// How many places a pixel is read at ([`SimulatedSurface::places`]).
     pub fn reads_per_pixel(&self) -> usize {
         self.midpoints(1.0).len()
@@ -1054,25 +1073,7 @@ fn box_filtered(grid: &PolarGrid, height_mm: &[f64], width_mm: f64) -> Vec<f64> 
     let (rings, rows) = (grid.ring_count(), grid.azimuths);
     let radius: Vec<f64> = grid.rings.iter().map(|r| r.radius_mm).collect();
     let half = 0.5 * width_mm;
-    let mut radial = height_mm.to_vec();
-    let mut prefix = vec![0.0; rings + 1];
-    for row in 0..rows {
-        for k in 0..rings {
-            prefix[k + 1] = prefix[k] + height_mm[grid.sample_index(k, row)];
-        }
-        let (mut lo, mut hi) = (0, 0);
-        for k in 0..rings {
-            while radius[lo] < radius[k] - half {
-                lo += 1;
-            }
-            hi = hi.max(k);
-            while hi + 1 < rings && radius[hi + 1] <= radius[k] + half {
-                hi += 1;
-            }
-            radial[grid.sample_index(k, row)] =
-                (prefix[hi + 1] - prefix[lo]) / (hi + 1 - lo) as f64;
-        }
-    }
+    let radial = radially_averaged(grid, height_mm, width_mm);
     let mut filtered = radial.clone();
     let n = rows as usize;
     let mut prefix = vec![0.0; 3 * n + 1];
@@ -1101,6 +1102,33 @@ fn box_filtered(grid: &PolarGrid, height_mm: &[f64], width_mm: f64) -> Vec<f64> 
         }
     }
     filtered
+}
+
+/// The heights of each row averaged over the rings within `width_mm / 2` of each ring.
+fn radially_averaged(grid: &PolarGrid, height_mm: &[f64], width_mm: f64) -> Vec<f64> {
+    let (rings, rows) = (grid.ring_count(), grid.azimuths);
+    let radius: Vec<f64> = grid.rings.iter().map(|r| r.radius_mm).collect();
+    let half = 0.5 * width_mm;
+    let mut radial = height_mm.to_vec();
+    let mut prefix = vec![0.0; rings + 1];
+    for row in 0..rows {
+        for k in 0..rings {
+            prefix[k + 1] = prefix[k] + height_mm[grid.sample_index(k, row)];
+        }
+        let (mut lo, mut hi) = (0, 0);
+        for k in 0..rings {
+            while radius[lo] < radius[k] - half {
+                lo += 1;
+            }
+            hi = hi.max(k);
+            while hi + 1 < rings && radius[hi + 1] <= radius[k] + half {
+                hi += 1;
+            }
+            radial[grid.sample_index(k, row)] =
+                (prefix[hi + 1] - prefix[lo]) / (hi + 1 - lo) as f64;
+        }
+    }
+    radial
 }
 
 /// The surface between two samples of a trace, as one or two parabolas in the distance

@@ -410,4 +410,18 @@ azimuths = 8
         assert_eq!(err.field, "effects[1].drift_mm", "{err}");
         assert!(err.message.contains("expected `recession_mm`"), "{err}");
     }
+
+    /// An effects file's foreign key says what its kind expects, not where the table
+    /// begins (the whole file's message reads "TOML parse error at line 1, column 1").
+    #[test]
+    fn an_effects_file_says_what_its_kind_expects() {
+        let text = "[[effects]]\nkind = \"axial_drift\"\noffset_mm = 1e-3\n";
+        let err =
+            crate::model::EffectsFragment::from_toml_str(text).expect_err("another kind's key");
+        assert_eq!(err.field, "effects[0].offset_mm", "{err}");
+        assert_eq!(
+            err.message, "unknown field `offset_mm`, expected `drift_mm`",
+            "{err}"
+        );
+    }
 }

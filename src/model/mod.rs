@@ -58,9 +58,9 @@ impl JobFile {
     /// `[surface]`, `[tool]` or `[process]` table is reported against its key: serde
     /// reads a kind-tagged table whole, and its own message names only the table.
     pub fn from_toml_str(text: &str) -> Result<JobFile, JobError> {
-        toml::from_str(text).map_err(|err| {
-            let field = tagged_field_error(text);
-            error(field.as_deref().unwrap_or("job"), err.to_string())
+        toml::from_str(text).map_err(|err| match tagged_field_error(text) {
+            Some((field, message)) => error(&field, message.unwrap_or_else(|| err.to_string())),
+            None => error("job", err.to_string()),
         })
     }
 
@@ -661,9 +661,9 @@ impl EffectsFragment {
                 "an effects file holds only [[effects]] tables (and comments); remove it",
             ));
         }
-        toml::from_str(text).map_err(|err| {
-            let field = tagged_field_error(text);
-            error(field.as_deref().unwrap_or("effects"), err.to_string())
+        toml::from_str(text).map_err(|err| match tagged_field_error(text) {
+            Some((field, message)) => error(&field, message.unwrap_or_else(|| err.to_string())),
+            None => error("effects", err.to_string()),
         })
     }
 
@@ -1091,9 +1091,11 @@ fn read_job_file(path: &Path) -> Result<(String, String, &Path), JobError> {
 }
 
 /// Which key of a kind-tagged table (`surface.radius_mm`, `effects[1].drift_mm`) holds
-/// a value its kind's fields refuse: the table is read again alone, as its kind's own
-/// struct.
-fn tagged_field_error(text: &str) -> Option<String> {
+/// a value its kind's fields refuse, and what its kind's struct says of it (the whole
+/// file's message points at the table's first line: "TOML parse error at line 1,
+/// column 1"): the table is read again alone, as its kind's own struct. An unknown
+/// kind names `kind` (the whole file's message lists the kinds).
+fn tagged_field_error(text: &str) -> Option<(String, Option<String>)> {
     let table: toml::Table = toml::from_str(text).ok()?;
     let single = ["surface", "tool", "process"]
         .into_iter()
@@ -1109,7 +1111,7 @@ fn tagged_field_error(text: &str) -> Option<String> {
         let mut section = section.clone();
         let kind = section.remove("kind")?.as_str()?.to_string();
         if !known_kind(name, &kind) {
-            return Some(format!("{field}.kind"));
+            return Some((format!("{field}.kind"), None));
         }
         let alone = toml::to_string(&section).ok()?;
         let err = kind_fields_error(name, &kind, &alone)?;
@@ -1122,7 +1124,8 @@ fn tagged_field_error(text: &str) -> Option<String> {
                 line.split('=').next()?.trim()
             }
         };
-        (!key.is_empty() && !key.starts_with('[')).then(|| format!("{field}.{key}"))
+        (!key.is_empty() && !key.starts_with('['))
+            .then(|| (format!("{field}.{key}"), Some(err.message().to_string())))
     })
 }
 
