@@ -749,6 +749,38 @@ impl<'a, 'e> Problem<'a, 'e> {
         Ok([sigmas[0] / stretch, sigmas[1] / stretch])
     }
 
+    /// Half the largest disagreement, along X and along Y (mm, in the placed
+    /// measurement's frame), between where the halves of a map put its axis — left and
+    /// right of its middle, below and above — each placed alone with `fit`'s model over
+    /// the whole map's field ([`super::locate::register_on_field`]). The fit's own σ sees
+    /// only the noise; an error of the model (an effect the data carry but no fold
+    /// accepted still bends the form) places the halves apart (random map p04: an
+    /// order-18 edge waviness refused, the axis 55 µm off at ± 2.5 µm).
+    pub fn map_axis_split_mm(&mut self, fit: &Fit) -> Result<[f64; 2], ForwardError> {
+        let sim = self.simulation(&fit.set, &fit.values)?;
+        let stretch = stretch_of(&fit.set, &fit.values);
+        let stretched = stretched(self.measurement, stretch);
+        let job = self.model.base_job();
+        let start = fit.evaluation.registered.shift_mm;
+        let (field, _) = super::locate::field_search(job, &stretched, start);
+        let middle = stretched
+            .xy_mm
+            .iter()
+            .fold(glam::DVec2::ZERO, |sum, p| sum + *p)
+            / stretched.len().max(1) as f64;
+        let axis_of = |lower: bool, along: usize| {
+            let half = stretched.subset(|i| (stretched.xy_mm[i][along] < middle[along]) == lower);
+            super::locate::register_on_field(job, &half, &sim, self.terms, field).shift_mm
+        };
+        let mut split = [0.0_f64; 2];
+        for along in 0..2 {
+            let apart = 0.5 * (axis_of(true, along) - axis_of(false, along)).abs() / stretch;
+            split[0] = split[0].max(apart.x);
+            split[1] = split[1].max(apart.y);
+        }
+        Ok(split)
+    }
+
     /// Half the difference between where the two halves of a line put its axis (mm, in
     /// the placed measurement's frame), each registered alone with `fit`'s model by the
     /// fits' own search (a jackknife over halves): on a radius the axis lies outside the

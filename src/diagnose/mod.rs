@@ -661,11 +661,16 @@ fn placement(
         .transpose()?
         .map(|s| s.hypot(rivals_apart));
     // A map's axis σ as the final model places it (the placement's was taken on the job
-    // as given: a cone it lacked made it 8 µm where the final fit pins the axis to 0.1 µm).
+    // as given: a cone it lacked made it 8 µm where the final fit pins the axis to
+    // 0.1 µm), with its halves' disagreement (model error) and the rivals' axes.
     let map_sigmas = (!measurement.is_line() && terms.shift)
-        .then(|| problem.map_axis_sigmas_mm(final_fit))
-        .transpose()?
-        .map(|s| s.map(|s| (s / located.frame.scale).hypot(rivals_apart)));
+        .then(|| -> Result<[f64; 2], DiagnoseError> {
+            let fitted = problem.map_axis_sigmas_mm(final_fit)?;
+            let split = problem.map_axis_split_mm(final_fit)?;
+            Ok([0, 1]
+                .map(|k| (fitted[k].hypot(split[k]) / located.frame.scale).hypot(rivals_apart)))
+        })
+        .transpose()?;
     let mut located = located.with_fitted_scale(stretch, stretch_sigma);
     if let Some(sigma) = sigma {
         located.sigma_shift_mm[0] = sigma;

@@ -17,6 +17,16 @@ parts nobody tuned it on.
 Scores per case: the status, the axis error against the planted one (nm, and in the
 reported σ), the lateral scale (planted 1), and the planted effect's fit (value ± σ,
 error in σ and in %), or what was claimed instead.
+
+Maps (`turned_sphere_map.py`: the R10 job of tests/data/independent/r10_sphere.toml,
+point-sampled pixels of 25-50 um that alias its 5 um marks, fields up to 2.4 mm, the
+axis up to 300 um off the field's middle, one set-up effect, a waviness or nothing):
+
+  python3 random_batch.py make-maps --seed 34 --count 8 --prefix p --dir DIR
+  for n in DIR/p*.csv; do toolmark diagnose --job tests/data/independent/r10_sphere.toml \
+      --measured $n --pixel-um $(cat ${n%.csv}.pixel_um) --lateral-unit um --height-unit um \
+      --remove-power --out ${n%.csv}.out; done
+  python3 random_batch.py score-maps --dir DIR --prefix p
 """
 import argparse
 import json
@@ -26,6 +36,7 @@ import subprocess
 import sys
 
 GENERATOR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "turned_sphere_profile.py")
+MAP_GENERATOR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "turned_sphere_map.py")
 
 JOB = """version = 1
 name = "random {name}"
@@ -180,6 +191,53 @@ def score(args):
             r["lateral_scale_sigma"], verdict_on(c, d), d["run"]["total_s"]))
 
 
+def make_maps(args):
+    """Maps of the R10 job, one effect each (h, d, drift, w or none), as `make` draws them."""
+    rng = random.Random(args.seed)
+    os.makedirs(args.dir, exist_ok=True)
+    cases = []
+    for i in range(args.count):
+        n = rng.choice([41, 61, 81])
+        pixel = rng.choice([p for p in [25, 35, 50] if (n - 1) * p <= 2400])
+        axis = [rng.randint(-300, 300), rng.randint(-300, 300)]
+        options, truth = draw_one(rng, rng.choice(["h", "d", "drift", "none", "w"]))
+        noise = rng.choice([0.5, 1.0, 2.0])
+        name = "%s%02d" % (args.prefix, i)
+        out = os.path.join(args.dir, name)
+        subprocess.run([sys.executable, MAP_GENERATOR, "--out", out + ".csv", "--n", str(n),
+                        "--pixel-um", str(pixel), "--axis-um", str(axis[0]), str(axis[1]),
+                        "--noise-nm", str(noise), "--seed", str(500 + i)] + options, check=True)
+        with open(out + ".pixel_um", "w") as f:
+            f.write(str(pixel))
+        # The generator puts pixel (0, 0) at file (0, 0) and the axis `axis` from the middle.
+        middle = (n - 1) * pixel / 2
+        cases.append({"name": name, "truth": truth, "axis_um": [a + middle for a in axis],
+                      "pixels": n, "pixel_um": pixel, "noise_nm": noise,
+                      "options": options})
+    with open(os.path.join(args.dir, args.prefix + "cases.json"), "w") as f:
+        json.dump(cases, f, indent=1)
+
+
+def score_maps(args):
+    with open(os.path.join(args.dir, args.prefix + "cases.json")) as f:
+        cases = json.load(f)
+    for c in cases:
+        path = os.path.join(args.dir, c["name"] + ".out", "diagnosis.json")
+        if not os.path.exists(path):
+            print(c["name"], "no diagnosis.json")
+            continue
+        with open(path) as f:
+            d = json.load(f)
+        r = d["registration"]
+        errors = [(r["axis_x_mm"] * 1e3 - c["axis_um"][0]) * 1e3,
+                  (r["axis_y_mm"] * 1e3 - c["axis_um"][1]) * 1e3]
+        sigmas = [r["axis_x_sigma_mm"] * 1e6, r["axis_y_sigma_mm"] * 1e6]
+        print("%s | %s | %d x %d px of %g um | %s | axis %+.1f, %+.1f nm ± %.1f, %.1f | %s | %.1f s" % (
+            c["name"], c["truth"] or "nothing", c["pixels"], c["pixels"], c["pixel_um"],
+            d["verdict"]["status"], errors[0], errors[1], sigmas[0], sigmas[1],
+            verdict_on(c, d), d["run"]["total_s"]))
+
+
 def main():
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest="what", required=True)
@@ -195,11 +253,16 @@ def main():
     s = sub.add_parser("score")
     s.add_argument("--prefix", default="p")
     s.add_argument("--dir", default=".")
+    mm = sub.add_parser("make-maps")
+    mm.add_argument("--seed", type=int, required=True)
+    mm.add_argument("--count", type=int, default=8)
+    mm.add_argument("--prefix", default="p")
+    mm.add_argument("--dir", default=".")
+    sm = sub.add_parser("score-maps")
+    sm.add_argument("--prefix", default="p")
+    sm.add_argument("--dir", default=".")
     args = ap.parse_args()
-    if args.what == "make":
-        make(args)
-    else:
-        score(args)
+    {"make": make, "score": score, "make-maps": make_maps, "score-maps": score_maps}[args.what](args)
 
 
 if __name__ == "__main__":
