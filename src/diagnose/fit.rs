@@ -739,29 +739,21 @@ impl<'a, 'e> Problem<'a, 'e> {
 
     /// One σ of a map's axis position in `fit` along X and Y (mm, in the placed
     /// measurement's frame): the fit's linearised σ of the shift alone
-    /// ([`super::locate::map_sigmas`]).
+    /// ([`super::locate::map_sigmas`]), widened by half the largest disagreement between
+    /// where the halves of the map put the axis — left and right of its middle, below
+    /// and above — each placed alone with `fit`'s model over the whole map's field
+    /// ([`super::locate::register_on_field`]). The linearised σ sees only the noise; an
+    /// error of the model (an effect the data carry but no fold accepted still bends the
+    /// form) places the halves apart (random map p04: an order-18 edge waviness refused,
+    /// the axis 55 µm off at ± 2.5 µm).
     pub fn map_axis_sigmas_mm(&mut self, fit: &Fit) -> Result<[f64; 2], ForwardError> {
         let sim = self.simulation(&fit.set, &fit.values)?;
         let stretch = stretch_of(&fit.set, &fit.values);
         let stretched = stretched(self.measurement, stretch);
-        let frame = Frame::at(fit.evaluation.registered.shift_mm);
-        let sigmas = super::locate::map_sigmas(&stretched, &sim, frame, self.terms.power, false);
-        Ok([sigmas[0] / stretch, sigmas[1] / stretch])
-    }
-
-    /// Half the largest disagreement, along X and along Y (mm, in the placed
-    /// measurement's frame), between where the halves of a map put its axis — left and
-    /// right of its middle, below and above — each placed alone with `fit`'s model over
-    /// the whole map's field ([`super::locate::register_on_field`]). The fit's own σ sees
-    /// only the noise; an error of the model (an effect the data carry but no fold
-    /// accepted still bends the form) places the halves apart (random map p04: an
-    /// order-18 edge waviness refused, the axis 55 µm off at ± 2.5 µm).
-    pub fn map_axis_split_mm(&mut self, fit: &Fit) -> Result<[f64; 2], ForwardError> {
-        let sim = self.simulation(&fit.set, &fit.values)?;
-        let stretch = stretch_of(&fit.set, &fit.values);
-        let stretched = stretched(self.measurement, stretch);
-        let job = self.model.base_job();
         let start = fit.evaluation.registered.shift_mm;
+        let linear =
+            super::locate::map_sigmas(&stretched, &sim, Frame::at(start), self.terms.power, false);
+        let job = self.model.base_job();
         let (field, _) = super::locate::field_search(job, &stretched, start);
         let middle = stretched
             .xy_mm
@@ -774,11 +766,11 @@ impl<'a, 'e> Problem<'a, 'e> {
         };
         let mut split = [0.0_f64; 2];
         for along in 0..2 {
-            let apart = 0.5 * (axis_of(true, along) - axis_of(false, along)).abs() / stretch;
+            let apart = 0.5 * (axis_of(true, along) - axis_of(false, along)).abs();
             split[0] = split[0].max(apart.x);
             split[1] = split[1].max(apart.y);
         }
-        Ok(split)
+        Ok([0, 1].map(|k| linear[k].hypot(split[k]) / stretch))
     }
 
     /// Half the difference between where the two halves of a line put its axis (mm, in

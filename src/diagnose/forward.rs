@@ -721,7 +721,7 @@ impl SimulatedSurface {
             trace: None,
             pixel_mm: self.pixel_mm,
             instrument: self.instrument,
-            rings: RingLookup::new(self.grid.rings.iter().map(|r| r.radius_mm).collect()),
+            rings: self.rings.clone(),
         }
     }
 
@@ -1005,6 +1005,7 @@ impl Place {
 /// The rings' radii with a bucket table over radius, so that the ring at a radius is
 /// found in a step or two instead of a binary search (two buckets a ring on average: a
 /// few rings closer than that, as a grid puts beside a feature, cost a step more).
+#[derive(Clone)]
 struct RingLookup {
     radii: Vec<f64>,
     /// A hash of the radii.

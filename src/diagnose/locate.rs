@@ -1371,7 +1371,7 @@ pub fn field_search(job: &Job, m: &Measurement, start: DVec2) -> (ShiftSearch, b
     let (half, _) = field_of(m);
     let pixel = m.spacing_mm();
     let marks = field_mark_spacing_mm(job, m);
-    let resolved = marks.is_some_and(|f| pixel <= f / 3.0);
+    let resolved = marks.is_some_and(|f| resolves_marks(pixel, f));
     let reach = half.max_element().max(pixel);
     let step = match marks {
         Some(f) if resolved => (f / 6.0).max(reach / 40.0),
@@ -1386,6 +1386,11 @@ pub fn field_search(job: &Job, m: &Measurement, start: DVec2) -> (ShiftSearch, b
         comb: None,
     };
     (search, resolved)
+}
+
+/// Whether pixels `pixel_mm` apart resolve marks `feed_mm` apart (three a mark).
+fn resolves_marks(pixel_mm: f64, feed_mm: f64) -> bool {
+    pixel_mm <= feed_mm / 3.0
 }
 
 /// The process's mark spacing over the radii a map's field can reach from an axis
@@ -1413,7 +1418,7 @@ pub fn register_on_field(
     field: ShiftSearch,
 ) -> Registered {
     let aliased = field_mark_spacing_mm(job, m)
-        .filter(|f| m.spacing_mm() > f / 3.0 && !sim.averages_pixels());
+        .filter(|f| !resolves_marks(m.spacing_mm(), *f) && !sim.averages_pixels());
     let Some(feed) = aliased.filter(|_| terms.shift) else {
         return register(m, sim, terms, Some(field));
     };

@@ -664,13 +664,9 @@ fn placement(
     // as given: a cone it lacked made it 8 µm where the final fit pins the axis to
     // 0.1 µm), with its halves' disagreement (model error) and the rivals' axes.
     let map_sigmas = (!measurement.is_line() && terms.shift)
-        .then(|| -> Result<[f64; 2], DiagnoseError> {
-            let fitted = problem.map_axis_sigmas_mm(final_fit)?;
-            let split = problem.map_axis_split_mm(final_fit)?;
-            Ok([0, 1]
-                .map(|k| (fitted[k].hypot(split[k]) / located.frame.scale).hypot(rivals_apart)))
-        })
-        .transpose()?;
+        .then(|| problem.map_axis_sigmas_mm(final_fit))
+        .transpose()?
+        .map(|s| s.map(|s| (s / located.frame.scale).hypot(rivals_apart)));
     let mut located = located.with_fitted_scale(stretch, stretch_sigma);
     if let Some(sigma) = sigma {
         located.sigma_shift_mm[0] = sigma;

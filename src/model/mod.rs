@@ -58,10 +58,7 @@ impl JobFile {
     /// `[surface]`, `[tool]` or `[process]` table is reported against its key: serde
     /// reads a kind-tagged table whole, and its own message names only the table.
     pub fn from_toml_str(text: &str) -> Result<JobFile, JobError> {
-        toml::from_str(text).map_err(|err| match tagged_field_error(text) {
-            Some((field, message)) => error(&field, message.unwrap_or_else(|| err.to_string())),
-            None => error("job", err.to_string()),
-        })
+        toml::from_str(text).map_err(|err| read_error(text, err, "job"))
     }
 
     /// The same file with the generator set to an inclination and a cutter offset (what
@@ -661,10 +658,7 @@ impl EffectsFragment {
                 "an effects file holds only [[effects]] tables (and comments); remove it",
             ));
         }
-        toml::from_str(text).map_err(|err| match tagged_field_error(text) {
-            Some((field, message)) => error(&field, message.unwrap_or_else(|| err.to_string())),
-            None => error("effects", err.to_string()),
-        })
+        toml::from_str(text).map_err(|err| read_error(text, err, "effects"))
     }
 
     pub fn load(path: &Path) -> Result<Self, JobError> {
@@ -1088,6 +1082,15 @@ fn read_job_file(path: &Path) -> Result<(String, String, &Path), JobError> {
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     Ok((text, stem.unwrap_or_else(|| "job".into()), base_dir))
+}
+
+/// The error of reading `text` whole (`err`), named by the key of a kind-tagged table
+/// that holds it ([`tagged_field_error`]), else by `whole`.
+fn read_error(text: &str, err: toml::de::Error, whole: &str) -> JobError {
+    match tagged_field_error(text) {
+        Some((field, message)) => error(&field, message.unwrap_or_else(|| err.to_string())),
+        None => error(whole, err.to_string()),
+    }
 }
 
 /// Which key of a kind-tagged table (`surface.radius_mm`, `effects[1].drift_mm`) holds

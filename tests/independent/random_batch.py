@@ -172,7 +172,8 @@ def verdict_on(case, d):
     return "; ".join(texts) + (" + also %s" % extra if extra else "")
 
 
-def score(args):
+def diagnosed(args):
+    """Each case of the batch with its diagnosis.json (a case without one is named)."""
     with open(os.path.join(args.dir, args.prefix + "cases.json")) as f:
         cases = json.load(f)
     for c in cases:
@@ -181,7 +182,11 @@ def score(args):
             print(c["name"], "no diagnosis.json")
             continue
         with open(path) as f:
-            d = json.load(f)
+            yield c, json.load(f)
+
+
+def score(args):
+    for c, d in diagnosed(args):
         r = d["registration"]
         err = (r["axis_x_mm"] * 1e3 - c["axis_um"]) * 1e3
         sigma = r["axis_x_sigma_mm"] * 1e6
@@ -219,15 +224,7 @@ def make_maps(args):
 
 
 def score_maps(args):
-    with open(os.path.join(args.dir, args.prefix + "cases.json")) as f:
-        cases = json.load(f)
-    for c in cases:
-        path = os.path.join(args.dir, c["name"] + ".out", "diagnosis.json")
-        if not os.path.exists(path):
-            print(c["name"], "no diagnosis.json")
-            continue
-        with open(path) as f:
-            d = json.load(f)
+    for c, d in diagnosed(args):
         r = d["registration"]
         errors = [(r["axis_x_mm"] * 1e3 - c["axis_um"][0]) * 1e3,
                   (r["axis_y_mm"] * 1e3 - c["axis_um"][1]) * 1e3]
