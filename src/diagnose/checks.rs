@@ -16,6 +16,12 @@ use crate::model::Job;
 /// follow the form — unless a candidate effect explains it (see [`settle_form`]).
 const DEPARTS: f64 = 0.5;
 
+/// Share of the measured smooth variance the job's form must leave for a departure no
+/// candidate settles to refuse the measurement: a part whose form the job takes a
+/// fifth or more out of is this part with a gap to diagnose (a local bump as strong as
+/// a weak form beyond power), not another part.
+const FORM_LEAVES: f64 = 0.8;
+
 /// How far the median mark spacing may differ from the job's before a note says so:
 /// beyond the lateral scale's bound (2 %) and the bands' scatter (~1 %).
 const SPACING_NOTE: f64 = 0.03;
@@ -121,6 +127,7 @@ pub fn fit_check(
         form_rms_nm: form_rms * 1e6,
         measured_rms_nm: measured_rms * 1e6,
         smooth_residual_nm: residual_rms * 1e6,
+        measured_smooth_nm: measured_smooth_rms * 1e6,
         mark_period_measured_um: None,
         mark_period_simulated_um: None,
     }
@@ -129,8 +136,9 @@ pub fn fit_check(
 /// Settles a pending departure from the form once the candidates are fitted: where the
 /// best-explaining candidate's residual (`fits`: label and residual of each candidate
 /// fitted alone) follows the form — its smooth part within [`DEPARTS`] of it — the
-/// departure was a set-up error and stays as a note; else the measurement does not fit
-/// the job.
+/// departure was a set-up error and stays as a note; where none does but the job's form
+/// leaves at most [`FORM_LEAVES`] of the measured smooth variance, it is a gap on this
+/// part (a note); else the measurement does not fit the job.
 pub fn settle_form(check: &mut FitCheck, m: &Measurement, period: f64, fits: &[(String, &[f64])]) {
     let Some(at) = check.findings.iter().position(|f| f.severity == "pending") else {
         return;
@@ -148,6 +156,18 @@ pub fn settle_form(check: &mut FitCheck, m: &Measurement, period: f64, fits: &[(
                 check.smooth_residual_nm,
                 check.form_rms_nm,
                 left * 1e6
+            );
+        }
+        None if check.smooth_residual_nm.powi(2)
+            <= FORM_LEAVES * check.measured_smooth_nm.powi(2) =>
+        {
+            finding.severity = "note";
+            finding.message = format!(
+                "the job as given leaves {:.1} nm RMS of smooth residual against {:.1} nm RMS of form, and no candidate takes it below half the form; but the form takes {:.0} % of the measured smooth variance ({:.1} nm RMS) out: this part, with a gap no modelled effect explains",
+                check.smooth_residual_nm,
+                check.form_rms_nm,
+                100.0 * (1.0 - (check.smooth_residual_nm / check.measured_smooth_nm).powi(2)),
+                check.measured_smooth_nm
             );
         }
         None => finding.severity = "severe",

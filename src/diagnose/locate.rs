@@ -19,7 +19,7 @@ use super::register::{
     LinearTerms, Registered, ShiftSearch, Terms, fit_linear, register, trimmed_mean_of_squares,
     trimmed_mean_square,
 };
-use super::zones::{correlation_length, gaussian_lowpass_line, rms, white_noise_mm};
+use super::zones::{correlation_length, gaussian_regression_line, rms, white_noise_mm};
 use crate::engine::RemovalEngine;
 use crate::model::Job;
 use crate::numeric::try_golden_section;
@@ -349,8 +349,8 @@ fn wide_line_scan(
     let (a_min, a_max) = axis_range(m, (lo, hi), outer, (options.terms.shift, marked))?;
     let reach = (hi - a_min).max(a_max - lo).min(outer);
     let typical = local_mark_spacing_mm(job, 0.0, reach);
-    // Marks the profile resolves (six points a mark, six marks) may place it.
-    let spaced = typical.filter(|f| *f >= 6.0 * m.spacing_mm() && hi - lo >= 6.0 * f);
+    // Marks the profile resolves (three points a mark, six marks) may place it.
+    let spaced = typical.filter(|f| *f >= 3.0 * m.spacing_mm() && hi - lo >= 6.0 * f);
     let turning = job.process.turning().is_some();
     let room =
         typical.unwrap_or(0.0) + 4.0 * job.pitch_mm + m.instrument.stylus_tip_mm.unwrap_or(0.0);
@@ -378,10 +378,12 @@ fn wide_line_scan(
     let marks = spaced.filter(|f| marks_stand_out(m, noise, &surface.trace_along(0), *f, reach));
     let scale = options.scale && marks.is_some();
     // Without marks or form to place it, a compact feature far out of the noise — a
-    // centre height's boss or cone — is where the axis is.
+    // centre height's boss or cone — is where the axis is; not one where the axis
+    // cannot be (a dig or a bump out where the axis would leave the part behind).
     let feature = (marked && marks.is_none())
         .then(|| central_feature(m, noise))
-        .flatten();
+        .flatten()
+        .filter(|(centre, half)| centre + half >= a_min && centre - half <= a_max);
     let (a_min, a_max) = match feature {
         Some((centre, half)) => ((centre - half).max(a_min), (centre + half).min(a_max)),
         None => (a_min, a_max),
@@ -846,8 +848,10 @@ fn distinct_placements(
     kept
 }
 
-/// The points with their form taken out: heights minus their Gaussian low-pass at
-/// `cutoff_mm` (in position order).
+/// The points with their form taken out: heights minus their Gaussian regression line
+/// at `cutoff_mm` (in position order; level to the profile's ends and gaps, where the
+/// plain low-pass would leave slope × filter width, and a placement that pushed the
+/// ends off the part would win).
 fn high_passed(m: &Measurement, cutoff_mm: f64) -> Measurement {
     let order = {
         let mut o: Vec<usize> = (0..m.len()).collect();
@@ -857,7 +861,7 @@ fn high_passed(m: &Measurement, cutoff_mm: f64) -> Measurement {
     let sorted = m.subset(|_| true);
     let x: Vec<f64> = order.iter().map(|&i| m.along_mm[i]).collect();
     let z: Vec<f64> = order.iter().map(|&i| m.height_mm[i]).collect();
-    let low = gaussian_lowpass_line(&x, &z, cutoff_mm);
+    let low = gaussian_regression_line(&x, &z, cutoff_mm);
     let mut height = vec![0.0; m.len()];
     for (k, &i) in order.iter().enumerate() {
         height[i] = z[k] - low[k];
@@ -870,7 +874,7 @@ fn high_passed(m: &Measurement, cutoff_mm: f64) -> Measurement {
 
 /// A trace with its form taken out the same way.
 fn high_passed_trace(trace: Trace, cutoff_mm: f64) -> Trace {
-    let low = gaussian_lowpass_line(&trace.x, &trace.z, cutoff_mm);
+    let low = gaussian_regression_line(&trace.x, &trace.z, cutoff_mm);
     let z = trace.z.iter().zip(&low).map(|(a, b)| a - b).collect();
     Trace::new(trace.x, z)
 }

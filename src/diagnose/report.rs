@@ -292,8 +292,10 @@ pub struct FitCheck {
     /// after the registration terms (nm).
     pub form_rms_nm: f64,
     pub measured_rms_nm: f64,
-    /// RMS of the job's smooth residual (low-passed at five mark periods; nm).
+    /// RMS of the job's smooth residual, and of the measured heights, low-passed at five
+    /// mark periods (nm).
     pub smooth_residual_nm: f64,
+    pub measured_smooth_nm: f64,
     pub mark_period_measured_um: Option<f64>,
     pub mark_period_simulated_um: Option<f64>,
 }

@@ -30,6 +30,7 @@ axis up to 300 um off the field's middle, one set-up effect, a waviness or nothi
 """
 import argparse
 import json
+import math
 import os
 import random
 import subprocess
@@ -68,7 +69,9 @@ def draw_effect(rng, effects="setup"):
     alone and beside a centre height."""
     kinds = {"setup": ["h", "d", "drift", "none", "h", "d"],
              "wide": ["h", "d", "drift", "none", "w", "h+w", "d+drift"],
-             "all": ["h", "d", "drift", "none", "w", "h+w", "d+drift", "n", "n+h"]}[effects]
+             "all": ["h", "d", "drift", "none", "w", "h+w", "d+drift", "n", "n+h"],
+             "unmodelled": ["bump", "pit", "bump+h", "pit+d", "scale", "scale+h",
+                            "scale+d", "scale+drift", "scale+bump"]}[effects]
     kind = rng.choice(kinds)
     if "+" in kind:
         options, truth = [], {}
@@ -81,9 +84,23 @@ def draw_effect(rng, effects="setup"):
 
 
 def draw_one(rng, kind):
-    """One effect of `kind` (h, d, drift, w, n or none): (generator options, truth)."""
+    """One effect of `kind` (h, d, drift, w, n or none; bump, pit or scale, planted on
+    the written file by `plant`): (generator options, truth)."""
     if kind == "none":
         return [], {}
+    if kind in ("bump", "pit"):
+        # a local defect on one side of the axis, no modelled effect: a bump (swarf
+        # welded on, a ridge) tens of um wide, or a dig a few um wide
+        wide = kind == "bump"
+        sign = rng.choice([-1, 1]) if wide else -1
+        return [], {"unmodelled_" + kind: {
+            "amplitude_nm": round(sign * rng.uniform(20, 80) if wide else -rng.uniform(30, 100)),
+            "sigma_um": round(rng.uniform(15, 80) if wide else rng.uniform(2, 5), 1),
+            "at": round(rng.uniform(0.1, 0.9), 3)}}
+    if kind == "scale":
+        # the instrument's lateral calibration off by 0.3-1 %: file x = true x (1 + e)
+        e = round(rng.choice([-1, 1]) * rng.uniform(0.003, 0.01), 4)
+        return [], {"lateral_stretch": e}
     if kind == "n":
         # a nose radius off by v µm, the tool set at its tip: to the generator an edge
         # waviness of order 0 (the edge v further out at every angle, the tip kept)
@@ -131,12 +148,39 @@ def make(args):
         if form_removed:
             cmd.append("--remove-form")
         subprocess.run(cmd, check=True)
+        axis = plant(out + ".csv", truth, axis)
         with open(out + ".toml", "w") as f:
             f.write(JOB.format(name=name, R=R, aperture=2 * rim, nose=nose, feed_mm=feed / 1000))
         cases.append({"name": name, "truth": truth, "axis_um": axis,
                       "form_removed": form_removed, "command": " ".join(cmd[1:])})
     with open(os.path.join(args.dir, args.prefix + "cases.json"), "w") as f:
         json.dump(cases, f, indent=1)
+
+
+def plant(path, truth, axis_um):
+    """Plants the file-side effects of `truth` on the profile at `path` (x, z in um): a
+    bump or pit at a fraction `at` of the trace on the side away from the axis, or a
+    lateral stretch about file zero. Returns the axis's file x (um) after it."""
+    with open(path) as f:
+        header, rows = f.readline(), [tuple(map(float, l.split(","))) for l in f if l.strip()]
+    xs = [r[0] for r in rows]
+    for key in ("unmodelled_bump", "unmodelled_pit"):
+        if key in truth:
+            b = truth[key]
+            # the longer side of the axis, `at` of the way from the axis to its end
+            end = xs[0] if axis_um - xs[0] > xs[-1] - axis_um else xs[-1]
+            centre = axis_um + b["at"] * (end - axis_um)
+            b["x_um"] = round(centre, 1)
+            a, s = b["amplitude_nm"] * 1e-3, b["sigma_um"]
+            rows = [(x, z + a * math.exp(-0.5 * ((x - centre) / s) ** 2)) for x, z in rows]
+    e = truth.get("lateral_stretch", 0.0)
+    if e:
+        rows = [(x * (1 + e), z) for x, z in rows]
+        axis_um *= 1 + e
+    with open(path, "w") as f:
+        f.write(header)
+        f.writelines("%.4f,%.6f\n" % r for r in rows)
+    return axis_um
 
 
 def fitted(a):
@@ -153,7 +197,10 @@ def fitted(a):
 
 def verdict_on(case, d):
     accepted = [(a["effect"],) + fitted(a) for a in d["accepted"]]
-    truth = {k: v for k, v in case["truth"].items() if k != "waviness_order"}
+    # what no candidate models (a bump, a pit) or registration takes (a stretch)
+    truth = {k: v for k, v in case["truth"].items()
+             if k != "waviness_order" and not k.startswith("unmodelled_")
+             and k != "lateral_stretch"}
     if not truth:
         return "OK" if not accepted else "FALSE CLAIM %s" % [a[0] for a in accepted]
     texts = []
@@ -243,10 +290,12 @@ def main():
     m.add_argument("--count", type=int, default=12)
     m.add_argument("--prefix", default="p")
     m.add_argument("--dir", default=".")
-    m.add_argument("--effects", choices=["setup", "wide", "all"], default="setup",
+    m.add_argument("--effects", choices=["setup", "wide", "all", "unmodelled"], default="setup",
                    help="setup: one set-up effect or none (batches p-s); wide: also a "
                         "waviness and two pairs; all: also a nose-radius error, alone and "
-                        "beside a centre height")
+                        "beside a centre height; unmodelled: a bump or pit on one side "
+                        "(nothing may be claimed for it) or a lateral stretch of 0.3-1 %%, "
+                        "alone or beside a set-up effect")
     s = sub.add_parser("score")
     s.add_argument("--prefix", default="p")
     s.add_argument("--dir", default=".")
