@@ -123,6 +123,41 @@ fn axis_and_sigma(d: &serde_json::Value) -> (f64, f64) {
     )
 }
 
+/// The reported lateral scale and its σ.
+fn scale_and_sigma(d: &serde_json::Value) -> (f64, f64) {
+    let r = &d["registration"];
+    (
+        r["lateral_scale"].as_f64().unwrap(),
+        r["lateral_scale_sigma"].as_f64().unwrap(),
+    )
+}
+
+/// Nothing accepted.
+fn assert_none_accepted(d: &serde_json::Value) {
+    assert!(
+        d["accepted"].as_array().unwrap().is_empty(),
+        "verdict: {}",
+        d["verdict"]["sentence"]
+    );
+}
+
+/// Nothing accepted, and the verdict says so with `status`.
+fn assert_nothing_claimed(d: &serde_json::Value, status: &str) {
+    assert_status(d, status);
+    assert_none_accepted(d);
+}
+
+/// A fit-check finding whose message holds `fragment`; `what` says what it shows.
+fn assert_finding(d: &serde_json::Value, fragment: &str, what: &str) {
+    let findings = d["fit_check"]["findings"].as_array().unwrap();
+    assert!(
+        findings
+            .iter()
+            .any(|f| f["message"].as_str().unwrap().contains(fragment)),
+        "{what}: {findings:?}"
+    );
+}
+
 fn assert_axis(d: &serde_json::Value, file_x_mm: f64) {
     let (axis, _) = axis_and_sigma(d);
     assert!(
@@ -150,12 +185,10 @@ fn a_decentre_on_a_form_removed_profile_is_found_not_refused() {
     // The generator's +2 µm: the tool stops short of the axis.
     assert_sized(accepted(&d, "x_decentre"), 2.0);
     assert_axis(&d, 0.137);
-    let findings = d["fit_check"]["findings"].as_array().unwrap();
-    assert!(
-        findings
-            .iter()
-            .any(|f| f["message"].as_str().unwrap().contains("set-up error")),
-        "the departure from the form is said to be a set-up error: {findings:?}"
+    assert_finding(
+        &d,
+        "set-up error",
+        "the departure from the form is said to be a set-up error",
     );
 }
 
@@ -172,8 +205,7 @@ fn a_centre_height_boss_on_a_form_removed_profile_is_found_not_refused() {
 #[test]
 fn a_clean_form_removed_profile_shows_no_effect() {
     let d = diagnose("control_form_removed.csv");
-    assert_status(&d, "no_effect_beyond_noise");
-    assert!(d["accepted"].as_array().unwrap().is_empty());
+    assert_nothing_claimed(&d, "no_effect_beyond_noise");
     assert_axis(&d, 0.042);
 }
 
@@ -334,14 +366,12 @@ fn a_boss_beside_a_waviness_near_the_noise_claims_no_proxy() {
 fn an_axis_moved_by_the_fit_is_reported_in_the_files_own_x() {
     let d = diagnose_job("r6_sphere.toml", "control_r6_axis_50um.csv", &[]);
     assert_status(&d, "no_effect_beyond_noise");
-    let r = &d["registration"];
     let (axis, sigma) = axis_and_sigma(&d);
     assert!(
         (axis - 0.050).abs() <= 2.0 * sigma.max(1e-6),
         "axis at {axis} ± {sigma} mm, planted 0.050"
     );
-    let scale = r["lateral_scale"].as_f64().unwrap();
-    let scale_sigma = r["lateral_scale_sigma"].as_f64().unwrap();
+    let (scale, scale_sigma) = scale_and_sigma(&d);
     assert!(
         (scale - 1.0).abs() <= 2.0 * scale_sigma,
         "scale {scale} ± {scale_sigma}, planted 1"
@@ -956,20 +986,14 @@ fn a_decentre_whose_marks_are_lost_in_the_noise_is_placed_by_its_cone() {
 /// is claimed (a stretch claimed as a nose error would spoil the next part), and the
 /// note's Δρ = (s − 1)·R is the planted error within 2σ.
 fn assert_scale_names_the_nose_error(d: &serde_json::Value, radius_mm: f64, truth_um: f64) {
-    assert_eq!(d["accepted"].as_array().unwrap().len(), 0);
+    assert_none_accepted(d);
     let (scale, sigma) = scale_and_sigma(d);
     let (nose, nose_sigma) = ((scale - 1.0) * radius_mm * 1e3, sigma * radius_mm * 1e3);
     assert!(
         (nose - truth_um).abs() < 2.0 * nose_sigma,
         "scale {scale} ± {sigma}: nose {nose:.2} ± {nose_sigma:.2} µm for {truth_um}"
     );
-    let findings = d["fit_check"]["findings"].as_array().unwrap();
-    assert!(
-        findings
-            .iter()
-            .any(|f| f["message"].as_str().unwrap().contains("--fixed-scale")),
-        "the note names the scale's look-alike: {findings:?}"
-    );
+    assert_finding(d, "--fixed-scale", "the note names the scale's look-alike");
 }
 
 /// Form removed, a nose radius 14.8 µm over its 0.2 mm nominal on an R5 sphere, 3 nm RMS
@@ -1024,25 +1048,10 @@ fn a_waviness_that_two_tied_explanations_share_is_claimed() {
     assert_axis(&d, 0.015);
 }
 
-/// The reported lateral scale and its σ.
-fn scale_and_sigma(d: &serde_json::Value) -> (f64, f64) {
-    let r = &d["registration"];
-    (
-        r["lateral_scale"].as_f64().unwrap(),
-        r["lateral_scale_sigma"].as_f64().unwrap(),
-    )
-}
-
-/// Nothing accepted, and the verdict says so with `status`.
-fn assert_nothing_claimed(d: &serde_json::Value, status: &str) {
-    assert_status(d, status);
-    assert_eq!(d["accepted"].as_array().unwrap().len(), 0);
-}
-
 /// An R12 sphere (0.5 mm nose, 3 µm/rev: marks 2.3 nm deep, 0.5 nm of noise) read with
 /// the instrument's lateral calibration 0.57 % long, the diameter's ends sloping 0.14
 /// (`lateral_stretch_0.57pct_r12_nose05_feed3.csv`). The marks' high-pass lagged the
-/// form by ~0.16 µm at the file's ends (the model's trace runs on past them), so the
+/// form by ~0.15 µm at the file's ends (the model's trace runs on past them), so the
 /// placement that pushed an end off the part won, and the scale went unsearched: a
 /// nose radius −68 µm off was claimed. The scale is the instrument's: 1/1.0057.
 #[test]

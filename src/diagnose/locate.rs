@@ -562,7 +562,7 @@ fn marks_stand_out(
 /// A compact feature of the profile far out of its noise (a boss or a cone at the
 /// axis): where along the line its centre lies, and how far around it to look for the
 /// axis (mm). The profile's points [`FEATURE_CUTOFF_MM`] high-passed, less their median,
-/// a cutoff in from either end (where the filter's one-sided mean lags the form); the
+/// a cutoff in from either end (where the filter sees one side only); the
 /// feature is the points above half the largest |value| (of its sign), at least two,
 /// spanning at most [`FEATURE_SHARE`] of the profile, the peak at least
 /// [`FEATURE_SIGMAS`] times the white noise `noise_mm`.

@@ -203,8 +203,9 @@ pub fn gaussian_lowpass_line(x: &[f64], values: &[f64], cutoff_mm: f64) -> Vec<f
 /// correction): at each point the Gaussian-weighted straight line through its
 /// neighbours (NaN gaps left out). A sloped profile keeps its level up to its ends and
 /// gaps, where the normalised convolution bends toward the inside by the slope times a
-/// fraction of the filter's width (160 nm at the end of a sphere's trace sloping 0.14,
-/// high-passed at 7.5 µm: more than the tool marks that place it).
+/// fraction of the filter's width (0.14 × 1.04 µm ≈ 150 nm at the end of a sphere's
+/// trace sloping 0.14, points 0.25 µm apart, high-passed at 7.5 µm: more than the tool
+/// marks that place it).
 pub fn gaussian_regression_line(x: &[f64], values: &[f64], cutoff_mm: f64) -> Vec<f64> {
     gaussian_line(x, values, cutoff_mm, true)
 }

@@ -91,12 +91,14 @@ def draw_one(rng, kind):
     if kind in ("bump", "pit"):
         # a local defect on one side of the axis, no modelled effect: a bump (swarf
         # welded on, a ridge) tens of um wide, or a dig a few um wide
-        wide = kind == "bump"
-        sign = rng.choice([-1, 1]) if wide else -1
+        if kind == "bump":
+            amplitude = round(rng.choice([-1, 1]) * rng.uniform(20, 80))
+            sigma = round(rng.uniform(15, 80), 1)
+        else:
+            amplitude = round(-rng.uniform(30, 100))
+            sigma = round(rng.uniform(2, 5), 1)
         return [], {"unmodelled_" + kind: {
-            "amplitude_nm": round(sign * rng.uniform(20, 80) if wide else -rng.uniform(30, 100)),
-            "sigma_um": round(rng.uniform(15, 80) if wide else rng.uniform(2, 5), 1),
-            "at": round(rng.uniform(0.1, 0.9), 3)}}
+            "amplitude_nm": amplitude, "sigma_um": sigma, "at": round(rng.uniform(0.1, 0.9), 3)}}
     if kind == "scale":
         # the instrument's lateral calibration off by 0.3-1 %: file x = true x (1 + e)
         e = round(rng.choice([-1, 1]) * rng.uniform(0.003, 0.01), 4)
