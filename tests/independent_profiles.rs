@@ -1141,3 +1141,98 @@ fn a_bump_as_strong_as_a_weak_form_is_unexplained_not_another_part() {
         "axis {axis} ± {sigma} mm, planted 0.064"
     );
 }
+
+/// Cut 1021's family from code written apart from toolmark
+/// (`tests/independent/nc_turned_profile.py`): a bare `C X Z` spiral program for the
+/// 0.191 mm arc over an R10.8 bowl whose feed falls from 24 µm/rev at 0.6 mm to 14 at
+/// the axis, measured as a white-light line (0.871 µm pixels, blank pixels at both ends,
+/// the axis inside it, the azimuth not told, 3 nm of noise). The job is `from_path`, as
+/// a user of a real program writes it.
+const SPIRAL_JOB: &str = "spiral_feed_14_24um_bowl.toml";
+
+/// The median over the comparison's radius bands of the measured over the simulated
+/// local mark spacing.
+fn median_mark_spacing_ratio(d: &serde_json::Value) -> f64 {
+    let mut ratios: Vec<f64> = d["comparison"]["mark_spacing"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["measured_um"].as_f64().unwrap() / b["simulated_um"].as_f64().unwrap())
+        .collect();
+    assert!(ratios.len() >= 3, "bands: {ratios:?}");
+    ratios.sort_by(f64::total_cmp);
+    ratios[ratios.len() / 2]
+}
+
+/// The bounds for a good cut of the family: the nominal prediction's PV within
+/// 15 % of the measured one, the local mark spacing within 2 % (median over bands).
+/// Measured on the control: PV 284.3 against 286.8 nm, spacing ratio 1.0001.
+#[test]
+fn a_spiral_program_whose_feed_varies_is_placed_and_compared_band_by_band() {
+    let d = diagnose_job(
+        SPIRAL_JOB,
+        "spiral_feed_14_24um_control.csv",
+        &["--remove-power"],
+    );
+    assert_nothing_claimed(&d, "no_effect_beyond_noise");
+    assert_axis(&d, 0.526);
+    let c = &d["comparison"];
+    let (measured, simulated) = (
+        c["measured"]["pv_nm"].as_f64().unwrap(),
+        c["simulated"]["pv_nm"].as_f64().unwrap(),
+    );
+    assert!(
+        (simulated / measured - 1.0).abs() < 0.15,
+        "PV {simulated} nm simulated, {measured} nm measured"
+    );
+    let ratio = median_mark_spacing_ratio(&d);
+    assert!((ratio - 1.0).abs() < 0.02, "mark spacing ratio {ratio}");
+}
+
+/// The same program, the tool stopping 2.4 µm short of the axis: found within 2σ and
+/// 10 % (2.406 ± 0.082 µm), the axis where the generator put it (file x 0.450 mm).
+#[test]
+fn a_decentre_on_a_spiral_program_whose_feed_varies_is_found() {
+    let d = diagnose_job(
+        SPIRAL_JOB,
+        "spiral_feed_14_24um_decentre_+2.4um.csv",
+        &["--remove-power"],
+    );
+    assert_status(&d, "effects_found");
+    assert_sized(accepted(&d, "x_decentre"), 2.4);
+    assert_axis(&d, 0.450);
+}
+
+/// The same program, the tool 2.6 µm below centre (an uncut boss of the 3 µm stock):
+/// found to its boss's edge (2.61 ± 0.44 µm), the axis at file x 0.600 mm.
+#[test]
+fn a_boss_on_a_spiral_program_whose_feed_varies_is_found_below_centre() {
+    let d = diagnose_job(
+        SPIRAL_JOB,
+        "spiral_feed_14_24um_centre_height_-2.6um.csv",
+        &["--remove-power"],
+    );
+    assert_status(&d, "effects_found");
+    accepted(&d, "centre_height");
+    assert_boss(&d, -2.6);
+    assert_axis(&d, 0.600);
+}
+
+/// The same program, the tool 3.3 µm above centre (the flank's cone), the line reaching
+/// 5 µm past the radius where the program's second revolution starts (the `from_path`
+/// part's rim): at the true axis it loses a few points there, and the axis comb had
+/// judged only the teeth that lose none — the tooth half a mark in, half a turn round,
+/// won, and the cone was never seen (`unexplained_residual`, the axis 8.8 µm off). Each
+/// lost point now costs the tooth four times the mean square of those it keeps: found
+/// (3.301 ± 0.095 µm), the axis where the generator put it.
+#[test]
+fn a_cone_on_a_line_reaching_the_programs_rim_is_found_above_centre() {
+    let d = diagnose_job(
+        SPIRAL_JOB,
+        "spiral_feed_14_24um_centre_height_+3.3um_to_the_rim.csv",
+        &["--remove-power"],
+    );
+    assert_status(&d, "effects_found");
+    assert_sized(accepted(&d, "centre_height"), 3.3);
+    assert_axis(&d, 0.652);
+}

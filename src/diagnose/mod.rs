@@ -413,7 +413,7 @@ fn search_and_settle<'a>(
     let rival_axes = rival_axes(&found, contenders, &ambiguous);
     if fitted.is_line() && check.fits {
         refine_reported(problem, &mut found, log)?;
-        withdraw_if_not_significant(&mut found, log);
+        withdraw_if_not_significant(problem, &mut found, log)?;
     }
     Ok(Settled {
         found,
@@ -1053,22 +1053,57 @@ fn refine_reported(
 
 /// An accepted effect whose σ the finer rings widened (each σ is at least the move
 /// between the two pitches' fits) until it no longer stands 3σ from zero is the forward
-/// model's resolution, not the part's: the accepted set is withdrawn.
-fn withdraw_if_not_significant(found: &mut Search, log: &dyn Fn(&str)) {
-    let Some(accepted) = &found.accepted else {
-        return;
-    };
-    let doubtful: Vec<Candidate> = accepted
-        .effect_members()
-        .into_iter()
-        .filter(|&m| !search::significant(accepted, m))
-        .map(|m| accepted.set[m])
-        .collect();
-    if doubtful.is_empty() {
-        return;
+/// model's resolution, not the part's: it is withdrawn. What the search had accepted
+/// before adding it (its last step without the doubtful effects) stands again, refined
+/// and judged alike: a centre height that predicted both sides of the axis is not lost
+/// with a partner the finer rings do not bear out.
+fn withdraw_if_not_significant(
+    problem: &mut Problem,
+    found: &mut Search,
+    log: &dyn Fn(&str),
+) -> Result<(), ForwardError> {
+    while let Some(accepted) = &found.accepted {
+        let doubtful: Vec<Candidate> = accepted
+            .effect_members()
+            .into_iter()
+            .filter(|&m| !search::significant(accepted, m))
+            .map(|m| accepted.set[m])
+            .collect();
+        if doubtful.is_empty() {
+            return Ok(());
+        }
+        let earlier = earlier_step_without(found, accepted, &doubtful);
+        let why = "fitted again on rings half as far apart, it lies within 3σ of zero";
+        withdraw(found, &doubtful, why, log);
+        let Some(index) = earlier else {
+            return Ok(());
+        };
+        found.steps.truncate(index + 1);
+        let mut fit = found.steps[index].clone();
+        log(&format!(
+            "{} stands again, as accepted before",
+            search::labels(&fit.effects())
+        ));
+        problem.shift = fit.frame;
+        problem.clear_cache();
+        problem.refine_on_finer_rings(&mut fit)?;
+        problem.widen_by_order_profile(&mut fit)?;
+        found.accepted = Some(fit);
     }
-    let why = "fitted again on rings half as far apart, it lies within 3σ of zero";
-    withdraw(found, &doubtful, why, log);
+    Ok(())
+}
+
+/// The index of the last step of the search whose effects `accepted` holds, none of
+/// `doubtful` among them, and at least one.
+fn earlier_step_without(found: &Search, accepted: &Fit, doubtful: &[Candidate]) -> Option<usize> {
+    let held = accepted.effects();
+    found.steps.iter().rposition(|step| {
+        let effects = step.effects();
+        !effects.is_empty()
+            && effects
+                .iter()
+                .all(|c| held.contains(c) && !doubtful.contains(c))
+    })
 }
 
 /// Withdraws the accepted set, `why` given first in `refused` for each of `members`.

@@ -27,6 +27,16 @@ axis up to 300 um off the field's middle, one set-up effect, a waviness or nothi
       --measured $n --pixel-um $(cat ${n%.csv}.pixel_um) --lateral-unit um --height-unit um \
       --remove-power --out ${n%.csv}.out; done
   python3 random_batch.py score-maps --dir DIR --prefix p
+
+Cut 1021's family (`nc_turned_profile.py`: a spiral C-X-Z program for the 0.191 mm arc
+whose feed varies with radius, over a bowl or a dome, R 5-30 mm, conic or sphere; a
+white-light line through the axis, 0.871 um pixels, 300-700 um into the file; one
+set-up effect or nothing). Each case writes its own program and `from_path` job:
+
+  python3 random_batch.py make-spirals --seed 51 --count 12 --prefix a --dir DIR
+  for n in DIR/a*.toml; do toolmark diagnose --job $n --measured ${n%.toml}.csv \
+      --lateral-unit um --height-unit um --remove-power --out ${n%.toml}.out; done
+  python3 random_batch.py score --dir DIR --prefix a
 """
 import argparse
 import json
@@ -38,6 +48,7 @@ import sys
 
 GENERATOR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "turned_sphere_profile.py")
 MAP_GENERATOR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "turned_sphere_map.py")
+SPIRAL_GENERATOR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "nc_turned_profile.py")
 
 JOB = """version = 1
 name = "random {name}"
@@ -272,6 +283,44 @@ def make_maps(args):
         json.dump(cases, f, indent=1)
 
 
+def make_spirals(args):
+    """Spiral programs of cut 1021's family, one set-up effect each (h, d, drift or none)."""
+    rng = random.Random(args.seed)
+    os.makedirs(args.dir, exist_ok=True)
+    cases = []
+    for i in range(args.count):
+        name = "%s%02d" % (args.prefix, i)
+        kind = rng.choice(["none", "h", "d", "drift", "h", "d"])
+        options = ["--radius-mm", "%.2f" % rng.uniform(5, 30),
+                   "--conic", "%.3f" % rng.choice([0, 0, rng.uniform(-1, 1)]),
+                   "--nose-mm", "%.3f" % rng.choice([0.191, 0.191, rng.uniform(0.1, 0.5)]),
+                   "--feed-axis-um", "%.1f" % rng.uniform(10, 30),
+                   "--feed-rim-um", "%.1f" % rng.uniform(10, 40),
+                   "--axis-um", "%.1f" % rng.uniform(300, 700), "--phi", "%.3f" % rng.random(),
+                   "--noise-nm", "%.1f" % rng.uniform(1, 5), "--seed", str(args.seed * 100 + i)]
+        if rng.random() < 0.3:
+            options.append("--dome")
+        truth = {}
+        if kind == "h":
+            v = round(rng.choice([-1, 1]) * rng.uniform(1, 5), 2)
+            options += ["--h-um", "%.2f" % v]
+            truth["centre_height"] = v
+        elif kind == "d":
+            v = round(rng.choice([-1, 1]) * rng.uniform(1, 4), 2)
+            options += ["--d-um", "%.2f" % v]
+            truth["x_decentre"] = v
+        elif kind == "drift":
+            v = round(rng.choice([-1, 1]) * rng.uniform(100, 400))
+            options += ["--drift-nm", "%d" % v]
+            truth["axial_drift"] = v
+        subprocess.run([sys.executable, SPIRAL_GENERATOR, "--out-dir", args.dir, "--name", name]
+                       + options, check=True)
+        axis = float(options[options.index("--axis-um") + 1])
+        cases.append({"name": name, "truth": truth, "axis_um": axis, "options": options})
+    with open(os.path.join(args.dir, args.prefix + "cases.json"), "w") as f:
+        json.dump(cases, f, indent=1)
+
+
 def score_maps(args):
     for c, d in diagnosed(args):
         r = d["registration"]
@@ -309,8 +358,14 @@ def main():
     sm = sub.add_parser("score-maps")
     sm.add_argument("--prefix", default="p")
     sm.add_argument("--dir", default=".")
+    ms = sub.add_parser("make-spirals")
+    ms.add_argument("--seed", type=int, required=True)
+    ms.add_argument("--count", type=int, default=12)
+    ms.add_argument("--prefix", default="a")
+    ms.add_argument("--dir", default=".")
     args = ap.parse_args()
-    {"make": make, "score": score, "make-maps": make_maps, "score-maps": score_maps}[args.what](args)
+    {"make": make, "score": score, "make-maps": make_maps, "score-maps": score_maps,
+     "make-spirals": make_spirals}[args.what](args)
 
 
 if __name__ == "__main__":
