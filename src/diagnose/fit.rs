@@ -500,6 +500,13 @@ impl<'a, 'e> Problem<'a, 'e> {
         self.cache.clear();
     }
 
+    /// Places every trial from now on by `shift`'s search; the cached trials, placed by
+    /// the search before, are forgotten.
+    pub fn search_from(&mut self, shift: ShiftSearch) {
+        self.shift = shift;
+        self.clear_cache();
+    }
+
     /// Judges fits on the points where `mask` holds (None: all); returns the mask in
     /// force before.
     pub fn judge_on(&mut self, mask: Option<Arc<Vec<bool>>>) -> Option<Arc<Vec<bool>>> {
@@ -838,8 +845,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         let own = std::mem::replace(&mut self.shift, frame);
         self.clear_cache();
         let fit = self.fit(set, start, &[]);
-        self.shift = own;
-        self.clear_cache();
+        self.search_from(own);
         fit
     }
 

@@ -1020,8 +1020,7 @@ fn shrink_step(model: &str, residual: &[f64], radii: &[f64], zones: &Zones) -> S
 }
 
 /// The fits whose values the report states — the accepted set and the candidate
-/// ranked first — refitted on rings half as far apart ([`Problem::refine_on_finer_rings`]),
-/// a waviness order's σ widened to its profile ([`Problem::widen_by_order_profile`]).
+/// ranked first — refined as reported ([`refine_as_reported`]).
 fn refine_reported(
     problem: &mut Problem,
     found: &mut Search,
@@ -1029,8 +1028,7 @@ fn refine_reported(
 ) -> Result<(), ForwardError> {
     log("refitting what is reported on rings half as far apart");
     if let Some(fit) = found.accepted.as_mut() {
-        problem.refine_on_finer_rings(fit)?;
-        problem.widen_by_order_profile(fit)?;
+        refine_as_reported(problem, fit)?;
     }
     let Some((first, _)) = found.singles.first_mut() else {
         return Ok(());
@@ -1044,11 +1042,16 @@ fn refine_reported(
             first.order_sigmas.clone_from(&accepted.order_sigmas);
             Ok(())
         }
-        _ => {
-            problem.refine_on_finer_rings(first)?;
-            problem.widen_by_order_profile(first)
-        }
+        _ => refine_as_reported(problem, first),
     }
+}
+
+/// `fit` as the report states it: refitted on rings half as far apart
+/// ([`Problem::refine_on_finer_rings`]), a waviness order's σ widened to its profile
+/// ([`Problem::widen_by_order_profile`]).
+fn refine_as_reported(problem: &mut Problem, fit: &mut Fit) -> Result<(), ForwardError> {
+    problem.refine_on_finer_rings(fit)?;
+    problem.widen_by_order_profile(fit)
 }
 
 /// An accepted effect whose σ the finer rings widened (each σ is at least the move
@@ -1084,10 +1087,8 @@ fn withdraw_if_not_significant(
             "{} stands again, as accepted before",
             search::labels(&fit.effects())
         ));
-        problem.shift = fit.frame;
-        problem.clear_cache();
-        problem.refine_on_finer_rings(&mut fit)?;
-        problem.widen_by_order_profile(&mut fit)?;
+        problem.search_from(fit.frame);
+        refine_as_reported(problem, &mut fit)?;
         found.accepted = Some(fit);
     }
     Ok(())
@@ -1344,8 +1345,7 @@ fn judge_held_out(
     let m = problem.measurement;
     let held: Vec<usize> = (0..m.len()).filter(|&i| !calibration[i]).collect();
     let mut residual = |f: &Fit| -> Result<Vec<f64>, DiagnoseError> {
-        problem.shift = f.frame;
-        problem.clear_cache();
+        problem.search_from(f.frame);
         let e = problem.evaluate(&f.set, &f.values)?;
         Ok(held.iter().map(|&i| e.registered.residual_mm[i]).collect())
     };

@@ -204,6 +204,22 @@ pub fn register_beside(
     }
 }
 
+/// The points every one of `simulations` (each `len` long) keeps on the part.
+fn kept_by_all<'s>(simulations: impl Iterator<Item = &'s [f64]> + Clone, len: usize) -> Vec<bool> {
+    (0..len)
+        .map(|i| simulations.clone().all(|s| s[i].is_finite()))
+        .collect()
+}
+
+/// `simulated` with the points `keep` does not hold left out (NaN) of a fit.
+fn only_where(simulated: &[f64], keep: &[bool]) -> Vec<f64> {
+    simulated
+        .iter()
+        .zip(keep)
+        .map(|(v, keep)| if *keep { *v } else { f64::NAN })
+        .collect()
+}
+
 /// A comb's tooth as [`register_on_comb`] reads it: its number, axis position, the
 /// simulation at the subsample's points, and (Σr², points used) judged alone.
 type Tooth = (i64, DVec2, Vec<f64>, (f64, usize));
@@ -258,9 +274,7 @@ fn register_on_comb(
         .filter(|(_, l)| **l == fewest)
         .map(|(t, _)| t)
         .collect();
-    let everywhere: Vec<bool> = (0..coarse.len())
-        .map(|i| best_covered.iter().all(|t| t.2[i].is_finite()))
-        .collect();
+    let everywhere = kept_by_all(best_covered.iter().map(|t| t.2.as_slice()), coarse.len());
     // A tooth that loses more is judged alone, paying for each point beyond the fewest.
     let scores: Vec<(f64, i64)> = teeth
         .par_iter()
@@ -274,11 +288,7 @@ fn register_on_comb(
                     *n,
                 );
             }
-            let common: Vec<f64> = simulated
-                .iter()
-                .zip(&everywhere)
-                .map(|(v, keep)| if *keep { *v } else { f64::NAN })
-                .collect();
+            let common = only_where(simulated, &everywhere);
             (line_rss(&coarse, &common, *shift, terms.power).0, *n)
         })
         .collect();
@@ -336,14 +346,9 @@ pub fn axis_sigma_mm(
             sim.sample(judged, Frame::at(shift).mirrored(best.mirrored)),
         )
     });
-    let kept: Vec<bool> = (0..judged.len())
-        .map(|i| sampled.iter().all(|(_, s)| s[i].is_finite()))
-        .collect();
+    let kept = kept_by_all(sampled.iter().map(|(_, s)| s.as_slice()), judged.len());
     let [centre, ahead, behind] = sampled.map(|(shift, simulated)| {
-        let common: Vec<f64> = (0..simulated.len())
-            .map(|i| if kept[i] { simulated[i] } else { f64::NAN })
-            .collect();
-        fit_linear(judged, &common, shift, terms.power).rss
+        fit_linear(judged, &only_where(&simulated, &kept), shift, terms.power).rss
     });
     let curvature = (ahead + behind - 2.0 * centre) / (h * h);
     let marks = if curvature > 0.0 && curvature.is_finite() {

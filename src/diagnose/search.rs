@@ -104,8 +104,7 @@ pub fn search<'a>(
                 log("what is accepted leaves white noise alone: no further effect looked for");
                 break;
             }
-            problem.shift = current.frame;
-            problem.clear_cache();
+            problem.search_from(current.frame);
         }
         // The singles were judged against the job as given: where what is accepted took
         // most of that residual (a boss) and leaves more than noise, it hid what the
@@ -264,8 +263,7 @@ fn fit_singles(
         .iter()
         .min_by(|a, b| a.objective.total_cmp(&b.objective))
     {
-        problem.shift = best.frame;
-        problem.clear_cache();
+        problem.search_from(best.frame);
     }
     let (rss0, k0) = (base.objective, base.parameter_count());
     let n_eff = common_effective_points(&fits, problem, fitted)?;
@@ -330,8 +328,7 @@ fn rival_pair<'a>(
     let fitted = problem.measurement;
     let mut best: Option<(Fit, f64, Fit)> = None;
     for rival in &rivals {
-        problem.shift = rival.frame;
-        problem.clear_cache();
+        problem.search_from(rival.frame);
         for pair in greedy_round(problem, &found.singles, rival, job, fitted, log)? {
             let gain = evidence(
                 current.objective,
@@ -344,8 +341,7 @@ fn rival_pair<'a>(
             }
         }
     }
-    problem.shift = current.frame;
-    problem.clear_cache();
+    problem.search_from(current.frame);
     let Some((mut pair, gain, rival)) = best else {
         return Ok(None);
     };
@@ -671,8 +667,7 @@ fn widen_for_look_alikes(
     };
     let fitted = problem.measurement;
     let orders = OrderRange::new(job, fitted);
-    problem.shift = accepted.frame;
-    problem.clear_cache();
+    problem.search_from(accepted.frame);
     for member in accepted.effect_members() {
         let Some((own, own_evidence)) = single_of(&found.singles, accepted.set[member].kind())
         else {
@@ -863,11 +858,9 @@ fn joint_pair<'a>(
         return Ok(None);
     }
     let fitted = problem.measurement;
-    problem.shift = first.frame;
-    problem.clear_cache();
+    problem.search_from(first.frame);
     let round = partners_round(problem, &found.singles, first, (job, fitted), true, log)?;
-    problem.shift = current.frame;
-    problem.clear_cache();
+    problem.search_from(current.frame);
     let Some(mut pair) = round
         .into_iter()
         .min_by(|a, b| a.objective.total_cmp(&b.objective))
@@ -1406,8 +1399,7 @@ fn refit_if_axis_moves(
         "{} moves the axis: registering again and refitting it",
         c.label()
     ));
-    problem.shift = super::local_search(shift, period_mm, problem.shift.comb);
-    problem.clear_cache();
+    problem.search_from(super::local_search(shift, period_mm, problem.shift.comb));
     let refit = problem.fit(&fit.set, values, &[])?;
     let mut refit = match fit_new(problem, &base.set, &base.values, c, job, fitted)? {
         Some(r) if r.objective < refit.objective => r,
@@ -1446,12 +1438,10 @@ fn alternate_on_field(
             break;
         }
         let kept = problem.shift;
-        problem.shift = super::local_search(again.shift_mm, period_mm, kept.comb);
-        problem.clear_cache();
+        problem.search_from(super::local_search(again.shift_mm, period_mm, kept.comb));
         let next = problem.fit(&fit.set, fit.values.clone(), &[])?;
         if next.objective >= fit.objective {
-            problem.shift = kept;
-            problem.clear_cache();
+            problem.search_from(kept);
             break;
         }
         fit = next;

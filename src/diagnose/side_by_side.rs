@@ -109,7 +109,6 @@ fn afresh<'a, 'e, R>(
 ) -> R {
     let shift = problem.shift;
     let out = work(problem);
-    problem.shift = shift;
-    problem.clear_cache();
+    problem.search_from(shift);
     out
 }
