@@ -806,6 +806,36 @@ impl<'a, 'e> Problem<'a, 'e> {
         Ok(0.5 * (a - b).abs() / stretch)
     }
 
+    /// How far a diameter's axis moves (mm, in the placed measurement's frame) when the
+    /// points within `clear_mm` of it are left out and the rest re-registered beside
+    /// `fit`'s placement with `fit`'s model: what the centre alone pulls. A model's cone or
+    /// boss at the axis never matches a part's exactly (the flank, the spiral's end), and
+    /// the mismatch moves the axis by more than the marks' σ allows (independent spiral
+    /// batch d: a +4.96 µm centre height's cone put the axis 55 nm off at ± 5 nm; the marks
+    /// beyond 25 µm put it 3 nm off).
+    pub fn axis_pull_of_centre_mm(
+        &mut self,
+        fit: &Fit,
+        clear_mm: f64,
+    ) -> Result<f64, ForwardError> {
+        let sim = self.simulation(&fit.set, &fit.values)?;
+        let stretch = stretch_of(&fit.set, &fit.values);
+        let stretched = stretched(self.measurement, stretch);
+        let best = &fit.evaluation.registered;
+        let away = stretched.subset(|i| (stretched.xy_mm[i] - best.shift_mm).length() > clear_mm);
+        let moved = register_beside(&away, &sim, self.terms, fit.frame, best);
+        let along = (moved.shift_mm - best.shift_mm).dot(stretched.line_direction());
+        Ok(along.abs() / stretch)
+    }
+
+    /// The radius of `fit`'s centre-height feature (its boss or cone, mm), 0 without one.
+    pub fn centre_feature_radius_mm(fit: &Fit) -> f64 {
+        member_parameters(&fit.set, |c| *c == Candidate::CentreHeight)
+            .into_iter()
+            .map(|j| fit.values[j].abs() * 1e-3)
+            .fold(0.0, f64::max)
+    }
+
     /// Makes room for `coming` simulations among those kept.
     fn forget_simulations(&mut self, coming: usize) {
         if self.simulations.len() + coming > SIMULATIONS_KEPT {

@@ -834,8 +834,15 @@ const MAX_TEETH: usize = 400;
 /// The far teeth lie at least this many of the near teeth's steps apart.
 const FAR_STEPS: f64 = 4.0;
 
+/// A diameter's axis is also placed without the centre: the points within the fit's
+/// centre-height feature and this many marks of it left out.
+const CENTRE_MARKS: f64 = 2.0;
+
 /// One σ of a line's axis where the final model put it: what its fit left open (the
-/// azimuth held; the comb's aliases in). On a radius whose marks placed it, the marks
+/// azimuth held; the comb's aliases in). On a diameter whose marks placed it, the move
+/// of the axis when the centre is left out ([`CENTRE_MARKS`],
+/// [`fit::Problem::axis_pull_of_centre_mm`]: the model's error at the axis) is added in
+/// quadrature. On a radius whose marks placed it, the marks
 /// let the azimuth trade with the axis, which that fit cannot see: there the
 /// placement's own σ (the azimuth free) and the final fit's move from the placement
 /// (the marks alone against the whole model: model error) are added in quadrature. A
@@ -851,7 +858,12 @@ fn line_axis_sigma_mm(
 ) -> Result<f64, DiagnoseError> {
     let held = problem.axis_sigma_mm(final_fit)? / located.frame.scale;
     if located.crosses_axis(m) {
-        return Ok(held);
+        let Some(mark) = located.marks_mm else {
+            return Ok(held);
+        };
+        let clear = fit::Problem::centre_feature_radius_mm(final_fit) + CENTRE_MARKS * mark;
+        let pulled = problem.axis_pull_of_centre_mm(final_fit, clear)? / located.frame.scale;
+        return Ok(held.hypot(pulled));
     }
     let placement = located.marks_mm.map_or(0.0, |_| located.sigma_shift_mm[0]);
     let moved = final_fit.evaluation.registered.shift_mm.length() / located.frame.scale;
