@@ -1408,6 +1408,19 @@ fn refit_if_axis_moves(
     if let Some((field, _)) = unresolved_map {
         refit = alternate_on_field(problem, refit, field, (period_mm, job, fitted))?;
     }
+    // A harmonic's order was screened where the axis lay before: screened again where
+    // it has settled (independent map batch m, m03: an order-45 edge waviness screened
+    // at the nominal placement came back as order 58.7, and a second order, 34.6, was
+    // accepted for what it missed; screened at the axis its own fit settled on, 45.0).
+    if c.order().is_some() {
+        problem.search_from(refit.frame);
+        let fresh = c.with_order(0.0);
+        if let Some(again) = fit_new(problem, &base.set, &base.values, fresh, job, fitted)?
+            && again.objective < refit.objective
+        {
+            refit = again;
+        }
+    }
     Ok(if refit.objective < fit.objective {
         refit
     } else {
