@@ -727,12 +727,21 @@ impl<'a, 'e> Problem<'a, 'e> {
         ))
     }
 
+    /// `fit`'s simulation, its lateral stretch, and the measurement read at that stretch:
+    /// what each of the axis σs below judges the fit's placement on.
+    fn as_fitted(
+        &mut self,
+        fit: &Fit,
+    ) -> Result<(Arc<SimulatedSurface>, f64, Measurement), ForwardError> {
+        let sim = self.simulation(&fit.set, &fit.values)?;
+        let stretch = stretch_of(&fit.set, &fit.values);
+        Ok((sim, stretch, stretched(self.measurement, stretch)))
+    }
+
     /// One σ of a line's axis position in `fit` (mm, in the placed measurement's frame):
     /// see [`super::register::axis_sigma_mm`].
     pub fn axis_sigma_mm(&mut self, fit: &Fit) -> Result<f64, ForwardError> {
-        let sim = self.simulation(&fit.set, &fit.values)?;
-        let stretch = stretch_of(&fit.set, &fit.values);
-        let stretched = stretched(self.measurement, stretch);
+        let (sim, stretch, stretched) = self.as_fitted(fit)?;
         let sigma = super::register::axis_sigma_mm(
             &stretched,
             &sim,
@@ -754,9 +763,7 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// form) places the halves apart (random map p04: an order-18 edge waviness refused,
     /// the axis 55 µm off at ± 2.5 µm).
     pub fn map_axis_sigmas_mm(&mut self, fit: &Fit) -> Result<[f64; 2], ForwardError> {
-        let sim = self.simulation(&fit.set, &fit.values)?;
-        let stretch = stretch_of(&fit.set, &fit.values);
-        let stretched = stretched(self.measurement, stretch);
+        let (sim, stretch, stretched) = self.as_fitted(fit)?;
         let start = fit.evaluation.registered.shift_mm;
         let linear =
             super::locate::map_sigmas(&stretched, &sim, Frame::at(start), self.terms.power, false);
@@ -789,9 +796,7 @@ impl<'a, 'e> Problem<'a, 'e> {
     /// disagree by it. (More segments were tried: a segment without the feature that
     /// pins the axis wanders by whole teeth, and the spread with it.)
     pub fn axis_split_mm(&mut self, fit: &Fit) -> Result<f64, ForwardError> {
-        let sim = self.simulation(&fit.set, &fit.values)?;
-        let stretch = stretch_of(&fit.set, &fit.values);
-        let stretched = stretched(self.measurement, stretch);
+        let (sim, stretch, stretched) = self.as_fitted(fit)?;
         let mut along = stretched.along_mm.clone();
         along.sort_by(f64::total_cmp);
         let middle = along[along.len() / 2];
@@ -818,9 +823,7 @@ impl<'a, 'e> Problem<'a, 'e> {
         fit: &Fit,
         clear_mm: f64,
     ) -> Result<f64, ForwardError> {
-        let sim = self.simulation(&fit.set, &fit.values)?;
-        let stretch = stretch_of(&fit.set, &fit.values);
-        let stretched = stretched(self.measurement, stretch);
+        let (sim, stretch, stretched) = self.as_fitted(fit)?;
         let best = &fit.evaluation.registered;
         let away = stretched.subset(|i| (stretched.xy_mm[i] - best.shift_mm).length() > clear_mm);
         let moved = register_beside(&away, &sim, self.terms, fit.frame, best);
